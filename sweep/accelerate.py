@@ -1,0 +1,46 @@
+"""Numba policy: the one place where decorator arguments are decided.
+
+Decisions (each tested in ``tests/test_accelerate.py``):
+
+* ``nogil=True`` everywhere, so Dask worker threads can run kernels side by side.
+* ``cache=True`` by default: users rerun the CLI many times and a warm cache saves
+  the compile time. Writing the cache from several processes at once can crash
+  (numba#4807), so the runner compiles in the parent process before any worker
+  starts, and ``SWEEP_NUMBA_CACHE=0`` turns caching off (e.g. on a shared,
+  read-only install).
+* ``fastmath=False``: runaway detection must see NaN and inf (``nnan``/``ninf``
+  would let LLVM assume they never occur).
+* ``error_model="numpy"``: a division by zero gives inf/NaN (a classified
+  outcome), not a Python exception raised from inside a parallel loop.
+* Threads have one owner: on one machine ``prange`` in the parallel grid kernel;
+  under Dask each task calls the serial grid kernel and Dask owns the threads.
+"""
+
+import os
+
+import numba
+
+#: Whether compiled kernels are cached on disk (``SWEEP_NUMBA_CACHE=0`` disables).
+CACHE = os.environ.get("SWEEP_NUMBA_CACHE", "1") != "0"
+
+_COMMON = {"nogil": True, "cache": CACHE, "fastmath": False, "error_model": "numpy"}
+
+prange = numba.prange
+
+
+def jit(func):
+    """Compile a serial kernel with the project's numba policy."""
+    return numba.njit(**_COMMON)(func)
+
+
+def parallel_jit(func):
+    """Compile a kernel whose ``prange`` loop runs on numba's thread pool."""
+    return numba.njit(parallel=True, **_COMMON)(func)
+
+
+def set_threads(n_threads):
+    """Set how many numba threads the parallel kernels use (1 ≤ n ≤ available)."""
+    if n_threads is None:
+        return numba.get_num_threads()
+    numba.set_num_threads(int(n_threads))
+    return int(n_threads)

@@ -1,0 +1,469 @@
+"""YAML run configs: parsed once, validated completely, frozen.
+
+Every problem in a config is collected and reported together, each naming the
+file, the key path, what is allowed and what was found, e.g.::
+
+    configs/bad.yaml: parameters.A must be in (0, inf), got -0.01
+
+Nothing downstream reads raw dicts: it gets a :class:`Config`.
+"""
+
+import math
+import os
+import re
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from .model import MODELS, PARAMETERS, STATE_LAWS, interval_text
+
+METHODS = ("dopri5", "rk4")
+TIME_UNITS = ("D0/V", "s")
+TOP_LEVEL_KEYS = (
+    "name",
+    "description",
+    "blocks",
+    "model",
+    "state_law",
+    "parameters",
+    "sweep",
+    "initial",
+    "integrator",
+    "classification",
+    "output",
+)
+
+
+class _Loader(yaml.SafeLoader):
+    """YAML 1.1 loader that also reads ``1e6`` and ``1.0e-8`` as floats (YAML 1.2 style)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(
+        r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+        |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+        |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+        |[-+]?\.(?:inf|Inf|INF)
+        |\.(?:nan|NaN|NAN))$""",
+        re.X,
+    ),
+    list("-+0123456789."),
+)
+
+
+class ConfigError(ValueError):
+    """A config that cannot be run; ``problems`` lists every reason."""
+
+    def __init__(self, source, problems):
+        self.source = str(source)
+        self.problems = list(problems)
+        super().__init__("\n".join(f"{self.source}: {p}" for p in self.problems))
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One sweep axis: a model parameter (see ``model.PARAMETERS``) and its values."""
+
+    name: str
+    values: tuple
+
+
+@dataclass(frozen=True)
+class Initial:
+    """Initial perturbation, one entry per block.
+
+    ``v_over_V``: slip velocity / load-point velocity; ``phi_over_phi_ss``: state
+    Φ / its steady value D0/V. The spring stretch follows from force balance.
+    """
+
+    v_over_V: tuple
+    phi_over_phi_ss: tuple
+
+
+@dataclass(frozen=True)
+class Integrator:
+    """Integrator settings; times in ``t_unit`` (``"D0/V"`` or ``"s"``)."""
+
+    method: str = "dopri5"
+    rtol: float = 1e-8
+    atol: float = 1e-10
+    dt: float = 0.01  # fixed step of rk4
+    max_step: float = 0.5  # largest dopri5 step
+    t_end: float = 3000.0
+    t_unit: str = "D0/V"
+    max_steps: int = 20_000_000  # step budget per run; past it the run is undecided
+
+
+@dataclass(frozen=True)
+class Classification:
+    """Thresholds that turn a run's oscillation into a regime.
+
+    ``v_cap_over_V``: runaway once any v/V exceeds this. ``steady_amplitude``:
+    steady once every |ln v/V|, |ln Φ/Φss| (and spring-force excess) is below
+    this. ``envelope_tolerance``: |ln(amplitude ratio)| per cycle below which
+    the envelope counts as constant (a limit cycle). ``trend_cycles``: number of
+    consecutive agreeing cycles that settle a run early (0: never by trend).
+    """
+
+    v_cap_over_V: float = 1e6
+    steady_amplitude: float = 1e-6
+    envelope_tolerance: float = 1e-4
+    trend_cycles: int = 3
+    early_exit: bool = True
+
+
+@dataclass(frozen=True)
+class Config:
+    """A validated run config. ``parameters`` holds the fixed (unswept) values."""
+
+    name: str
+    source: str
+    text: str
+    blocks: int
+    model: str
+    state_law: str
+    parameters: tuple  # ((name, value), ...) in physical units
+    axes: tuple  # (Axis, ...)
+    initial: Initial
+    integrator: Integrator
+    classification: Classification
+    output: str
+    description: str = ""
+
+    @property
+    def fixed(self):
+        """The fixed parameters as a dict (name → value, physical units)."""
+        return dict(self.parameters)
+
+    @property
+    def shape(self):
+        """Grid shape: the length of each sweep axis, in order."""
+        return tuple(len(a.values) for a in self.axes)
+
+
+def required_parameters(blocks, model):
+    """Parameter names a config must set (fixed or swept) for this model."""
+    names = ["A", "B", "mu0", "V", "D0", "K_W"]
+    if blocks > 1:
+        names.append("k2_W")
+    if model == "quasi-dynamic":
+        names.append("eta_W")
+    if model == "inertial":
+        names.append("m_W")
+    return names
+
+
+class _Checker:
+    """Collects problems while reading a raw mapping."""
+
+    def __init__(self):
+        self.problems = []
+
+    def add(self, message):
+        self.problems.append(message)
+
+    def number(self, value, key, low=-math.inf, low_open=False, high=math.inf, high_open=False):
+        """A finite real within bounds, or None after recording the problem."""
+        interval = (
+            f"{'(' if low_open else '['}{low:g}, {high:g}{')' if high_open or high == math.inf else ']'}"
+        )
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            self.add(f"{key} must be a number in {interval}, got {value!r}")
+            return None
+        value = float(value)
+        if not math.isfinite(value):
+            self.add(f"{key} must be a finite number in {interval}, got {value!r}")
+            return None
+        too_low = value <= low if low_open else value < low
+        too_high = value >= high if high_open else value > high
+        if too_low or too_high:
+            self.add(f"{key} must be in {interval}, got {value:g}")
+            return None
+        return value
+
+    def integer(self, value, key, low):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            self.add(f"{key} must be an integer >= {low}, got {value!r}")
+            return None
+        return value
+
+    def choice(self, value, key, allowed):
+        if value not in allowed:
+            self.add(f"{key} must be one of {', '.join(map(str, allowed))}; got {value!r}")
+            return None
+        return value
+
+    def mapping(self, value, key):
+        if not isinstance(value, dict):
+            self.add(f"{key} must be a mapping of keys to values, got {type(value).__name__}")
+            return {}
+        return value
+
+    def unknown(self, mapping, key, allowed):
+        for k in mapping:
+            if k not in allowed:
+                where = f"{key}.{k}" if key else str(k)
+                self.add(f"unknown key {where}; allowed keys: {', '.join(allowed)}")
+
+    def parameter(self, name, value, key):
+        info = PARAMETERS[name]
+        return self.number(value, key, low=info.low, low_open=info.low_open)
+
+
+def load_config(path):
+    """Read and validate the YAML config at ``path``; raise :class:`ConfigError`."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(path, [f"cannot read config: {exc.strerror or exc}"]) from None
+    return parse_config(text, source=str(path))
+
+
+def parse_config(text, source="<config>"):
+    """Validate config ``text`` (YAML); ``source`` names it in error messages."""
+    try:
+        raw = yaml.load(text, Loader=_Loader)
+    except yaml.YAMLError as exc:
+        raise ConfigError(source, [f"not valid YAML: {exc}"]) from None
+    c = _Checker()
+    if not isinstance(raw, dict):
+        raise ConfigError(source, ["a config must be a YAML mapping of keys to values"])
+    c.unknown(raw, "", TOP_LEVEL_KEYS)
+
+    name = raw.get("name", Path(source).stem)
+    if not isinstance(name, str) or not name or any(ch in name for ch in "/\\ "):
+        c.add(f"name must be a non-empty string without spaces or slashes, got {name!r}")
+        name = "sweep"
+    description = raw.get("description", "")
+    if not isinstance(description, str):
+        c.add(f"description must be a string, got {description!r}")
+        description = ""
+    if "blocks" not in raw:
+        c.add("missing key blocks (number of blocks: 1, 2, or more for an open chain)")
+    blocks = c.integer(raw.get("blocks", 1), "blocks", 1) or 1
+    model = c.choice(raw.get("model", "quasi-static"), "model", MODELS) or "quasi-static"
+    law = c.choice(raw.get("state_law", "aging"), "state_law", STATE_LAWS) or "aging"
+
+    axes = _parse_sweep(c, raw)
+    swept = {a.name for a in axes}
+    params = _parse_parameters(c, raw, blocks, model, swept)
+    initial = _parse_initial(c, raw, blocks)
+    integrator = _parse_integrator(c, raw)
+    classification = _parse_classification(c, raw)
+    output = raw.get("output", f"results/{name}.nc")
+    if not isinstance(output, str) or not output.endswith(".nc"):
+        c.add(f"output must be a file path ending in .nc, got {output!r}")
+        output = f"results/{name}.nc"
+    if c.problems:
+        raise ConfigError(source, c.problems)
+    return Config(
+        name=name,
+        source=source,
+        text=text,
+        blocks=blocks,
+        model=model,
+        state_law=law,
+        parameters=tuple(params.items()),
+        axes=tuple(axes),
+        initial=initial,
+        integrator=integrator,
+        classification=classification,
+        output=output,
+        description=description,
+    )
+
+
+def _parse_sweep(c, raw):
+    if "sweep" not in raw:
+        c.add("missing key sweep (at least one axis, e.g. K_W: {start: 0.04, stop: 0.06, num: 21})")
+        return []
+    sweep = c.mapping(raw["sweep"], "sweep")
+    if not sweep and isinstance(raw["sweep"], dict):
+        c.add("sweep must name at least one axis")
+    axes = []
+    for name, spec in sweep.items():
+        key = f"sweep.{name}"
+        if name not in PARAMETERS:
+            c.add(f"unknown sweep axis {key}; allowed: {', '.join(PARAMETERS)}")
+            continue
+        values = _axis_values(c, spec, key)
+        if values is None:
+            continue
+        bad = [v for v in values if c.parameter(name, v, key) is None]
+        if not bad:
+            axes.append(Axis(name, tuple(float(v) for v in values)))
+    return axes
+
+
+def _axis_values(c, spec, key):
+    """Values of one axis: a list, {values: [...]}, or {start, stop, num[, scale]}."""
+    if isinstance(spec, list):
+        spec = {"values": spec}
+    if not isinstance(spec, dict):
+        c.add(f"{key} must be a list of values or a mapping with start/stop/num or values")
+        return None
+    if "values" in spec:
+        c.unknown(spec, key, ("values",))
+        values = spec["values"]
+        if not isinstance(values, list) or not values:
+            c.add(f"{key}.values must be a non-empty list of numbers, got {values!r}")
+            return None
+        if len(set(v for v in values if isinstance(v, (int, float)))) != len(values):
+            c.add(f"{key}.values must be distinct numbers, got {values!r}")
+            return None
+        return values
+    c.unknown(spec, key, ("start", "stop", "num", "scale"))
+    missing = [k for k in ("start", "stop", "num") if k not in spec]
+    if missing:
+        c.add(f"{key} is missing {', '.join(missing)} (give start, stop and num, or values)")
+        return None
+    start = c.number(spec["start"], f"{key}.start")
+    stop = c.number(spec["stop"], f"{key}.stop")
+    num = c.integer(spec["num"], f"{key}.num", 1)
+    scale = c.choice(spec.get("scale", "linear"), f"{key}.scale", ("linear", "log"))
+    if None in (start, stop, num, scale):
+        return None
+    if num > 1 and start == stop:
+        c.add(f"{key}: start and stop must differ when num > 1, got {start:g} twice")
+        return None
+    if scale == "log":
+        if start <= 0 or stop <= 0:
+            c.add(f"{key}: a log-scale axis needs start > 0 and stop > 0")
+            return None
+        return [float(v) for v in _geomspace(start, stop, num)]
+    return [float(v) for v in _linspace(start, stop, num)]
+
+
+def _linspace(start, stop, num):
+    if num == 1:
+        return [start]
+    return [start + (stop - start) * k / (num - 1) for k in range(num)]
+
+
+def _geomspace(start, stop, num):
+    return [math.exp(v) for v in _linspace(math.log(start), math.log(stop), num)]
+
+
+def _parse_parameters(c, raw, blocks, model, swept):
+    if "parameters" not in raw:
+        c.add("missing key parameters (A, B, mu0, V, D0, V0 or Phi0, K_W, ...)")
+    given = c.mapping(raw.get("parameters", {}), "parameters")
+    c.unknown(given, "parameters", tuple(PARAMETERS))
+    params = {}
+    for name, value in given.items():
+        if name in PARAMETERS:
+            v = c.parameter(name, value, f"parameters.{name}")
+            if v is not None:
+                params[name] = v
+    present = set(given) | swept
+    for name in required_parameters(blocks, model):
+        if name not in present:
+            c.add(
+                f"missing key parameters.{name} ({PARAMETERS[name].long_name}, "
+                f"{PARAMETERS[name].units}, in {interval_text(name)}); give it or sweep it"
+            )
+    reference = [n for n in ("V0", "Phi0") if n in present]
+    if len(reference) != 1:
+        c.add(
+            "parameters must give exactly one of V0 (um/s) or Phi0 (s), "
+            f"the reference point of the friction law; got {reference or 'neither'}"
+        )
+    for name, needs in (("eta_W", "quasi-dynamic"), ("m_W", "inertial")):
+        if name in present and model != needs:
+            c.add(f"parameters.{name} only applies to model {needs}; this config's model is {model}")
+    if "k2_W" in present and blocks == 1:
+        c.add("parameters.k2_W (coupling spring) needs blocks >= 2")
+    for name in swept & set(given):
+        c.add(f"parameters.{name} is also a sweep axis; give it in one place only")
+    return params
+
+
+def _per_block(c, value, key, blocks):
+    """A positive finite scalar or list of ``blocks`` of them → tuple per block."""
+    values = value if isinstance(value, list) else [value] * blocks
+    if len(values) != blocks:
+        c.add(f"{key} must be one number or a list of {blocks} (one per block), got {value!r}")
+        return None
+    out = [c.number(v, key, low=0.0, low_open=True) for v in values]
+    return None if None in out else tuple(out)
+
+
+def _parse_initial(c, raw, blocks):
+    spec = c.mapping(raw.get("initial", {}), "initial")
+    c.unknown(spec, "initial", ("v_over_V", "phi_over_phi_ss"))
+    v = _per_block(c, spec.get("v_over_V", 1.0), "initial.v_over_V", blocks)
+    phi = _per_block(c, spec.get("phi_over_phi_ss", 1.01), "initial.phi_over_phi_ss", blocks)
+    return Initial(v or (1.0,) * blocks, phi or (1.0,) * blocks)
+
+
+def _parse_integrator(c, raw):
+    spec = c.mapping(raw.get("integrator", {}), "integrator")
+    defaults = Integrator()
+    c.unknown(spec, "integrator", tuple(Integrator.__dataclass_fields__))
+    method = c.choice(spec.get("method", defaults.method), "integrator.method", METHODS)
+    unit = c.choice(spec.get("t_unit", defaults.t_unit), "integrator.t_unit", TIME_UNITS)
+    values = {}
+    for key, high in (("rtol", 1.0), ("atol", math.inf), ("dt", math.inf), ("max_step", math.inf)):
+        values[key] = c.number(
+            spec.get(key, getattr(defaults, key)),
+            f"integrator.{key}",
+            low=0.0,
+            low_open=True,
+            high=high,
+            high_open=True,
+        )
+    t_end = c.number(spec.get("t_end", defaults.t_end), "integrator.t_end", low=0.0, low_open=True)
+    max_steps = c.integer(spec.get("max_steps", defaults.max_steps), "integrator.max_steps", 1)
+    if None in (method, unit, t_end, max_steps) or None in values.values():
+        return defaults
+    return Integrator(method=method, t_unit=unit, t_end=t_end, max_steps=max_steps, **values)
+
+
+def _parse_classification(c, raw):
+    spec = c.mapping(raw.get("classification", {}), "classification")
+    d = Classification()
+    c.unknown(spec, "classification", tuple(Classification.__dataclass_fields__))
+    key = "classification."
+    cap = c.number(spec.get("v_cap_over_V", d.v_cap_over_V), key + "v_cap_over_V", 1.0, True)
+    amp = c.number(
+        spec.get("steady_amplitude", d.steady_amplitude), key + "steady_amplitude", 0.0, True
+    )
+    tol = c.number(
+        spec.get("envelope_tolerance", d.envelope_tolerance), key + "envelope_tolerance", 0.0, True
+    )
+    cycles = c.integer(spec.get("trend_cycles", d.trend_cycles), key + "trend_cycles", 0)
+    early = spec.get("early_exit", d.early_exit)
+    if not isinstance(early, bool):
+        c.add(f"{key}early_exit must be true or false, got {early!r}")
+        early = None
+    if cycles is not None and cycles > 8:
+        c.add(f"{key}trend_cycles must be at most 8, got {cycles}")
+        cycles = None
+    if None in (cap, amp, tol, cycles, early):
+        return d
+    return Classification(cap, amp, tol, cycles, early)
+
+
+def check_writable(path, source="<config>", key="output"):
+    """Raise :class:`ConfigError` unless a file can be created at ``path``.
+
+    Creates missing parent directories and a probe file (removed at once), so
+    the answer is the file system's, not a guess from permission bits (which
+    root ignores).
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise ConfigError(source, [f"{key} {path} is a directory; give a file path ending in .nc"])
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.probe-"):
+            pass
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        raise ConfigError(source, [f"{key} {path} cannot be written: {reason}"]) from None
+    if path.exists() and not os.access(path, os.W_OK):
+        raise ConfigError(source, [f"{key} {path} exists and is not writable"])

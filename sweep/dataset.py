@@ -1,0 +1,170 @@
+"""The product: kernel statistics → a self-describing xarray.Dataset → NetCDF.
+
+One dimension per sweep axis, named after the parameter, with CF ``units`` and
+``long_name``; data variables from the table in ``sweep/variables.py``;
+provenance (config text, versions, creation time) in the attributes. Files are
+written to a temporary name beside the target and renamed, so a failed write
+never replaces an earlier result.
+"""
+
+import datetime
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from . import __version__, kernels, model
+from .grid import REGIMES
+from .model import PARAMETERS
+from .variables import variables_for
+
+
+def derived_fields(config, phys, results, y_final, time_unit):
+    """Every output variable as a flat array (per system, or per system × block)."""
+    r = results
+    nb = config.blocks
+    V = phys["V"]
+    regime = r[:, kernels.R_REGIME].astype(np.int8)
+    period = r[:, kernels.R_PERIOD] * time_unit
+    dl = model.dimensionless(
+        phys["A"], phys["B"], phys["D0"], phys["V"], phys["K_W"], phys["k2_W"],
+        phys["eta_W"], phys["m_W"],
+    )  # fmt: skip
+    growth = model.linear_growth_rate(
+        config.model, nb, dl["A"], dl["B"], dl["kappa1"], dl["kappa2"], dl["eta_hat"],
+        dl["mass_hat"],
+    )  # fmt: skip
+    kc = model.critical_kappa(config.model, dl["A"], dl["B"], dl["eta_hat"], dl["mass_hat"])
+    omega = model.onset_angular_frequency(
+        config.model, dl["A"], dl["B"], dl["eta_hat"], dl["mass_hat"]
+    )
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        fields = {
+            "regime": regime,
+            "lnv_amplitude": r[:, kernels.R_LNV_MAX] - r[:, kernels.R_LNV_MIN],
+            "lnv_max": r[:, kernels.R_LNV_MAX],
+            "lnv_min": r[:, kernels.R_LNV_MIN],
+            "v_max": V * np.exp(r[:, kernels.R_LNV_MAX]),
+            "v_min": V * np.exp(r[:, kernels.R_LNV_MIN]),
+            "period": period,
+            "growth_rate": r[:, kernels.R_GROWTH] / time_unit,
+            "friction_drop": r[:, kernels.R_FRICTION_DROP],
+            "slip_per_event": np.where(regime == kernels.STICK_SLIP, V * period, np.nan),
+            "t_runaway": r[:, kernels.R_TAU_RUNAWAY] * time_unit,
+            "t_final": r[:, kernels.R_TAU_FINAL] * time_unit,
+            "n_steps": r[:, kernels.R_N_STEPS].astype(np.int64),
+            "n_rejected": r[:, kernels.R_N_REJECTED].astype(np.int64),
+            "n_peaks": r[:, kernels.R_N_PEAKS].astype(np.int64),
+            "sync_error": r[:, kernels.R_SYNC_ERROR],
+            "phase_lag": r[:, kernels.R_PHASE_LAG],
+            "lnv_final": y_final[:, :nb],
+            "ln_state_final": y_final[:, nb : 2 * nb],
+            "linear_growth_rate": growth / time_unit,
+            "critical_K_W": kc / phys["D0"],
+            "K_over_Kc": phys["K_W"] * phys["D0"] / kc,
+            "onset_period": 2 * np.pi / omega * time_unit,
+        }
+    return fields
+
+
+def build_dataset(config, phys, results, y_final, time_unit):
+    """Assemble the result Dataset of a sweep from the kernels' outputs."""
+    shape = config.shape
+    dims = tuple(a.name for a in config.axes)
+    coords = {
+        a.name: (
+            a.name,
+            np.asarray(a.values),
+            {"units": PARAMETERS[a.name].units, "long_name": PARAMETERS[a.name].long_name},
+        )
+        for a in config.axes
+    }
+    coords["block"] = ("block", np.arange(config.blocks), {"long_name": "block index in the chain"})
+    fields = derived_fields(config, phys, results, y_final, time_unit)
+    data_vars = {}
+    for var in variables_for(config.blocks):
+        attrs = {"units": var.units, "long_name": var.long_name}
+        if var.description:
+            attrs["description"] = var.description
+        if var.per_block:
+            data = fields[var.name].reshape(shape + (config.blocks,))
+            data_vars[var.name] = (dims + ("block",), data.astype(var.dtype), attrs)
+        else:
+            data = fields[var.name].reshape(shape)
+            data_vars[var.name] = (dims, data.astype(var.dtype), attrs)
+    regime_attrs = data_vars["regime"][2]
+    regime_attrs["flag_values"] = np.arange(len(REGIMES), dtype=np.int8)
+    regime_attrs["flag_meanings"] = " ".join(REGIMES)
+    regime_attrs.pop("units")
+    return xr.Dataset(data_vars, coords=coords, attrs=provenance(config))
+
+
+def provenance(config):
+    """File attributes: model, fixed parameters with units, settings, versions."""
+    import numba
+
+    integ, cls = config.integrator, config.classification
+    attrs = {
+        "Conventions": "CF-1.8",
+        "title": f"Rice-Ruina spring-block sweep: {config.name}",
+        "institution": "rsf-sweep",
+        "source": f"rsf-sweep {__version__} (sweep package), numba {numba.__version__}",
+        "history": f"{_now()} created by python -m sweep run {config.source}",
+        "created": _now(),
+        "sweep_name": config.name,
+        "description": config.description,
+        "model": config.model,
+        "state_law": config.state_law,
+        "blocks": np.int32(config.blocks),
+        "coupling": "open chain, coupling spring k2 between neighbouring blocks",
+        "sweep_axes": " ".join(a.name for a in config.axes),
+        "time_unit_note": "the dynamics scale with D0/V; times are stored in s",
+        "initial_v_over_V": np.asarray(config.initial.v_over_V, float),
+        "initial_phi_over_phi_ss": np.asarray(config.initial.phi_over_phi_ss, float),
+        "integrator_method": integ.method,
+        "integrator_rtol": integ.rtol,
+        "integrator_atol": integ.atol,
+        "integrator_dt": integ.dt,
+        "integrator_max_step": integ.max_step,
+        "integrator_t_end": integ.t_end,
+        "integrator_t_unit": integ.t_unit,
+        "integrator_max_steps": np.int64(integ.max_steps),
+        "classification_v_cap_over_V": cls.v_cap_over_V,
+        "classification_steady_amplitude": cls.steady_amplitude,
+        "classification_envelope_tolerance": cls.envelope_tolerance,
+        "classification_trend_cycles": np.int32(cls.trend_cycles),
+        "classification_early_exit": np.int8(cls.early_exit),
+        "package_version": __version__,
+        "numba_version": numba.__version__,
+        "numpy_version": np.__version__,
+        "xarray_version": xr.__version__,
+        "config_path": config.source,
+        "config_text": config.text,
+    }
+    for name, value in config.parameters:
+        attrs[name] = value
+        attrs[f"{name}_units"] = PARAMETERS[name].units
+    return attrs
+
+
+def _now():
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+
+
+def write_netcdf(ds, path):
+    """Write ``ds`` to ``path`` atomically (temporary file in the same folder, then rename)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        encoding = {name: {"zlib": True, "complevel": 4} for name in ds.data_vars}
+        ds.to_netcdf(tmp, engine="netcdf4", encoding=encoding)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
+    return path

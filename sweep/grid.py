@@ -1,0 +1,110 @@
+"""From a validated config to the arrays the kernels take.
+
+The grid is the Cartesian product of the sweep axes, flattened in C order (the
+last axis varies fastest). Every grid point is one system; its physical
+parameters become one row of dimensionless parameters (``kernels.P_*``) and its
+initial perturbation one row of initial state.
+"""
+
+import math
+
+import numpy as np
+
+from . import kernels, model
+
+MODEL_CODES = {
+    "quasi-static": kernels.QUASI_STATIC,
+    "quasi-dynamic": kernels.QUASI_DYNAMIC,
+    "inertial": kernels.INERTIAL,
+}
+LAW_CODES = {"aging": kernels.AGING, "slip": kernels.SLIP}
+METHOD_CODES = {"dopri5": kernels.DOPRI5, "rk4": kernels.RK4}
+#: Regime codes and names, in code order (the CF flag_values / flag_meanings).
+REGIMES = ("steady", "stick_slip", "runaway", "undecided")
+
+
+def physical_parameters(config):
+    """Every physical parameter at every grid point, flattened (name → 1-D array).
+
+    Parameters a config leaves out default to zero (k2_W, eta_W, m_W); the
+    reference V0 is derived from Phi0 (V0 = D0/Phi0) or the other way round.
+    """
+    shape = config.shape
+    n = math.prod(shape)
+    mesh = np.meshgrid(*(np.asarray(a.values) for a in config.axes), indexing="ij")
+    values = {a.name: m.reshape(n) for a, m in zip(config.axes, mesh)}
+    for name, value in config.parameters:
+        values[name] = np.full(n, value)
+    for name in ("k2_W", "eta_W", "m_W"):
+        values.setdefault(name, np.zeros(n))
+    if "V0" not in values:
+        values["V0"] = values["D0"] / values["Phi0"]
+    if "Phi0" not in values:
+        values["Phi0"] = values["D0"] / values["V0"]
+    return values
+
+
+def settings_array(config):
+    """The kernels' settings array (``kernels.S_*``), shared by all systems."""
+    s = np.zeros(kernels.N_SETTINGS)
+    integ, cls = config.integrator, config.classification
+    s[kernels.S_MODEL] = MODEL_CODES[config.model]
+    s[kernels.S_LAW] = LAW_CODES[config.state_law]
+    s[kernels.S_METHOD] = METHOD_CODES[integ.method]
+    s[kernels.S_NBLOCKS] = config.blocks
+    s[kernels.S_RTOL] = integ.rtol
+    s[kernels.S_ATOL] = integ.atol
+    s[kernels.S_MAX_STEPS] = integ.max_steps
+    s[kernels.S_LNV_CAP] = math.log(cls.v_cap_over_V)
+    s[kernels.S_STEADY_AMP] = cls.steady_amplitude
+    s[kernels.S_ENV_TOL] = cls.envelope_tolerance
+    s[kernels.S_TREND_CYCLES] = cls.trend_cycles
+    s[kernels.S_EARLY_EXIT] = 1.0 if cls.early_exit else 0.0
+    return s
+
+
+def system_arrays(config, phys=None):
+    """Dimensionless parameters (n, N_PARAMS) and initial states (n, n_vars).
+
+    Returns ``(params, y0, settings, time_unit)`` with ``time_unit`` = D0/V in s
+    per system. With ``t_unit: s`` the end time, the rk4 step and the largest
+    dopri5 step are converted to units of D0/V per system.
+    """
+    phys = physical_parameters(config) if phys is None else phys
+    dl = model.dimensionless(
+        phys["A"], phys["B"], phys["D0"], phys["V"], phys["K_W"], phys["k2_W"],
+        phys["eta_W"], phys["m_W"],
+    )  # fmt: skip
+    n = phys["A"].size
+    integ = config.integrator
+    to_tau = 1.0 / dl["time_unit"] if integ.t_unit == "s" else np.ones(n)
+    params = np.empty((n, kernels.N_PARAMS))
+    params[:, kernels.P_A] = dl["A"]
+    params[:, kernels.P_B] = dl["B"]
+    params[:, kernels.P_KAPPA1] = dl["kappa1"]
+    params[:, kernels.P_KAPPA2] = dl["kappa2"]
+    params[:, kernels.P_ETA] = dl["eta_hat"]
+    params[:, kernels.P_MASS] = dl["mass_hat"]
+    params[:, kernels.P_TAU_END] = integ.t_end * to_tau
+    params[:, kernels.P_DT] = integ.dt * to_tau
+    params[:, kernels.P_MAX_STEP] = integ.max_step * to_tau
+    settings = settings_array(config)
+    y0 = initial_state(config, dl["A"], dl["B"])
+    return params, y0, settings, dl["time_unit"]
+
+
+def initial_state(config, A, B):
+    """Initial log-form state of every system (rows) from the config's perturbation.
+
+    ℓ_i = ln(v_i/V), ψ_i = ln(Φ_i/Φss); for the inertial model the spring force
+    starts in balance with friction, σ_i = A ℓ_i + B ψ_i (zero acceleration).
+    """
+    nb = config.blocks
+    lnv = np.log(np.asarray(config.initial.v_over_V, float))
+    psi = np.log(np.asarray(config.initial.phi_over_phi_ss, float))
+    A = np.asarray(A, float)[:, None]
+    B = np.asarray(B, float)[:, None]
+    columns = [np.broadcast_to(lnv, (A.shape[0], nb)), np.broadcast_to(psi, (A.shape[0], nb))]
+    if config.model == "inertial":
+        columns.append(A * lnv + B * psi)
+    return np.ascontiguousarray(np.concatenate(columns, axis=1))

@@ -1,0 +1,541 @@
+"""Numba kernels: right-hand side, steppers and the per-system integration loop.
+
+Only jitted loops live here; the equations are documented in ``sweep/model.py``.
+Everything a kernel needs is passed as an argument (numba's cache freezes
+globals, so the module-level integers below are true constants: column indices
+and codes shared with the Python side).
+
+State of one system with ``nb`` blocks: ``y[i] = ℓ_i`` (ln v/V), ``y[nb+i] = ψ_i``
+(ln VΦ/D0) and, for the inertial model, ``y[2nb+i] = σ_i`` (spring force minus
+steady friction, per unit normal load). Time τ is in units of D0/V.
+
+Each run keeps only running statistics over the current oscillation cycle (from
+one maximum of ℓ_0 to the next) and over the last completed one, so memory does
+not depend on run length. Extrema are located inside a step with the cubic
+Hermite interpolant built from the values and slopes at both ends of the step.
+"""
+
+import math
+
+import numpy as np
+
+from .accelerate import jit, parallel_jit, prange
+
+# --- codes shared with the Python side --------------------------------------
+QUASI_STATIC, QUASI_DYNAMIC, INERTIAL = 0, 1, 2
+AGING, SLIP = 0, 1
+DOPRI5, RK4 = 0, 1
+STEADY, STICK_SLIP, RUNAWAY, UNDECIDED = 0, 1, 2, 3
+
+# --- columns of the per-system parameter array (all dimensionless) ----------
+P_A, P_B, P_KAPPA1, P_KAPPA2, P_ETA, P_MASS, P_TAU_END, P_DT, P_MAX_STEP = range(9)
+N_PARAMS = 9
+
+# --- entries of the settings array, shared by all systems of a sweep --------
+(
+    S_MODEL,  # QUASI_STATIC | QUASI_DYNAMIC | INERTIAL
+    S_LAW,  # AGING | SLIP
+    S_METHOD,  # DOPRI5 | RK4
+    S_NBLOCKS,  # number of blocks in the chain
+    S_RTOL,  # DOPRI5 relative tolerance
+    S_ATOL,  # DOPRI5 absolute tolerance
+    S_MAX_STEPS,  # step budget per run (accepted + rejected)
+    S_LNV_CAP,  # runaway when any ln(v/V) exceeds this
+    S_STEADY_AMP,  # steady when every |state variable| falls below this
+    S_ENV_TOL,  # |ln(amplitude ratio)| per cycle below this: constant envelope
+    S_TREND_CYCLES,  # consecutive agreeing cycles that settle a regime early
+    S_EARLY_EXIT,  # 1: stop as soon as the regime is settled
+) = range(12)
+N_SETTINGS = 12
+
+# --- columns of the per-system statistics array -----------------------------
+(
+    R_REGIME,  # STEADY | STICK_SLIP | RUNAWAY | UNDECIDED
+    R_TAU_FINAL,  # time the run stopped (D0/V)
+    R_N_STEPS,  # accepted steps
+    R_N_REJECTED,  # rejected steps
+    R_LNV_MAX,  # max ln(v/V) over blocks, final window
+    R_LNV_MIN,  # min ln(v/V) over blocks, final window
+    R_PERIOD,  # last peak-to-peak time of ℓ_0 (D0/V)
+    R_GROWTH,  # envelope growth rate from the last two cycles (V/D0)
+    R_FRICTION_DROP,  # max over blocks of max − min friction in the final window
+    R_TAU_RUNAWAY,  # time ℓ crossed the cap or went non-finite (D0/V)
+    R_SYNC_ERROR,  # max |ℓ_i − ℓ_0| over blocks, final window
+    R_PHASE_LAG,  # (t peak of ℓ_last − t peak of ℓ_0) / period, in [−0.5, 0.5)
+    R_N_PEAKS,  # maxima of ℓ_0 seen
+    R_LNV_MAX_RUN,  # max ln(v/V) over the whole run
+) = range(14)
+N_RESULTS = 14
+
+# Dormand–Prince 5(4) tableau (Hairer, Nørsett & Wanner, Table II.5.2).
+_A21 = 1 / 5
+_A31, _A32 = 3 / 40, 9 / 40
+_A41, _A42, _A43 = 44 / 45, -56 / 15, 32 / 9
+_A51, _A52, _A53, _A54 = 19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729
+_A61, _A62, _A63, _A64, _A65 = 9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656
+_B1, _B3, _B4, _B5, _B6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
+_E1, _E3, _E4, _E5, _E6, _E7 = (
+    71 / 57600,
+    -71 / 16695,
+    71 / 1920,
+    -17253 / 339200,
+    22 / 525,
+    -1 / 40,
+)
+
+
+@jit
+def rhs(y, p, model, law, nb, ev, dydt):
+    """Time derivative (per D0/V) of the log-form state ``y`` into ``dydt``.
+
+    ``p`` is one row of the parameter array; ``ev`` is scratch for e^ℓ (length nb).
+    """
+    A = p[P_A]
+    B = p[P_B]
+    kappa1 = p[P_KAPPA1]
+    kappa2 = p[P_KAPPA2]
+    for i in range(nb):
+        ev[i] = math.exp(y[i])
+    for i in range(nb):
+        lnv = y[i]
+        psi = y[nb + i]
+        e = ev[i]
+        if law == AGING:
+            dpsi = math.exp(-psi) - e
+        else:
+            dpsi = -e * (lnv + psi)
+        load = kappa1 * (1.0 - e)
+        if i > 0:
+            load += kappa2 * (ev[i - 1] - e)
+        if i < nb - 1:
+            load += kappa2 * (ev[i + 1] - e)
+        if model == QUASI_STATIC:
+            dlnv = (load - B * dpsi) / A
+        elif model == QUASI_DYNAMIC:
+            dlnv = (load - B * dpsi) / (A + p[P_ETA] * e)
+        else:
+            dydt[2 * nb + i] = load
+            dlnv = (y[2 * nb + i] - A * lnv - B * psi) * math.exp(-lnv) / p[P_MASS]
+        dydt[i] = dlnv
+        dydt[nb + i] = dpsi
+
+
+@jit
+def step_rk4(y, f, h, p, model, law, nb, ev, k2, k3, k4, ytmp, ynew):
+    """One classical RK4 step of size h from (y, f = rhs(y)) into ``ynew``."""
+    n = y.size
+    for j in range(n):
+        ytmp[j] = y[j] + 0.5 * h * f[j]
+    rhs(ytmp, p, model, law, nb, ev, k2)
+    for j in range(n):
+        ytmp[j] = y[j] + 0.5 * h * k2[j]
+    rhs(ytmp, p, model, law, nb, ev, k3)
+    for j in range(n):
+        ytmp[j] = y[j] + h * k3[j]
+    rhs(ytmp, p, model, law, nb, ev, k4)
+    for j in range(n):
+        ynew[j] = y[j] + h / 6.0 * (f[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+
+
+@jit
+def step_dopri5(y, f, h, p, model, law, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, fnew, rtol, atol):
+    """One Dormand–Prince 5(4) step; returns the scaled RMS error estimate.
+
+    ``f`` = rhs(y) on entry; on return ``ynew`` holds the 5th-order solution and
+    ``fnew`` = rhs(ynew) (first same as last). The step is acceptable when the
+    returned error is ≤ 1; a non-finite error means the trial state overflowed.
+    """
+    n = y.size
+    for j in range(n):
+        ytmp[j] = y[j] + h * _A21 * f[j]
+    rhs(ytmp, p, model, law, nb, ev, k2)
+    for j in range(n):
+        ytmp[j] = y[j] + h * (_A31 * f[j] + _A32 * k2[j])
+    rhs(ytmp, p, model, law, nb, ev, k3)
+    for j in range(n):
+        ytmp[j] = y[j] + h * (_A41 * f[j] + _A42 * k2[j] + _A43 * k3[j])
+    rhs(ytmp, p, model, law, nb, ev, k4)
+    for j in range(n):
+        ytmp[j] = y[j] + h * (_A51 * f[j] + _A52 * k2[j] + _A53 * k3[j] + _A54 * k4[j])
+    rhs(ytmp, p, model, law, nb, ev, k5)
+    for j in range(n):
+        ytmp[j] = y[j] + h * (
+            _A61 * f[j] + _A62 * k2[j] + _A63 * k3[j] + _A64 * k4[j] + _A65 * k5[j]
+        )
+    rhs(ytmp, p, model, law, nb, ev, k6)
+    for j in range(n):
+        ynew[j] = y[j] + h * (_B1 * f[j] + _B3 * k3[j] + _B4 * k4[j] + _B5 * k5[j] + _B6 * k6[j])
+    rhs(ynew, p, model, law, nb, ev, fnew)
+    err2 = 0.0
+    for j in range(n):
+        e = h * (
+            _E1 * f[j] + _E3 * k3[j] + _E4 * k4[j] + _E5 * k5[j] + _E6 * k6[j] + _E7 * fnew[j]
+        )
+        scale = atol + rtol * max(abs(y[j]), abs(ynew[j]))
+        err2 += (e / scale) ** 2
+    return math.sqrt(err2 / n)
+
+
+@jit
+def hermite_value(y0, y1, d0, d1, h, theta):
+    """Cubic Hermite interpolant at fraction ``theta`` of a step of size h."""
+    t2 = theta * theta
+    t3 = t2 * theta
+    return (
+        (2 * t3 - 3 * t2 + 1) * y0
+        + (t3 - 2 * t2 + theta) * h * d0
+        + (-2 * t3 + 3 * t2) * y1
+        + (t3 - t2) * h * d1
+    )
+
+
+@jit
+def hermite_extremum(y0, y1, d0, d1, h):
+    """Fraction θ ∈ [0, 1] of the step where the Hermite interpolant's slope
+    vanishes, given slopes d0 and d1 of opposite sign (bisection, 50 halvings)."""
+    a = 6.0 * (y0 - y1) + 3.0 * h * (d0 + d1)
+    b = -6.0 * (y0 - y1) - 4.0 * h * d0 - 2.0 * h * d1
+    c = h * d0
+    lo = 0.0
+    hi = 1.0
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        s = (a * mid + b) * mid + c
+        if (s > 0.0) == (c > 0.0):
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@jit
+def hermite_crossing(y0, y1, d0, d1, h, level):
+    """Fraction θ of the step where the Hermite interpolant rises through
+    ``level`` (y0 < level ≤ y1; bisection, 50 halvings)."""
+    lo = 0.0
+    hi = 1.0
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        if hermite_value(y0, y1, d0, d1, h, mid) < level:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@jit
+def classify_end(n_ratios, ratio_last, amp_last, steady_amp, env_tol):
+    """Regime of a run that reached its end time without running away.
+
+    Decayed below ``steady_amp`` → steady; otherwise the last envelope ratio
+    decides: shrinking → steady, constant → stick-slip, growing or unknown →
+    undecided (the run did not settle in the time allowed).
+    """
+    if amp_last < steady_amp:
+        return STEADY
+    if n_ratios == 0:
+        return UNDECIDED
+    if ratio_last < -env_tol:
+        return STEADY
+    if ratio_last <= env_tol:
+        return STICK_SLIP
+    return UNDECIDED
+
+
+@jit
+def trend_settled(ratios, n_ratios, n_trend, env_tol):
+    """Regime settled by the envelope trend of the last ``n_trend`` cycles, or −1.
+
+    Stick-slip when every log amplitude ratio is within ±env_tol (a limit
+    cycle); steady when all are below −env_tol and agree within 10 % (a single
+    decaying linear mode, so the sign of Re λ is known).
+    """
+    if n_trend <= 0 or n_ratios < n_trend:
+        return -1
+    m = ratios.size
+    lo = np.inf
+    hi = -np.inf
+    for k in range(n_trend):
+        r = ratios[(n_ratios - 1 - k) % m]
+        lo = min(lo, r)
+        hi = max(hi, r)
+    if -env_tol <= lo and hi <= env_tol:
+        return STICK_SLIP
+    if hi < -env_tol and (hi - lo) <= 0.1 * abs(hi):
+        return STEADY
+    return -1
+
+
+@jit
+def integrate_system(p, y0, settings, result, y_final):
+    """Integrate one system from ``y0`` and write its statistics into ``result``.
+
+    ``p``: dimensionless parameters (``P_*`` columns); ``settings``: the ``S_*``
+    entries; ``result``: the ``R_*`` columns; ``y_final``: the state at the end.
+    """
+    model = int(settings[S_MODEL])
+    law = int(settings[S_LAW])
+    method = int(settings[S_METHOD])
+    nb = int(settings[S_NBLOCKS])
+    rtol = settings[S_RTOL]
+    atol = settings[S_ATOL]
+    max_steps = settings[S_MAX_STEPS]
+    lnv_cap = settings[S_LNV_CAP]
+    steady_amp = settings[S_STEADY_AMP]
+    env_tol = settings[S_ENV_TOL]
+    n_trend = int(settings[S_TREND_CYCLES])
+    early_exit = settings[S_EARLY_EXIT] > 0.5
+    A = p[P_A]
+    B = p[P_B]
+    tau_end = p[P_TAU_END]
+    max_step = p[P_MAX_STEP]
+
+    n = y0.size
+    y = y0.copy()
+    f = np.empty(n)
+    ynew = np.empty(n)
+    fnew = np.empty(n)
+    ytmp = np.empty(n)
+    k2 = np.empty(n)
+    k3 = np.empty(n)
+    k4 = np.empty(n)
+    k5 = np.empty(n)
+    k6 = np.empty(n)
+    ev = np.empty(nb)
+    # statistics of the current cycle (win_*) and of the last completed one (last_*)
+    win_lmax = np.empty(nb)
+    win_lmin = np.empty(nb)
+    win_mumax = np.empty(nb)
+    win_mumin = np.empty(nb)
+    last_lmax = np.full(nb, np.nan)
+    last_lmin = np.full(nb, np.nan)
+    last_mumax = np.full(nb, np.nan)
+    last_mumin = np.full(nb, np.nan)
+    ratios = np.zeros(8)
+
+    for i in range(nb):
+        win_lmax[i] = y[i]
+        win_lmin[i] = y[i]
+        mu = A * y[i] + B * y[nb + i]
+        win_mumax[i] = mu
+        win_mumin[i] = mu
+    win_sync = 0.0
+    for i in range(1, nb):
+        win_sync = max(win_sync, abs(y[i] - y[0]))
+    last_sync = np.nan
+    win_t_peak_last_block = np.nan
+    last_phase = np.nan
+
+    lnv_max_run = -np.inf
+    for i in range(nb):
+        lnv_max_run = max(lnv_max_run, y[i])
+    n_peaks = 0
+    peak_value = 0.0
+    t_peak = np.nan
+    period = np.nan
+    amp_prev = np.nan
+    n_ratios = 0
+    growth = np.nan
+    regime = -1
+    tau_runaway = np.nan
+
+    rhs(y, p, model, law, nb, ev, f)
+    t = 0.0
+    h = min(1e-3, max_step, tau_end) if method == DOPRI5 else p[P_DT]
+    n_steps = 0
+    n_rejected = 0
+    while t < tau_end:
+        if n_steps + n_rejected >= max_steps:
+            break
+        h = min(h, tau_end - t)
+        if method == DOPRI5:
+            err = step_dopri5(
+                y, f, h, p, model, law, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, fnew, rtol, atol
+            )
+            if not (err <= 1.0):
+                n_rejected += 1
+                if math.isfinite(err):
+                    h *= max(0.2, 0.9 * err**-0.2)
+                else:
+                    h *= 0.2
+                if h < 1e-13 * max(1.0, t):
+                    # the solution leaves every finite bound within a vanishing step
+                    regime = RUNAWAY
+                    tau_runaway = t
+                    break
+                continue
+            h_next = min(max_step, h * min(5.0, 0.9 * max(err, 1e-10) ** -0.2))
+        else:
+            step_rk4(y, f, h, p, model, law, nb, ev, k2, k3, k4, ytmp, ynew)
+            rhs(ynew, p, model, law, nb, ev, fnew)
+            h_next = h
+        n_steps += 1
+
+        # runaway: a velocity above the cap or any non-finite value
+        finite = True
+        for j in range(n):
+            if not (math.isfinite(ynew[j]) and math.isfinite(fnew[j])):
+                finite = False
+        if not finite:
+            regime = RUNAWAY
+            tau_runaway = t + h
+            break
+        crossed = -1
+        for i in range(nb):
+            if ynew[i] > lnv_cap and crossed < 0:
+                crossed = i
+        if crossed >= 0:
+            i = crossed
+            theta = hermite_crossing(y[i], ynew[i], f[i], fnew[i], h, lnv_cap)
+            if y[i] > lnv_cap:
+                theta = 0.0
+            tau_runaway = t + theta * h
+            regime = RUNAWAY
+            for j in range(nb):
+                win_lmax[j] = max(win_lmax[j], ynew[j])
+            lnv_max_run = max(lnv_max_run, lnv_cap)
+            t += h
+            for j in range(n):
+                y[j] = ynew[j]
+            break
+
+        # extrema of every block's ℓ inside the step, then the window statistics
+        new_peak = False
+        theta_peak = 0.0
+        for i in range(nb):
+            rising = f[i] > 0.0
+            falling_now = fnew[i] <= 0.0
+            if rising == falling_now:  # slope changed sign: one extremum in the step
+                theta = hermite_extremum(y[i], ynew[i], f[i], fnew[i], h)
+                val = hermite_value(y[i], ynew[i], f[i], fnew[i], h, theta)
+                win_lmax[i] = max(win_lmax[i], val)
+                win_lmin[i] = min(win_lmin[i], val)
+                lnv_max_run = max(lnv_max_run, val)
+                if rising:
+                    if i == 0:
+                        new_peak = True
+                        theta_peak = theta
+                        peak_value = val
+                    elif i == nb - 1:
+                        win_t_peak_last_block = t + theta * h
+            win_lmax[i] = max(win_lmax[i], ynew[i])
+            win_lmin[i] = min(win_lmin[i], ynew[i])
+            lnv_max_run = max(lnv_max_run, ynew[i])
+            mu = A * ynew[i] + B * ynew[nb + i]
+            win_mumax[i] = max(win_mumax[i], mu)
+            win_mumin[i] = min(win_mumin[i], mu)
+            if i > 0:
+                win_sync = max(win_sync, abs(ynew[i] - ynew[0]))
+
+        t_new_peak = t + theta_peak * h
+        t += h
+        for j in range(n):
+            y[j] = ynew[j]
+            f[j] = fnew[j]
+        h = h_next
+
+        if new_peak:
+            n_peaks += 1
+            if n_peaks >= 2:
+                period = t_new_peak - t_peak
+                amp = peak_value - win_lmin[0]
+                if amp_prev == amp_prev and amp > 0.0 and amp_prev > 0.0:
+                    r = math.log(amp / amp_prev)
+                    ratios[n_ratios % ratios.size] = r
+                    n_ratios += 1
+                    growth = r / period
+                amp_prev = amp
+                for i in range(nb):
+                    last_lmax[i] = win_lmax[i]
+                    last_lmin[i] = win_lmin[i]
+                    last_mumax[i] = win_mumax[i]
+                    last_mumin[i] = win_mumin[i]
+                last_sync = win_sync
+                if nb > 1 and win_t_peak_last_block == win_t_peak_last_block:
+                    lag = (win_t_peak_last_block - t_peak) / period
+                    last_phase = lag - math.floor(lag + 0.5)
+            t_peak = t_new_peak
+            # the new cycle starts at this peak
+            for i in range(nb):
+                win_lmax[i] = y[i]
+                win_lmin[i] = y[i]
+                mu = A * y[i] + B * y[nb + i]
+                win_mumax[i] = mu
+                win_mumin[i] = mu
+            win_lmax[0] = max(win_lmax[0], peak_value)
+            win_sync = 0.0
+            for i in range(1, nb):
+                win_sync = max(win_sync, abs(y[i] - y[0]))
+            win_t_peak_last_block = np.nan
+            if early_exit:
+                settled = trend_settled(ratios, n_ratios, n_trend, env_tol)
+                if settled >= 0:
+                    regime = settled
+                    break
+
+        # decayed onto steady sliding
+        big = 0.0
+        for j in range(n):
+            big = max(big, abs(y[j]))
+        if big < steady_amp:
+            regime = STEADY
+            break
+
+    # final window: the last completed cycle, except for runaway runs and runs
+    # that never completed one, which report the cycle in progress
+    use_last = n_peaks >= 2 and regime != RUNAWAY
+    lmax = -np.inf
+    lmin = np.inf
+    fdrop = 0.0
+    for i in range(nb):
+        if use_last:
+            lmax = max(lmax, last_lmax[i])
+            lmin = min(lmin, last_lmin[i])
+            fdrop = max(fdrop, last_mumax[i] - last_mumin[i])
+        else:
+            lmax = max(lmax, win_lmax[i])
+            lmin = min(lmin, win_lmin[i])
+            fdrop = max(fdrop, win_mumax[i] - win_mumin[i])
+    sync = last_sync if use_last else win_sync
+    if regime < 0:
+        amp_last = 0.0
+        for j in range(n):
+            amp_last = max(amp_last, abs(y[j]))
+        if use_last:
+            amp_last = max(amp_last, lmax - lmin)
+        ratio_last = ratios[(n_ratios - 1) % ratios.size] if n_ratios > 0 else np.nan
+        if t < tau_end:  # step budget exhausted
+            regime = UNDECIDED
+        else:
+            regime = classify_end(n_ratios, ratio_last, amp_last, steady_amp, env_tol)
+
+    result[R_REGIME] = regime
+    result[R_TAU_FINAL] = t
+    result[R_N_STEPS] = n_steps
+    result[R_N_REJECTED] = n_rejected
+    result[R_LNV_MAX] = lmax
+    result[R_LNV_MIN] = lmin
+    result[R_PERIOD] = period
+    result[R_GROWTH] = growth
+    result[R_FRICTION_DROP] = fdrop
+    result[R_TAU_RUNAWAY] = tau_runaway
+    result[R_SYNC_ERROR] = sync if nb > 1 else np.nan
+    result[R_PHASE_LAG] = last_phase
+    result[R_N_PEAKS] = n_peaks
+    result[R_LNV_MAX_RUN] = lnv_max_run
+    for j in range(n):
+        y_final[j] = y[j]
+
+
+@jit
+def integrate_grid_serial(params, y0, settings, results, y_final):
+    """Integrate every system (rows of ``params``/``y0``) one after another."""
+    for s in range(params.shape[0]):
+        integrate_system(params[s], y0[s], settings, results[s], y_final[s])
+
+
+@parallel_jit
+def integrate_grid_parallel(params, y0, settings, results, y_final):
+    """Integrate every system on numba's thread pool (one system per iteration)."""
+    for s in prange(params.shape[0]):
+        integrate_system(params[s], y0[s], settings, results[s], y_final[s])

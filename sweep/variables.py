@@ -1,0 +1,77 @@
+"""The output schema: every data variable of a result file, declared once.
+
+This table feeds the Dataset constructor (``sweep/dataset.py``), the README's
+reference and the tests. ``per_block``: the variable has a trailing ``block``
+dimension; ``min_blocks``: written only for sweeps of at least that many blocks.
+"""
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One output variable: name, dtype, units, long name and description."""
+
+    name: str
+    dtype: str
+    units: str
+    long_name: str
+    description: str
+    per_block: bool = False
+    min_blocks: int = 1
+
+
+VARIABLES = (
+    Variable("regime", "int8", "1", "dynamical regime",
+             "steady, stick_slip, runaway or undecided (see flag_values/flag_meanings)"),
+    Variable("lnv_amplitude", "float64", "1", "peak-to-peak ln(v/V)",
+             "max - min of ln(v/V) over all blocks in the final window (the last completed "
+             "oscillation cycle; for runaway runs and runs without two maxima, the cycle in "
+             "progress)"),
+    Variable("lnv_max", "float64", "1", "maximum ln(v/V)", "in the final window"),
+    Variable("lnv_min", "float64", "1", "minimum ln(v/V)", "in the final window"),
+    Variable("v_max", "float64", "um s-1", "maximum slip velocity",
+             "V exp(lnv_max); for runaway runs the velocity cap"),
+    Variable("v_min", "float64", "um s-1", "minimum slip velocity",
+             "V exp(lnv_min); may underflow to 0 in deep stick phases (use lnv_min)"),
+    Variable("period", "float64", "s", "oscillation period",
+             "time between the last two maxima of ln v of block 0; NaN without two maxima"),
+    Variable("growth_rate", "float64", "s-1", "envelope growth rate",
+             "ln(ratio of the last two peak-to-trough amplitudes of ln v) / period; "
+             "negative: decaying, about 0: limit cycle, positive: growing"),
+    Variable("friction_drop", "float64", "1", "friction drop per event",
+             "max - min of the friction coefficient over the final window (largest over blocks)"),
+    Variable("slip_per_event", "float64", "um", "slip per event",
+             "V * period for stick-slip limit cycles (one event per cycle); NaN otherwise"),
+    Variable("t_runaway", "float64", "s", "runaway time",
+             "time at which v first exceeded the velocity cap or the state became non-finite; "
+             "NaN if the run did not run away"),
+    Variable("t_final", "float64", "s", "time the run stopped",
+             "end time, or earlier when the regime was settled (early exit)"),
+    Variable("n_steps", "int64", "1", "accepted integration steps", ""),
+    Variable("n_rejected", "int64", "1", "rejected integration steps", "adaptive method only"),
+    Variable("n_peaks", "int64", "1", "maxima of ln v of block 0", ""),
+    Variable("sync_error", "float64", "1", "synchronisation error",
+             "max |ln v_i - ln v_0| over blocks in the final window", min_blocks=2),
+    Variable("phase_lag", "float64", "1", "phase lag of the last block",
+             "time from a maximum of ln v_0 to the next maximum of ln v of the last block, "
+             "as a fraction of the period in [-0.5, 0.5)", min_blocks=2),
+    Variable("lnv_final", "float64", "1", "final ln(v/V) per block",
+             "state at t_final", per_block=True),
+    Variable("ln_state_final", "float64", "1", "final ln(Phi/Phi_ss) per block",
+             "state at t_final", per_block=True),
+    Variable("linear_growth_rate", "float64", "s-1", "linear growth rate",
+             "max Re(lambda) of the system linearised about steady sliding"),
+    Variable("critical_K_W", "float64", "um-1", "critical stiffness Kc/W",
+             "analytic critical driving-spring stiffness per normal load"),
+    Variable("K_over_Kc", "float64", "1", "K/Kc", "driving-spring stiffness / critical stiffness"),
+    Variable("onset_period", "float64", "s", "period at onset",
+             "2 pi / omega of the linear oscillation at K = Kc"),
+)  # fmt: skip
+
+BY_NAME = {v.name: v for v in VARIABLES}
+
+
+def variables_for(blocks):
+    """The variables a sweep of ``blocks`` blocks writes."""
+    return [v for v in VARIABLES if blocks >= v.min_blocks]
