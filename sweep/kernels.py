@@ -64,8 +64,9 @@ N_SETTINGS = 12
     R_PHASE_LAG,  # (t peak of ℓ_last − t peak of ℓ_0) / period, in [−0.5, 0.5)
     R_N_PEAKS,  # maxima of ℓ_0 seen
     R_LNV_MAX_RUN,  # max ln(v/V) over the whole run
-) = range(14)
-N_RESULTS = 14
+    R_N_RECORDED,  # points written to the recording buffers
+) = range(15)
+N_RESULTS = 15
 
 # Dormand–Prince 5(4) tableau (Hairer, Nørsett & Wanner, Table II.5.2).
 _A21 = 1 / 5
@@ -267,11 +268,14 @@ def trend_settled(ratios, n_ratios, n_trend, env_tol):
 
 
 @jit
-def integrate_system(p, y0, settings, result, y_final):
+def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     """Integrate one system from ``y0`` and write its statistics into ``result``.
 
     ``p``: dimensionless parameters (``P_*`` columns); ``settings``: the ``S_*``
     entries; ``result``: the ``R_*`` columns; ``y_final``: the state at the end.
+    Recording (for traces): the state every ``rec_dt`` (D0/V, interpolated) and
+    at the end goes into ``rec_t``/``rec_y`` while they have room; sweeps pass
+    empty buffers. The count is ``result[R_N_RECORDED]``.
     """
     model = int(settings[S_MODEL])
     law = int(settings[S_LAW])
@@ -339,6 +343,14 @@ def integrate_system(p, y0, settings, result, y_final):
     regime = -1
     tau_runaway = np.nan
 
+    n_rec = 0
+    rec_cap = rec_t.size
+    if rec_cap > 0:
+        rec_t[0] = 0.0
+        for j in range(n):
+            rec_y[0, j] = y[j]
+        n_rec = 1
+
     rhs(y, p, model, law, nb, ev, f)
     t = 0.0
     h = min(1e-3, max_step, tau_end) if method == DOPRI5 else p[P_DT]
@@ -359,9 +371,14 @@ def integrate_system(p, y0, settings, result, y_final):
                 else:
                     h *= 0.2
                 if h < 1e-13 * max(1.0, t):
-                    # the solution leaves every finite bound within a vanishing step
-                    regime = RUNAWAY
-                    tau_runaway = t
+                    # the step size collapsed: with a block slipping faster than the
+                    # load point this is the finite-time blow-up of v (runaway);
+                    # otherwise the solver failed and the run is undecided
+                    regime = UNDECIDED
+                    for i in range(nb):
+                        if y[i] > 0.0:
+                            regime = RUNAWAY
+                            tau_runaway = t
                     break
                 continue
             h_next = min(max_step, h * min(5.0, 0.9 * max(err, 1e-10) ** -0.2))
@@ -426,6 +443,13 @@ def integrate_system(p, y0, settings, result, y_final):
             win_mumin[i] = min(win_mumin[i], mu)
             if i > 0:
                 win_sync = max(win_sync, abs(ynew[i] - ynew[0]))
+
+        while n_rec < rec_cap - 1 and n_rec * rec_dt <= t + h and rec_dt > 0.0:
+            theta = (n_rec * rec_dt - t) / h
+            rec_t[n_rec] = n_rec * rec_dt
+            for j in range(n):
+                rec_y[n_rec, j] = hermite_value(y[j], ynew[j], f[j], fnew[j], h, theta)
+            n_rec += 1
 
         t_new_peak = t + theta_peak * h
         t += h
@@ -525,17 +549,27 @@ def integrate_system(p, y0, settings, result, y_final):
     result[R_LNV_MAX_RUN] = lnv_max_run
     for j in range(n):
         y_final[j] = y[j]
+    if 0 < n_rec < rec_cap and rec_t[n_rec - 1] < t:
+        rec_t[n_rec] = t
+        for j in range(n):
+            rec_y[n_rec, j] = y[j]
+        n_rec += 1
+    result[R_N_RECORDED] = n_rec
 
 
 @jit
 def integrate_grid_serial(params, y0, settings, results, y_final):
     """Integrate every system (rows of ``params``/``y0``) one after another."""
+    no_t = np.empty(0)
+    no_y = np.empty((0, y0.shape[1]))
     for s in range(params.shape[0]):
-        integrate_system(params[s], y0[s], settings, results[s], y_final[s])
+        integrate_system(params[s], y0[s], settings, results[s], y_final[s], 0.0, no_t, no_y)
 
 
 @parallel_jit
 def integrate_grid_parallel(params, y0, settings, results, y_final):
     """Integrate every system on numba's thread pool (one system per iteration)."""
     for s in prange(params.shape[0]):
-        integrate_system(params[s], y0[s], settings, results[s], y_final[s])
+        no_t = np.empty(0)
+        no_y = np.empty((0, y0.shape[1]))
+        integrate_system(params[s], y0[s], settings, results[s], y_final[s], 0.0, no_t, no_y)
