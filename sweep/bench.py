@@ -1,0 +1,284 @@
+"""``make bench``: how fast the engine is, as ratios measured in one process.
+
+Prints and writes ``results/bench.json``:
+
+* the engine versus a plain ``scipy.integrate.solve_ivp`` loop (LSODA and DOP853)
+  over the same one-block grid to the same end time, with the classification
+  agreement outside a ±1 % band around Kc;
+* kernel throughput (integration steps per second per core) for one and two
+  blocks and every model, and the fixed-step RK4 kernel beside the same
+  arithmetic written as plainly as possible;
+* ``configs/twoblock.yaml`` wall time on 1 and 2 threads (JIT cache warm) and
+  the 2-thread speed-up; JIT compile time measured separately, in a fresh
+  process with the cache off and on.
+
+Timings are not asserted anywhere; ``--quick`` shrinks every size for a smoke test.
+"""
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from . import kernels
+from .config import load_config, parse_config
+from .grid import REGIMES, system_arrays
+from .runner import integrate_chunks
+
+PAPER = {"A": 0.03, "B": 0.08, "mu0": 0.4, "V": 0.1, "Phi0": 1.0, "D0": 1.0}
+KC_W = (PAPER["B"] - PAPER["A"]) / PAPER["D0"]  # um^-1
+
+
+def one_block_config(k_values, t_end, model="quasi-static", blocks=1, extra=None, early=True):
+    """A config over ``K_W = k_values`` with the paper's parameters (D0 = 1 um)."""
+    raw = {
+        "name": "bench",
+        "blocks": blocks,
+        "model": model,
+        "parameters": dict(PAPER, **(extra or {})),
+        "sweep": {"K_W": {"values": [float(k) for k in k_values]}},
+        "initial": {"v_over_V": 1.0, "phi_over_phi_ss": 1.01},
+        "integrator": {"t_end": float(t_end)},
+        "classification": {"early_exit": early},
+        "output": "results/bench.nc",
+    }
+    if blocks > 1:
+        raw["parameters"]["k2_W"] = 0.05
+    return parse_config(yaml.safe_dump(raw), source="<bench>")
+
+
+def engine_run(config, threads=1):
+    """(results, seconds) of the engine's grid kernel on ``config``, compiled beforehand."""
+    params, y0, settings, _ = system_arrays(config)
+    integrate_chunks(params[:1], y0[:1], settings, threads=threads)  # JIT warm-up
+    start = time.perf_counter()
+    results, _ = integrate_chunks(params, y0, settings, threads=threads)
+    return results, time.perf_counter() - start
+
+
+def scipy_rhs(t, y, A, B, kappa):
+    """Log-form one-block quasi-static aging law (physics brief, section 2)."""
+    lnv, psi = y
+    e = math.exp(lnv)
+    dpsi = math.exp(-psi) - e
+    return [(kappa * (1.0 - e) - B * dpsi) / A, dpsi]
+
+
+def scipy_classify(k_w, t_end, method, lnv_cap):
+    """What a user's plain SciPy loop would do: integrate, then classify.
+
+    Runaway: ln v crosses the cap (terminal event). Otherwise the amplitude of
+    (ln v, ln Φ/Φss) over the last fifth of the run against the fifth before it:
+    shrinking → steady, within 1 % → stick_slip, growing → undecided.
+    """
+    from scipy.integrate import solve_ivp
+
+    def cap(t, y, *args):
+        return y[0] - lnv_cap
+
+    cap.terminal = True
+    A, B = PAPER["A"], PAPER["B"]
+    y0 = [0.0, math.log(1.01)]
+    sol = solve_ivp(
+        scipy_rhs, (0.0, t_end), y0, method=method, rtol=1e-8, atol=1e-10,
+        args=(A, B, k_w * PAPER["D0"]), events=cap, dense_output=True,
+    )  # fmt: skip
+    if sol.status == 1 or not np.all(np.isfinite(sol.y[:, -1])):
+        return "runaway"
+    t = np.linspace(0.6 * t_end, t_end, 4000)
+    amp = np.abs(sol.sol(t)).max(axis=0)
+    before, last = amp[:2000].max(), amp[2000:].max()
+    if last < 1e-6 or last < 0.99 * before:
+        return "steady"
+    return "stick_slip" if last <= 1.01 * before else "undecided"
+
+
+def bench_scipy(n_points, t_end):
+    """Engine (1 thread) vs SciPy LSODA and DOP853 loops on one one-block grid."""
+    k_values = np.linspace(0.5 * KC_W, 1.5 * KC_W, n_points)
+    config = one_block_config(k_values, t_end)
+    results, engine_s = engine_run(config, threads=1)
+    engine_regimes = [REGIMES[int(r)] for r in results[:, kernels.R_REGIME]]
+    outside = np.abs(k_values / KC_W - 1.0) > 0.01
+    cap = math.log(config.classification.v_cap_over_V)
+    out = {"grid_points": n_points, "t_end_D0_over_V": t_end, "engine_seconds": engine_s}
+    for method in ("LSODA", "DOP853"):
+        start = time.perf_counter()
+        ref = [scipy_classify(k, t_end, method, cap) for k in k_values]
+        seconds = time.perf_counter() - start
+        agree = [a == b for a, b, o in zip(engine_regimes, ref, outside) if o]
+        out[method] = {
+            "seconds": seconds,
+            "speedup_per_core": seconds / engine_s,
+            "agreement_percent": 100.0 * sum(agree) / len(agree),
+        }
+    return out
+
+
+def bench_throughput(n_systems, t_end):
+    """Integration steps per second per core (1 thread), per model and block count."""
+    cases = {
+        "quasi-static": ({}, 1.02),
+        "quasi-dynamic": ({"eta_W": 0.1}, 0.9),
+        "inertial": ({"m_W": 1.0}, 0.95),
+    }
+    out = {}
+    for model, (extra, k_over_kc) in cases.items():
+        for blocks in (1, 2):
+            kc = _critical_k_w(model, extra)
+            k_values = np.linspace(k_over_kc, k_over_kc * 1.01, n_systems) * kc
+            config = one_block_config(k_values, t_end, model, blocks, extra, early=False)
+            results, seconds = engine_run(config, threads=1)
+            steps = results[:, kernels.R_N_STEPS].sum() + results[:, kernels.R_N_REJECTED].sum()
+            out[f"{model}/{blocks}"] = {"steps": int(steps), "steps_per_second": steps / seconds}
+    qs = out["quasi-static/1"]["steps_per_second"]
+    for value in out.values():
+        value["relative_to_quasi_static_1_block"] = value["steps_per_second"] / qs
+    return out
+
+
+def _critical_k_w(model, extra):
+    from .model import critical_kappa, dimensionless
+
+    d = dimensionless(PAPER["A"], PAPER["B"], PAPER["D0"], PAPER["V"], 1.0, 0.0,
+                      extra.get("eta_W", 0.0), extra.get("m_W", 0.0))  # fmt: skip
+    return float(critical_kappa(model, d["A"], d["B"], d["eta_hat"], d["mass_hat"])) / PAPER["D0"]
+
+
+def _plain_rk4_source():
+    """The one-block quasi-static aging RK4 loop written as plainly as possible."""
+
+    def plain_rk4(lnv, psi, A, B, kappa, dt, n_steps):
+        for _ in range(n_steps):
+            e = math.exp(lnv)
+            d1 = math.exp(-psi) - e
+            l1 = (kappa * (1 - e) - B * d1) / A
+            a, b = lnv + 0.5 * dt * l1, psi + 0.5 * dt * d1
+            e = math.exp(a)
+            d2 = math.exp(-b) - e
+            l2 = (kappa * (1 - e) - B * d2) / A
+            a, b = lnv + 0.5 * dt * l2, psi + 0.5 * dt * d2
+            e = math.exp(a)
+            d3 = math.exp(-b) - e
+            l3 = (kappa * (1 - e) - B * d3) / A
+            a, b = lnv + dt * l3, psi + dt * d3
+            e = math.exp(a)
+            d4 = math.exp(-b) - e
+            l4 = (kappa * (1 - e) - B * d4) / A
+            lnv += dt / 6 * (l1 + 2 * l2 + 2 * l3 + l4)
+            psi += dt / 6 * (d1 + 2 * d2 + 2 * d3 + d4)
+        return lnv, psi
+
+    return plain_rk4
+
+
+def bench_rk4_reference(n_steps):
+    """The engine's RK4 kernel vs the plain loop: time per step, same system and dt."""
+    import numba
+
+    plain = numba.njit(nogil=True)(_plain_rk4_source())
+    dt = 0.01
+    t_end = n_steps * dt
+    raw = yaml.safe_load(one_block_config([0.06], t_end, early=False).text)
+    raw["integrator"].update({"method": "rk4", "dt": dt})
+    config = parse_config(yaml.safe_dump(raw), source="<bench>")
+    results, engine_s = engine_run(config, threads=1)
+    steps = int(results[0, kernels.R_N_STEPS])
+    A, B, kappa = PAPER["A"], PAPER["B"], 0.06 * PAPER["D0"]
+    plain(0.0, math.log(1.01), A, B, kappa, dt, 10)
+    start = time.perf_counter()
+    plain(0.0, math.log(1.01), A, B, kappa, dt, steps)
+    plain_s = time.perf_counter() - start
+    return {
+        "steps": steps,
+        "engine_ns_per_step": 1e9 * engine_s / steps,
+        "plain_ns_per_step": 1e9 * plain_s / steps,
+        "engine_over_plain": engine_s / plain_s,
+    }
+
+
+def bench_sweep(config_path):
+    """Wall time and runs/s of a whole config on 1 and 2 threads (JIT cache warm)."""
+    config = load_config(config_path)
+    n = math.prod(config.shape)
+    out = {"config": str(config_path), "runs": n}
+    for threads in (1, 2):
+        _, seconds = engine_run(config, threads=threads)
+        out[f"seconds_{threads}_thread"] = seconds
+        out[f"runs_per_second_{threads}_thread"] = n / seconds
+    out["speedup_2_threads"] = out["seconds_1_thread"] / out["seconds_2_thread"]
+    return out
+
+
+def bench_compile(config_path):
+    """JIT time: a fresh process running a tiny sweep with the cache off, then on."""
+    code = (
+        "import time, sys; t=time.perf_counter();"
+        "from sweep.config import load_config; from sweep.runner import compute;"
+        f"compute(load_config({str(config_path)!r}), show_progress=False);"
+        "print(time.perf_counter()-t)"
+    )
+    out = {}
+    for label, cache in (("cache_off_seconds", "0"), ("cache_warm_seconds", "1")):
+        env = dict(os.environ, SWEEP_NUMBA_CACHE=cache)
+        if cache == "1":  # warm the cache first
+            subprocess.run([sys.executable, "-c", code], env=env, check=True, capture_output=True)
+        run = subprocess.run([sys.executable, "-c", code], env=env, check=True, capture_output=True)
+        out[label] = float(run.stdout.split()[-1])
+    out["compile_seconds"] = out["cache_off_seconds"] - out["cache_warm_seconds"]
+    return out
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m sweep.bench", description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="tiny sizes (smoke test)")
+    parser.add_argument("--out", default="results/bench.json", help="where to write the figures")
+    args = parser.parse_args(argv)
+    quick = args.quick
+    figures = {"quick": quick, "machine_cores": os.cpu_count()}
+    figures["scipy"] = bench_scipy(n_points=6 if quick else 41, t_end=300 if quick else 2000)
+    _print_scipy(figures["scipy"])
+    figures["throughput"] = bench_throughput(n_systems=2 if quick else 16, t_end=50 if quick else 500)
+    _print_throughput(figures["throughput"])
+    figures["rk4"] = bench_rk4_reference(n_steps=10_000 if quick else 2_000_000)
+    r = figures["rk4"]
+    print(f"RK4 kernel {r['engine_ns_per_step']:.0f} ns/step vs plain loop "
+          f"{r['plain_ns_per_step']:.0f} ns/step: ratio {r['engine_over_plain']:.2f}")  # fmt: skip
+    for name in ("oneblock", "twoblock"):
+        figures[name] = t = bench_sweep("configs/quick.yaml" if quick else f"configs/{name}.yaml")
+        print(f"{t['config']} ({t['runs']} runs): {t['seconds_1_thread']:.2f} s on 1 thread "
+              f"({t['runs_per_second_1_thread']:.0f} runs/s), {t['seconds_2_thread']:.2f} s on 2 "
+              f"({t['runs_per_second_2_thread']:.0f} runs/s), speed-up {t['speedup_2_threads']:.2f}x")  # fmt: skip
+    figures["compile"] = bench_compile("configs/quick.yaml")
+    c = figures["compile"]
+    print(f"JIT compile {c['compile_seconds']:.1f} s (fresh process: {c['cache_off_seconds']:.1f} s "
+          f"with cache off, {c['cache_warm_seconds']:.1f} s with a warm cache)")  # fmt: skip
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps(figures, indent=2) + "\n")
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _print_scipy(s):
+    for method in ("LSODA", "DOP853"):
+        m = s[method]
+        print(f"one block, {s['grid_points']} runs to {s['t_end_D0_over_V']:g} D0/V: engine "
+              f"{m['speedup_per_core']:.0f}x faster per core than a SciPy {method} loop, "
+              f"{m['agreement_percent']:.1f} % same regime outside +-1 % of Kc")  # fmt: skip
+
+
+def _print_throughput(t):
+    for key, value in t.items():
+        print(f"{key:<18} {value['steps_per_second'] / 1e6:6.2f} M steps/s per core "
+              f"({value['relative_to_quasi_static_1_block']:.2f}x quasi-static 1 block)")  # fmt: skip
+
+
+if __name__ == "__main__":
+    sys.exit(main())
