@@ -63,7 +63,7 @@ def build_parser():
     where = run.add_mutually_exclusive_group()
     where.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask scheduler")
     where.add_argument(
-        "--dask-local", type=_positive_int, metavar="N", help="run on a new Dask LocalCluster of N"
+        "--dask-local", type=_positive_int, metavar="N", help="run on N local Dask worker processes"
     )
     run.add_argument(
         "--shard",
