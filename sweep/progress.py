@@ -8,13 +8,15 @@ class Progress:
     """Counts finished runs; shows runs done, runs/s and ETA.
 
     On a terminal a tqdm bar on stderr; otherwise (CI, batch logs) a plain line
-    at most every ``interval`` seconds and one at the end. ``enabled=False``
-    prints nothing.
+    at most every ``interval`` seconds (s) and one at the end. ``enabled=False``
+    prints nothing. ``initial``: runs already done before this session (e.g.
+    read back from parts on resume); the rate counts only runs done now.
     """
 
-    def __init__(self, total, desc="sweep", enabled=True, stream=None, interval=10.0):
+    def __init__(self, total, desc="sweep", enabled=True, stream=None, interval=10.0, initial=0):
         self.total = int(total)
-        self.done = 0
+        self.initial = int(initial)
+        self.done = self.initial
         self.desc = desc
         self.stream = stream if stream is not None else sys.stderr
         self.interval = interval
@@ -25,7 +27,9 @@ class Progress:
         if enabled and getattr(self.stream, "isatty", lambda: False)():
             from tqdm import tqdm
 
-            self._bar = tqdm(total=self.total, desc=desc, unit="run", file=self.stream)
+            self._bar = tqdm(
+                total=self.total, desc=desc, unit="run", file=self.stream, initial=self.initial
+            )
 
     def update(self, n):
         """Record ``n`` more finished runs."""
@@ -44,7 +48,7 @@ class Progress:
         """One plain progress line: done/total, percent, runs/s, ETA."""
         now = time.monotonic() if now is None else now
         elapsed = max(now - self._start, 1e-9)
-        rate = self.done / elapsed
+        rate = (self.done - self.initial) / elapsed
         left = (self.total - self.done) / rate if rate > 0 else float("inf")
         pct = 100.0 * self.done / self.total if self.total else 100.0
         return (
@@ -53,5 +57,6 @@ class Progress:
         )
 
     def close(self):
+        """Finish the bar (a terminal line is left showing the final state)."""
         if self._bar is not None:
             self._bar.close()

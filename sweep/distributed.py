@@ -1,0 +1,157 @@
+"""Dask glue: run a sweep's chunks as tasks on a Dask distributed cluster.
+
+Dask is imported lazily, so the core package does not need it. Each task
+integrates one chunk with the *serial* grid kernel: the kernels release the
+GIL and Dask owns the threads (one numba thread pool per worker process would
+fight Dask for the cores). Results come back to the client, which writes the
+parts, so workers need no shared file system; they do need the ``sweep``
+package importable (``pip install rsf-sweep[distributed]`` or ``-e .``).
+
+Before any worker starts, the parent compiles the serial kernel, so the numba
+cache on disk is written by one process only (concurrent writers can crash,
+numba#4807); workers on the same machine and CPU then load it.
+"""
+
+import logging
+import time
+from contextlib import contextmanager
+
+import numpy as np
+
+from .runner import RunError, compile_grid_kernel
+
+log = logging.getLogger(__name__)
+
+#: Seconds between checks for a stop request while waiting for tasks.
+POLL = 0.5
+
+
+def integrate_chunk(params, y0, settings):
+    """Task body: integrate the systems of one chunk one after another.
+
+    Arguments as for ``kernels.integrate_grid_serial``; arrays arriving from
+    the network may be read-only or strided, and are made C-contiguous and
+    writable so the kernel's compiled signature (and cache entry) is reused.
+    Returns ``(results, y_final)``.
+    """
+    from .kernels import N_RESULTS, integrate_grid_serial
+
+    params, y0, settings = (np.require(a, np.float64, ["C", "W"]) for a in (params, y0, settings))
+    results = np.empty((params.shape[0], N_RESULTS))
+    y_final = np.empty_like(y0)
+    integrate_grid_serial(params, y0, settings, results, y_final)
+    return results, y_final
+
+
+@contextmanager
+def connect(scheduler=None, local_workers=None):
+    """A Dask client: to the scheduler at ``scheduler``, or to a new LocalCluster.
+
+    ``local_workers``: number of single-threaded worker processes of the
+    LocalCluster. Raises :class:`~sweep.runner.RunError` if Dask is missing or
+    the scheduler cannot be reached (the connect timeout is Dask's
+    ``distributed.comm.timeouts.connect``, e.g. env
+    ``DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=10s``).
+    """
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise RunError(
+            "Dask is not installed; install it with pip install 'rsf-sweep[distributed]'"
+        ) from None
+    load_kernels()
+    cluster = None
+    if scheduler is not None:
+        try:
+            client = Client(scheduler)
+        except (OSError, ValueError) as exc:
+            raise RunError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+    else:
+        cluster = LocalCluster(
+            n_workers=local_workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+        )
+        client = Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def load_kernels():
+    """Load (or compile) the serial grid kernel in this process, e.g. on every worker."""
+    from . import kernels
+
+    compile_grid_kernel(kernels.integrate_grid_serial)
+
+
+def worker_threads(client):
+    """Total threads over the cluster's current workers."""
+    return sum(client.nthreads().values())
+
+
+def dask_chunks(client, params, y0, settings, ranges, stop=None):
+    """Integrate ``ranges`` of systems as Dask tasks; yield results as they finish.
+
+    Yields ``(start, stop, results, y_final)`` per range, in completion order.
+    At most a few tasks per worker thread are in flight, so the client's memory
+    does not hold a second copy of the whole grid. ``stop`` (a
+    :class:`~sweep.runner.StopRequest`) is checked every ``POLL`` seconds;
+    when set, unfinished tasks are cancelled and the generator returns.
+    """
+    from distributed import wait
+
+    todo = list(reversed(ranges))
+    flying = {}
+    try:
+        while todo or flying:
+            window = max(8, 4 * worker_threads(client))
+            while todo and len(flying) < window:
+                a, b = todo.pop()
+                future = client.submit(integrate_chunk, params[a:b], y0[a:b], settings, pure=False)
+                flying[future] = (a, b)
+            try:
+                done = wait(list(flying), timeout=POLL, return_when="FIRST_COMPLETED").done
+            except TimeoutError:
+                done = ()
+            for future in done:
+                a, b = flying.pop(future)
+                try:
+                    results, y_final = future.result()
+                except ImportError as exc:
+                    raise RunError(
+                        f"a Dask worker cannot import the sweep package ({exc}); install it "
+                        "in the workers' environment"
+                    ) from None
+                yield a, b, results, y_final
+            if stop:
+                return
+    finally:
+        client.cancel(list(flying))
+
+
+def compare_backends(config, workers=2):
+    """Wall times (s) of computing ``config`` on 1 and ``workers`` numba threads and on a
+    LocalCluster of ``workers`` processes (kernels compiled beforehand).
+
+    Returns a dict: ``threads_1``, ``threads_n``, ``speedup`` (threads_1 /
+    threads_n), ``cluster_start`` (starting the LocalCluster and its workers)
+    and ``cluster`` (the computation on it); for ``make bench``.
+    """
+    from .runner import time_compute
+
+    times = {"threads_1": time_compute(config, threads=1)}
+    times["threads_n"] = time_compute(config, threads=workers)
+    times["speedup"] = times["threads_1"] / times["threads_n"]
+    start = time.perf_counter()
+    with connect(local_workers=workers) as client:
+        client.wait_for_workers(workers)
+        client.run(load_kernels)
+        times["cluster_start"] = time.perf_counter() - start
+        times["cluster"] = time_compute(config, client=client)
+    return times

@@ -1,0 +1,242 @@
+"""The chunk store: finished chunks of a sweep as small, self-checking files.
+
+A sweep's systems (rows of the C-ordered grid) are computed in chunks; each
+finished chunk is written at once to a *part* file in a working directory
+beside the output (``results/quick.nc`` → ``results/quick.parts/``)::
+
+    <config hash>_<start>-<stop>_of_<n>.npz
+
+holding rows ``start:stop`` of the kernels' ``results`` and ``y_final`` arrays,
+the config text and a SHA-256 of the arrays. Parts are written to a temporary
+file, flushed to disk and renamed, so a part either exists complete or not at
+all; reading one checks the zip CRCs, the checksum, the shapes and that the
+name agrees with the content, so a truncated or corrupt part is never used.
+
+The config hash covers everything that changes the numbers: the validated
+config fields (not its whitespace, name, description or output path) and the
+source of the code that turns them into numbers. A changed config therefore
+never mixes with old parts. Parts store their row range, so parts written with
+another chunk size (or by other shards) can still be used row by row.
+"""
+
+import hashlib
+import json
+import os
+import re
+import secrets
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+
+#: Bumped when the layout of a part file changes.
+PART_FORMAT = 1
+#: Modules whose code decides the numbers stored in a part.
+NUMERIC_MODULES = ("kernels.py", "grid.py", "model.py")
+PART_NAME = re.compile(r"^(?P<hash>[0-9a-f]{16})_(?P<start>\d+)-(?P<stop>\d+)_of_(?P<n>\d+)\.npz$")
+TEMP_PREFIX = ".part-"
+
+
+class PartError(ValueError):
+    """A part file that cannot be used; the message says why."""
+
+
+def config_hash(config):
+    """16 hex digits identifying the numbers a config produces.
+
+    Built from the validated fields that change results (blocks, model, law,
+    fixed parameters, axes in order, initial state, integrator and
+    classification settings), the package version and the source of the
+    numeric modules. Fixed parameters are sorted, since their order in the
+    file does not matter; axis order does (it orders the grid).
+    """
+    fields = {
+        "blocks": config.blocks,
+        "model": config.model,
+        "state_law": config.state_law,
+        "parameters": sorted(config.parameters),
+        "axes": [[a.name, list(a.values)] for a in config.axes],
+        "initial": asdict(config.initial),
+        "integrator": asdict(config.integrator),
+        "classification": asdict(config.classification),
+    }
+    digest = hashlib.sha256(json.dumps(fields, sort_keys=True).encode())
+    digest.update(f"rsf-sweep {__version__} parts {PART_FORMAT}".encode())
+    here = Path(__file__).parent
+    for name in NUMERIC_MODULES:
+        digest.update((here / name).read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def parts_dir_for(output):
+    """The working directory for the parts of the sweep written to ``output``."""
+    output = Path(output)
+    return output.with_name(output.stem + ".parts")
+
+
+def part_name(chash, start, stop, n):
+    """File name of the part holding rows ``start:stop`` of an ``n``-system sweep."""
+    width = len(str(n))
+    return f"{chash}_{start:0{width}d}-{stop:0{width}d}_of_{n}.npz"
+
+
+def _checksum(results, y_final):
+    digest = hashlib.sha256(np.ascontiguousarray(results).tobytes())
+    digest.update(np.ascontiguousarray(y_final).tobytes())
+    return digest.hexdigest()
+
+
+@dataclass(frozen=True)
+class Part:
+    """A validated part: rows ``start:stop`` of a sweep of ``n`` systems."""
+
+    path: Path
+    config_hash: str
+    start: int
+    stop: int
+    n: int
+    config_text: str
+    config_source: str
+    results: np.ndarray
+    y_final: np.ndarray
+
+
+def write_part(directory, config, chash, start, stop, n, results, y_final):
+    """Write rows ``start:stop`` atomically into ``directory``; return the path.
+
+    ``results`` and ``y_final`` are the kernels' outputs for those rows. The
+    file is written under a temporary name, flushed to disk and renamed.
+    """
+    directory = Path(directory)
+    path = directory / part_name(chash, start, stop, n)
+    meta = {
+        "format": PART_FORMAT,
+        "config_hash": chash,
+        "start": start,
+        "stop": stop,
+        "n": n,
+        "sha256": _checksum(results, y_final),
+        "config_text": config.text,
+        "config_source": config.source,
+    }
+    tmp = directory / f"{TEMP_PREFIX}{os.getpid()}-{secrets.token_hex(4)}.tmp"
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)  # mode as umask allows
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, results=results, y_final=y_final, meta=np.array(json.dumps(meta)))
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
+    return path
+
+
+def read_part(path):
+    """Read and validate the part at ``path``; raise :class:`PartError` if unusable."""
+    path = Path(path)
+    match = PART_NAME.match(path.name)
+    if match is None:
+        raise PartError(f"{path}: not a part file name (<hash>_<start>-<stop>_of_<n>.npz)")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            results = data["results"]
+            y_final = data["y_final"]
+    except Exception as exc:  # zipfile, numpy and json each raise their own kinds
+        raise PartError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None
+    start, stop, n = int(match["start"]), int(match["stop"]), int(match["n"])
+    expected = {"format": PART_FORMAT, "config_hash": match["hash"], "start": start,
+                "stop": stop, "n": n}  # fmt: skip
+    wrong = [k for k, v in expected.items() if meta.get(k) != v]
+    if wrong:
+        raise PartError(f"{path}: name and content disagree on {', '.join(wrong)}")
+    if not 0 <= start < stop <= n:
+        raise PartError(f"{path}: row range {start}:{stop} is outside 0:{n}")
+    rows = stop - start
+    if results.ndim != 2 or results.shape[0] != rows or y_final.ndim != 2 or len(y_final) != rows:
+        raise PartError(f"{path}: arrays do not hold {rows} rows")
+    if _checksum(results, y_final) != meta.get("sha256"):
+        raise PartError(f"{path}: checksum mismatch (corrupt data)")
+    return Part(path, match["hash"], start, stop, n, meta["config_text"],
+                meta["config_source"], results, y_final)  # fmt: skip
+
+
+def part_files(paths):
+    """Part files named in ``paths`` (files, or directories searched one level), sorted."""
+    found = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found.extend(f for f in p.iterdir() if PART_NAME.match(f.name))
+        else:
+            found.append(p)
+    return sorted(set(found))
+
+
+def scan(directory):
+    """Part files in ``directory`` grouped by config hash: {hash: [(start, stop, n, path)]}."""
+    groups = {}
+    directory = Path(directory)
+    if not directory.is_dir():
+        return groups
+    for f in sorted(directory.iterdir()):
+        m = PART_NAME.match(f.name)
+        if m:
+            entry = (int(m["start"]), int(m["stop"]), int(m["n"]), f)
+            groups.setdefault(m["hash"], []).append(entry)
+    return groups
+
+
+def remove_parts(directory):
+    """Remove every part and leftover temporary file in ``directory``, then the folder if empty.
+
+    Other files are left alone. Returns the number of files removed.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        return 0
+    removed = 0
+    for f in directory.iterdir():
+        if PART_NAME.match(f.name) or f.name.startswith(TEMP_PREFIX):
+            f.unlink()
+            removed += 1
+    if not any(directory.iterdir()):
+        directory.rmdir()
+    return removed
+
+
+def fill_from_parts(entries, results, y_final, have, wanted):
+    """Copy rows from valid parts into ``results``/``y_final``.
+
+    ``entries`` as from :func:`scan` (one config hash); only rows that are
+    ``wanted`` and not yet in ``have`` (boolean masks over systems) are taken,
+    and ``have`` is updated. Returns ``(used, bad)``: paths of the parts read,
+    and ``(path, reason)`` for parts that are corrupt or do not fit.
+    """
+    used, bad = [], []
+    for start, stop, n, path in entries:
+        if n != len(have) or stop > n:
+            bad.append((path, f"{path}: made for a sweep of {n} systems, not {len(have)}"))
+            continue
+        take = wanted[start:stop] & ~have[start:stop]
+        if not take.any():
+            continue
+        try:
+            part = read_part(path)
+            if (
+                part.results.shape[1:] != results.shape[1:]
+                or part.y_final.shape[1:] != y_final.shape[1:]
+            ):
+                raise PartError(f"{path}: array columns do not match this sweep")
+        except PartError as exc:
+            bad.append((path, str(exc)))
+            continue
+        results[start:stop][take] = part.results[take]
+        y_final[start:stop][take] = part.y_final[take]
+        have[start:stop] |= take
+        used.append(path)
+    return used, bad

@@ -1,0 +1,122 @@
+"""Scaling out: Dask workers and job-array shards give the same numbers as threads.
+
+Results must be identical (no tolerance): each system is integrated by the same
+code whichever process, thread or shard runs it. Dataset-level attributes are
+dropped before comparing: they hold creation times.
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from sweep import accelerate, parts, runner
+from sweep.cli import main
+from sweep.config import load_config
+from sweep.grid import system_arrays
+
+dask = pytest.importorskip("dask")
+distributed = pytest.importorskip("distributed")
+
+from sweep import distributed as sweep_distributed  # noqa: E402 (needs dask)
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK = ROOT / "configs" / "quick.yaml"
+
+
+def without_provenance(ds):
+    """``ds`` without its file attributes (creation time, command line, paths)."""
+    out = ds.copy()
+    out.attrs = {}
+    return out
+
+
+@pytest.fixture(scope="module")
+def quick():
+    return load_config(QUICK)
+
+
+@pytest.fixture(scope="module")
+def quick_reference(quick):
+    """numba threads, one system per chunk on one thread."""
+    ds = runner.compute(quick, threads=1, chunk_size=1, show_progress=False)
+    return without_provenance(ds)
+
+
+@pytest.fixture(scope="module")
+def local_client():
+    """A LocalCluster of 2 single-threaded worker processes, as ``--dask-local 2`` starts."""
+    with sweep_distributed.connect(local_workers=2) as client:
+        client.wait_for_workers(2)
+        yield client
+
+
+def test_serial_task_kernel_matches_threads_on_read_only_input(quick, quick_reference):
+    """Arrays unpickled on a worker may be read-only; the task copes and agrees."""
+    params, y0, settings, _ = system_arrays(quick)
+    for a in (params, y0, settings):
+        a.flags.writeable = False
+    results, y_final = sweep_distributed.integrate_chunk(params, y0, settings)
+    threaded, y_threaded = runner.integrate_chunks(params.copy(), y0.copy(), settings.copy())
+    np.testing.assert_array_equal(results, threaded)
+    np.testing.assert_array_equal(y_final, y_threaded)
+
+
+@pytest.mark.slow
+def test_local_cluster_gives_identical_results(quick, quick_reference, local_client, tmp_path):
+    """Through ``run_sweep(scheduler=...)``, i.e. ``--scheduler ADDRESS``, in chunks of 2."""
+    out = tmp_path / "r.nc"
+    address = local_client.scheduler.address
+    runner.run_sweep(quick, out=out, scheduler=address, chunk_size=2, show_progress=False)
+    xr.testing.assert_identical(without_provenance(xr.load_dataset(out)), quick_reference)
+
+
+@pytest.mark.slow
+def test_workers_load_the_kernel_from_the_cache(local_client):
+    """``connect`` compiles the serial kernel in the parent before workers start; the
+    workers then only load it from numba's cache and never compile it themselves, so
+    no two processes write the cache at once (numba#4807)."""
+    if not accelerate.CACHE:
+        pytest.skip("numba cache disabled (SWEEP_NUMBA_CACHE=0)")
+
+    def compile_stats():
+        from sweep import kernels
+
+        stats = kernels.integrate_grid_serial.stats
+        return len(stats.cache_hits), len(stats.cache_misses)
+
+    local_client.run(sweep_distributed.load_kernels)
+    for hits, misses in local_client.run(compile_stats).values():
+        assert (hits, misses) == (1, 0)
+
+
+def test_three_shards_and_merge_give_identical_results(quick_reference, tmp_path, capsys):
+    out = tmp_path / "r.nc"
+    for i in range(3):
+        args = ["run", str(QUICK), "--out", str(out), "--shard", f"{i}/3", "--chunk-size", "2"]
+        assert main([*args, "--quiet"]) == 0
+        assert not out.exists()
+    parts_dir = parts.parts_dir_for(out)
+    assert "python -m sweep merge" in capsys.readouterr().out
+    assert main(["merge", str(parts_dir), "--out", str(out)]) == 0
+    xr.testing.assert_identical(without_provenance(xr.load_dataset(out)), quick_reference)
+    assert not parts_dir.exists()
+
+
+def test_unreachable_scheduler_is_a_clear_error(tmp_path, capsys):
+    out = tmp_path / "r.nc"
+    out.write_bytes(b"earlier result")
+    address = "tcp://127.0.0.1:1"  # port 1: nothing listens there
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        code = main(["run", str(QUICK), "--out", str(out), "--scheduler", address, "--quiet"])
+    assert code == 1
+    assert f"cannot reach the Dask scheduler at {address}" in capsys.readouterr().err
+    assert out.read_bytes() == b"earlier result"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.nc"]
+
+
+def test_threads_and_dask_do_not_mix(tmp_path, capsys):
+    out = tmp_path / "r.nc"
+    assert main(["run", str(QUICK), "--out", str(out), "--threads", "1", "--dask-local", "2"]) == 2
+    assert "--threads" in capsys.readouterr().err

@@ -1,0 +1,154 @@
+"""The chunk store: part files are complete or rejected, and never mix configs."""
+
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from sweep import parts, runner
+from sweep.config import load_config, parse_config
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK = ROOT / "configs" / "quick.yaml"
+
+
+def without_provenance(ds):
+    """``ds`` without its file attributes (creation time, command line, paths)."""
+    out = ds.copy()
+    out.attrs = {}
+    return out
+
+
+@pytest.fixture(scope="module")
+def quick():
+    return load_config(QUICK)
+
+
+@pytest.fixture(scope="module")
+def quick_reference(quick):
+    return without_provenance(runner.compute(quick, threads=1, chunk_size=1, show_progress=False))
+
+
+@pytest.fixture
+def one_part(quick, tmp_path):
+    """A part holding rows 3:5 of a 9-system sweep, with recognisable numbers."""
+    rng = np.random.default_rng(0)
+    results, y_final = rng.normal(size=(2, 15)), rng.normal(size=(2, 2))
+    path = parts.write_part(tmp_path, quick, parts.config_hash(quick), 3, 5, 9, results, y_final)
+    return path, results, y_final
+
+
+def test_part_round_trip(quick, one_part):
+    path, results, y_final = one_part
+    part = parts.read_part(path)
+    assert (part.start, part.stop, part.n, part.config_hash) == (3, 5, 9, parts.config_hash(quick))
+    np.testing.assert_array_equal(part.results, results)
+    np.testing.assert_array_equal(part.y_final, y_final)
+    assert parse_config(part.config_text, part.config_source) == quick
+    assert [f.name for f in path.parent.iterdir()] == [path.name]  # no temporary file left
+
+
+def _truncate_to_zero(path):
+    path.write_bytes(b"")
+
+
+def _truncate_half(path):
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+
+
+def _flip_a_data_byte(path):
+    data = bytearray(path.read_bytes())
+    data[len(data) // 3] ^= 0xFF  # inside the results array (stored first)
+    path.write_bytes(bytes(data))
+
+
+def _rename_to_other_rows(path):
+    path.rename(path.with_name(path.name.replace("3-5", "4-6")))
+
+
+@pytest.mark.parametrize(
+    "damage", [_truncate_to_zero, _truncate_half, _flip_a_data_byte, _rename_to_other_rows]
+)
+def test_damaged_part_is_rejected(one_part, damage):
+    path = one_part[0]
+    damage(path)
+    (damaged,) = path.parent.iterdir()
+    with pytest.raises(parts.PartError, match=damaged.name):
+        parts.read_part(damaged)
+
+
+def test_hash_follows_the_numbers_not_the_wording():
+    text = QUICK.read_text()
+    base = parts.config_hash(parse_config(text))
+    same = [
+        text.replace("name: quick", "name: other").replace("t_end: 2000.0", "t_end: 2000"),
+        text.replace("output: results/quick.nc", "output: elsewhere/x.nc") + "\n# a comment\n",
+        text.replace("description: One block", "description: Another block"),
+        text.replace("  A: 0.03\n  B: 0.08\n", "  B: 0.08\n  A: 0.03\n"),  # fixed-parameter order
+    ]
+    changed = [
+        text.replace("t_end: 2000.0", "t_end: 2001.0"),
+        text.replace("A: 0.03", "A: 0.031"),
+        text.replace("num: 9", "num: 10"),
+        text.replace("phi_over_phi_ss: 1.01", "phi_over_phi_ss: 1.02"),
+        text.replace("v_cap_over_V: 1.0e6", "v_cap_over_V: 1.0e5"),
+    ]
+    for variant in same:
+        assert variant != text and parts.config_hash(parse_config(variant)) == base
+    for variant in changed:
+        assert variant != text and parts.config_hash(parse_config(variant)) != base
+
+
+def test_truncated_part_is_reported_and_recomputed(quick, quick_reference, tmp_path, caplog):
+    out = tmp_path / "r.nc"
+    runner.run_sweep(quick, out=out, chunk_size=3, shard=(0, 1), show_progress=False)
+    victim = sorted(parts.parts_dir_for(out).glob("*.npz"))[1]  # rows 3:6
+    victim.write_bytes(b"")
+    with caplog.at_level(logging.INFO, logger="sweep"):
+        result = runner.run_sweep(quick, out=out, chunk_size=3, resume=True, show_progress=False)
+    assert f"unusable part, its runs will be recomputed: {victim}" in caplog.text
+    assert (result.reused, result.computed) == (6, 3)
+    xr.testing.assert_identical(without_provenance(xr.load_dataset(out)), quick_reference)
+
+
+def test_changed_config_never_uses_old_parts(quick, tmp_path, caplog):
+    out = tmp_path / "r.nc"
+    runner.run_sweep(quick, out=out, chunk_size=3, shard=(0, 1), show_progress=False)
+    changed = parse_config(QUICK.read_text().replace("t_end: 2000.0", "t_end: 1500.0"))
+    with caplog.at_level(logging.INFO, logger="sweep"):
+        result = runner.run_sweep(changed, out=out, chunk_size=3, resume=True, show_progress=False)
+    assert "ignoring 3 parts of another config" in caplog.text
+    assert (result.reused, result.computed) == (0, 9)
+    reference = runner.compute(changed, show_progress=False)
+    xr.testing.assert_identical(
+        without_provenance(xr.load_dataset(out)), without_provenance(reference)
+    )
+    assert not parts.parts_dir_for(out).exists()  # old and new parts cleaned up
+
+
+def test_merge_uses_the_complete_config_and_ignores_others(quick, quick_reference, tmp_path):
+    out = tmp_path / "r.nc"
+    runner.run_sweep(quick, out=out, chunk_size=4, shard=(0, 1), show_progress=False)
+    other = parse_config(QUICK.read_text().replace("t_end: 2000.0", "t_end: 1500.0"))
+    runner.run_sweep(other, out=out, chunk_size=4, shard=(0, 2), show_progress=False)
+    merged = tmp_path / "merged.nc"
+    ds = runner.merge_parts([parts.parts_dir_for(out)], merged)
+    xr.testing.assert_identical(without_provenance(ds), quick_reference)
+    xr.testing.assert_identical(without_provenance(xr.load_dataset(merged)), quick_reference)
+    left = list(parts.parts_dir_for(out).glob("*.npz"))
+    assert len(left) == 2 and all(parts.config_hash(other) in f.name for f in left)
+
+
+def test_merge_never_uses_a_corrupt_part(quick, tmp_path):
+    out = tmp_path / "r.nc"
+    runner.run_sweep(quick, out=out, chunk_size=4, shard=(0, 1), show_progress=False)
+    victim = sorted(parts.parts_dir_for(out).glob("*.npz"))[2]  # rows 8:9
+    victim.write_bytes(victim.read_bytes()[:100])
+    merged = tmp_path / "merged.nc"
+    with pytest.raises(runner.RunError, match=r"corrupt part.*rows 8:9 missing") as info:
+        runner.merge_parts([parts.parts_dir_for(out)], merged)
+    assert victim.name in str(info.value)
+    assert not merged.exists()

@@ -1,0 +1,269 @@
+"""The runner: chunked, resumable and interruptible sweeps give the same numbers every way.
+
+Every system is integrated independently and deterministically, so the result
+Dataset must be *identical* (bit for bit, no tolerance) whatever the chunk
+size, thread count, resumption or interruption. Dataset-level attributes are
+dropped before comparing: they hold creation times.
+"""
+
+import errno
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+from hypothesis import given
+from hypothesis import strategies as st
+
+from sweep import parts, runner
+from sweep.cli import main
+from sweep.config import load_config, parse_config
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK = ROOT / "configs" / "quick.yaml"
+
+#: Slow enough per run to kill a sweep part-way: fixed-step RK4 with 1e6 steps per run
+#: (about 0.2 s each on one thread), runs kept going to t_end (early_exit false, and a
+#: steady threshold the slowly decaying oscillation just above Kc/W never reaches).
+SLOW = """\
+name: slow
+blocks: 1
+model: quasi-static
+state_law: aging
+parameters: {A: 0.03, B: 0.08, mu0: 0.4, V: 0.1, Phi0: 1.0, D0: 1.0}
+sweep:
+  K_W: {start: 0.0502, stop: 0.051, num: 8}
+integrator: {method: rk4, dt: 0.002, t_end: 2000.0}
+classification: {early_exit: false, steady_amplitude: 1.0e-12}
+"""
+
+
+def without_provenance(ds):
+    """``ds`` without its file attributes (creation time, command line, paths)."""
+    out = ds.copy()
+    out.attrs = {}
+    return out
+
+
+def assert_same_result(ds, reference):
+    xr.testing.assert_identical(without_provenance(ds), without_provenance(reference))
+
+
+@pytest.fixture(scope="module")
+def quick():
+    return load_config(QUICK)
+
+
+@pytest.fixture(scope="module")
+def quick_reference(quick):
+    """One system per chunk on one thread: the plainest way to run the sweep."""
+    return runner.compute(quick, threads=1, chunk_size=1, show_progress=False)
+
+
+@pytest.fixture
+def slow_config(tmp_path):
+    path = tmp_path / "slow.yaml"
+    path.write_text(SLOW)
+    return path
+
+
+def sweep_cli(*args, cwd, **popen):
+    """Start ``python -m sweep ARGS`` in ``cwd``, stderr piped."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "sweep", *map(str, args)],
+        cwd=cwd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        **popen,
+    )
+
+
+def wait_for_parts(parts_dir, proc, count=1, timeout=60.0):
+    """Poll until ``parts_dir`` holds ``count`` finished parts (fail if ``proc`` ends first)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if len(list(parts_dir.glob("*.npz"))) >= count:
+            return
+        assert proc.poll() is None, "the sweep ended before it could be interrupted"
+        time.sleep(0.01)
+    pytest.fail(f"no part appeared in {parts_dir} within {timeout} s")
+
+
+# --- plan: chunks, shards, rows still missing -----------------------------------
+
+
+@given(
+    n=st.integers(1, 200),
+    chunk=st.integers(1, 50),
+    n_shards=st.integers(1, 5),
+)
+def test_shards_partition_the_grid(n, chunk, n_shards):
+    """Every row belongs to exactly one chunk of exactly one shard."""
+    owner = np.zeros(n, int)
+    for i in range(n_shards):
+        for a, b in runner.chunk_ranges(n, chunk, (i, n_shards)):
+            assert 0 < b - a <= chunk and a % chunk == 0
+            owner[a:b] += 1
+    assert (owner == 1).all()
+
+
+@given(have=st.lists(st.booleans(), min_size=1, max_size=60), chunk=st.integers(1, 9))
+def test_missing_ranges_are_exactly_the_missing_rows(have, chunk):
+    """The ranges left to compute cover the rows not yet had, each within one chunk."""
+    have = np.array(have)
+    chunks = runner.chunk_ranges(len(have), chunk)
+    todo = runner.missing_ranges(chunks, have)
+    covered = np.zeros(len(have), int)
+    for a, b in todo:
+        covered[a:b] += 1
+        assert any(c <= a and b <= d for c, d in chunks)
+    assert (covered == ~have).all()
+
+
+# --- determinism ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("chunk_size", [1, 7, None])
+def test_chunk_size_and_threads_do_not_change_results(
+    quick, quick_reference, tmp_path, threads, chunk_size
+):
+    chunk = chunk_size or quick_reference["regime"].size  # None: the whole grid in one chunk
+    out = tmp_path / "r.nc"
+    result = runner.run_sweep(
+        quick, out=out, threads=threads, chunk_size=chunk, show_progress=False
+    )
+    assert_same_result(xr.load_dataset(out), quick_reference)
+    assert result.computed == quick_reference["regime"].size
+    assert not parts.parts_dir_for(out).exists()  # parts removed once the file is written
+
+
+def test_resume_with_another_chunk_size_reuses_saved_rows(quick, quick_reference, tmp_path):
+    """Parts of chunk size 2 (rows 0-1, 4-5, 8 from shard 0 of 2) serve a resume in chunks of 3."""
+    out = tmp_path / "r.nc"
+    shard = runner.run_sweep(quick, out=out, chunk_size=2, shard=(0, 2), show_progress=False)
+    assert (shard.computed, shard.dataset, out.exists()) == (5, None, False)
+    result = runner.run_sweep(quick, out=out, chunk_size=3, resume=True, show_progress=False)
+    assert (result.reused, result.computed) == (5, 4)
+    assert_same_result(xr.load_dataset(out), quick_reference)
+
+
+def test_without_resume_everything_is_computed_again(quick, tmp_path):
+    out = tmp_path / "r.nc"
+    runner.run_sweep(quick, out=out, chunk_size=2, shard=(0, 2), show_progress=False)
+    result = runner.run_sweep(quick, out=out, chunk_size=2, show_progress=False)
+    assert (result.reused, result.computed) == (0, 9)
+
+
+# --- interruption -------------------------------------------------------------------
+
+
+class StopAfterFirstCheck(runner.StopRequest):
+    """A stop request that a SIGTERM seems to have set before the first check."""
+
+    def __bool__(self):
+        self.signum = signal.SIGTERM
+        return True
+
+
+def test_stop_request_keeps_finished_chunks_and_resume_completes(quick, quick_reference, tmp_path):
+    out = tmp_path / "r.nc"
+    with pytest.raises(runner.Interrupted, match=r"SIGTERM: 2 of 9 runs .* --resume") as info:
+        runner.run_sweep(
+            quick, out=out, chunk_size=2, show_progress=False, stop=StopAfterFirstCheck()
+        )
+    assert info.value.signum == signal.SIGTERM
+    (part,) = parts.parts_dir_for(out).glob("*.npz")
+    assert (parts.read_part(part).start, parts.read_part(part).stop) == (0, 2)
+    result = runner.run_sweep(quick, out=out, chunk_size=2, resume=True, show_progress=False)
+    assert (result.reused, result.computed) == (2, 7)
+    assert_same_result(xr.load_dataset(out), quick_reference)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_signal_keeps_parts_and_says_how_to_resume(slow_config, tmp_path, signum):
+    out = tmp_path / "slow.nc"
+    args = ["run", slow_config, "--out", out, "--chunk-size", "1", "--threads", "1", "--quiet"]
+    proc = sweep_cli(*args, cwd=tmp_path)
+    wait_for_parts(parts.parts_dir_for(out), proc)
+    proc.send_signal(signum)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signum
+    assert f"interrupted by {signal.Signals(signum).name}" in err
+    assert f"{' '.join(map(str, args))} --resume" in err  # the command to continue
+    saved = sorted(parts.parts_dir_for(out).glob("*.npz"))
+    assert 1 <= len(saved) < 8
+    for path in saved:
+        parts.read_part(path)  # complete and valid: raises PartError otherwise
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_sigkill_then_resume_recomputes_only_unfinished_chunks(slow_config, tmp_path):
+    out = tmp_path / "slow.nc"
+    args = ["run", slow_config, "--out", out, "--chunk-size", "1", "--threads", "1"]
+    proc = sweep_cli(*args, cwd=tmp_path)
+    parts_dir = parts.parts_dir_for(out)
+    wait_for_parts(parts_dir, proc)
+    proc.kill()
+    proc.communicate(timeout=60)
+    assert proc.returncode == -signal.SIGKILL
+    kept = sorted(parts_dir.glob("*.npz"))
+    assert 1 <= len(kept) < 8  # killed part-way
+
+    proc = sweep_cli(*args, "--resume", cwd=tmp_path)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    k = len(kept)
+    assert f"reusing {k} runs from {k} parts" in err
+    assert f"computing {8 - k} runs in {8 - k} chunks" in err
+    reference = runner.compute(parse_config(SLOW), show_progress=False)
+    assert_same_result(xr.load_dataset(out), reference)
+    assert not parts_dir.exists()
+
+
+# --- faults --------------------------------------------------------------------------
+
+
+def disk_full(*args, **kwargs):
+    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+def test_disk_full_while_saving_a_chunk(quick, tmp_path, monkeypatch):
+    out = tmp_path / "r.nc"
+    out.write_bytes(b"earlier result")
+    monkeypatch.setattr(parts, "write_part", disk_full)
+    with pytest.raises(runner.RunError, match="cannot write a part .* No space left on device"):
+        runner.run_sweep(quick, out=out, show_progress=False)
+    assert out.read_bytes() == b"earlier result"
+
+
+def test_disk_full_while_writing_the_result_keeps_the_parts(
+    quick, quick_reference, tmp_path, monkeypatch
+):
+    out = tmp_path / "r.nc"
+    out.write_bytes(b"earlier result")
+    monkeypatch.setattr(runner, "write_netcdf", disk_full)
+    with pytest.raises(runner.RunError, match=r"cannot write .*r\.nc: No space left on device"):
+        runner.run_sweep(quick, out=out, chunk_size=4, show_progress=False)
+    assert out.read_bytes() == b"earlier result"
+    assert len(list(parts.parts_dir_for(out).glob("*.npz"))) == 3
+    monkeypatch.undo()
+    result = runner.run_sweep(quick, out=out, chunk_size=4, resume=True, show_progress=False)
+    assert (result.reused, result.computed) == (9, 0)
+    assert_same_result(xr.load_dataset(out), quick_reference)
+
+
+def test_unwritable_output_is_bad_input(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("a file, not a folder")
+    assert main(["run", str(QUICK), "--out", str(blocker / "r.nc"), "--quiet"]) == 2
+    assert re.search(r"--out .*file/r\.nc cannot be written", capsys.readouterr().err)
