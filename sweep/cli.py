@@ -84,7 +84,7 @@ def summary_lines(ds):
     regime = ds["regime"].values.ravel()
     names = ds["regime"].attrs["flag_meanings"].split()
     lines = []
-    for code, name in zip(ds["regime"].attrs["flag_values"], names):
+    for code, name in zip(ds["regime"].attrs["flag_values"], names, strict=True):
         count = int(np.count_nonzero(regime == code))
         lines.append(f"{name:<11} {count:>8d} runs ({100.0 * count / regime.size:5.1f} %)")
     return lines

@@ -458,6 +458,9 @@ def check_writable(path, source="<config>", key="output"):
     path = Path(path)
     if path.is_dir():
         raise ConfigError(source, [f"{key} {path} is a directory; give a file path ending in .nc"])
+    blocking = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
+    if blocking is not None:
+        raise ConfigError(source, [f"{key} {path} cannot be written: {blocking} is a file, not a directory"])
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.probe-"):

@@ -32,7 +32,7 @@ def physical_parameters(config):
     shape = config.shape
     n = math.prod(shape)
     mesh = np.meshgrid(*(np.asarray(a.values) for a in config.axes), indexing="ij")
-    values = {a.name: m.reshape(n) for a, m in zip(config.axes, mesh)}
+    values = {a.name: m.reshape(n) for a, m in zip(config.axes, mesh, strict=True)}
     for name, value in config.parameters:
         values[name] = np.full(n, value)
     for name in ("k2_W", "eta_W", "m_W"):
