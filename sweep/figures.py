@@ -217,8 +217,8 @@ def make_figures(
     paths.append(plot_result(phase, out_dir / "phase_twoblock.png", caption))
     sweeps = [compute(load_config(p), threads=threads, show_progress=False) for p in bifurcation]
     caption = (
-        "quasi-static: no cycle below Kc, every run runs away (a jump); with radiation "
-        "damping the stick-slip cycle grows continuously from zero amplitude"
+        "quasi-static: no cycle below Kc, every run runs away (a jump); "
+        "radiation damping: the cycle grows continuously from zero"
     )
     paths.append(plot_bifurcation(sweeps, out_dir / "bifurcation.png", caption))
     return paths

@@ -8,6 +8,7 @@ One table, :data:`REGIME_COLOURS`, colours each regime in every figure.
 """
 
 import re
+import textwrap
 
 import numpy as np
 
@@ -120,11 +121,24 @@ def regime_legend(ax, regimes, counts=None, **kwargs):
     return ax.legend(handles=handles, **kwargs)
 
 
-def _squeeze(ds):
-    """Drop sweep axes of length one; return the Dataset and a note naming their values."""
-    single = [d for d in ds["regime"].dims if ds.sizes[d] == 1]
-    values = {d: ds[d].values[0] for d in single}
-    return ds.isel({d: 0 for d in single}), parameter_text(values)
+def _squeeze(ds, keep=None):
+    """Take sweep axes of length one, and any beyond the first ``keep`` longer ones,
+    at their first value; return the Dataset and a note naming those values."""
+    longer = [d for d in ds["regime"].dims if ds.sizes[d] > 1]
+    taken = [d for d in ds["regime"].dims if d not in longer[:keep]]
+    values = {d: ds[d].values[0] for d in taken}
+    return ds.isel({d: 0 for d in taken}), parameter_text(values)
+
+
+def stiffness_ratio(ds):
+    """K/Kc, NaN where Kc ≤ 0 (steady sliding is then stable at every stiffness)."""
+    return ds["K_over_Kc"].where(ds["critical_K_W"] > 0)
+
+
+def _suptitle(fig, lines):
+    """Figure title from non-empty ``lines``, each wrapped to the figure's width."""
+    width = int(12 * fig.get_figwidth())  # characters of 10-point text per line (100 dpi)
+    fig.suptitle("\n".join(textwrap.fill(line, width) for line in lines if line), fontsize=10)
 
 
 def _log_spaced(values):
@@ -170,8 +184,7 @@ def plot_result(ds, out, caption=""):
     panel. Further axes are taken at their first value (named in the title).
     ``caption``: an extra title line.
     """
-    extra = [d for d in ds["regime"].dims if ds.sizes[d] > 1][2:]
-    ds, fixed_axes = _squeeze(ds.isel({d: 0 for d in extra}))
+    ds, fixed_axes = _squeeze(ds, keep=2)
     plt = pyplot()
     if ds["regime"].ndim == 2:
         fig = _phase_map(plt, ds)
@@ -179,9 +192,8 @@ def plot_result(ds, out, caption=""):
         fig = _phase_line(plt, ds)
     else:
         raise ValueError("a phase diagram needs a sweep axis with more than one value")
-    note = "; ".join(filter(None, [fixed_axes, initial_text(ds)]))
-    lines = [f"{ds.attrs.get('sweep_name', '')}: {describe(ds)}", note, caption]
-    fig.suptitle("\n".join(filter(None, lines)), fontsize=10)
+    note = "; ".join(filter(None, [fixed_axes and f"at {fixed_axes}", initial_text(ds)]))
+    _suptitle(fig, [f"{ds.attrs.get('sweep_name', '')}: {describe(ds)}", note, caption])
     return save_figure(fig, out)
 
 
@@ -210,7 +222,7 @@ def _phase_map(plt, ds):
     counts = {names[c]: int(np.count_nonzero(regime == c)) for c in codes}
     for ax, measure in zip(axes[1:], MEASURES, strict=True):
         _measure_map(plt, fig, ax, xe, ye, ds[measure].transpose(ydim, xdim))
-    ratio = ds["K_over_Kc"].transpose(ydim, xdim).values
+    ratio = stiffness_ratio(ds).transpose(ydim, xdim).values
     for ax in axes:
         ax.contour(x, y, ratio, levels=[1.0], colors="k", linewidths=1.5, linestyles="--")
         ax.set_xlabel(axis_label(ds[xdim]))
@@ -271,7 +283,7 @@ def _phase_line(plt, ds):
         finite = values[np.isfinite(values)]
         if finite.size and finite.min() > 0 and finite.max() > 100 * finite.min():
             ax.set_yscale("log")
-        for xc in critical_crossings(x, ds["K_over_Kc"].values):
+        for xc in critical_crossings(x, stiffness_ratio(ds).values):
             ax.axvline(xc, color="k", ls="--", lw=1.5)
         ax.set_ylabel(axis_label(ds[measure]))
     axes[-1].set_xlabel(axis_label(ds[xdim]))
@@ -292,23 +304,32 @@ CURVE_STYLES = (("-", 46), ("--", 22), (":", 11), ("-.", 6))
 def bifurcation_curves(ds):
     """The curves of a result for a bifurcation diagram: one per value of the
     sweep axes other than K/W (or the first axis). Yields ``(label, curve)``
-    with ``curve`` a 1-D Dataset sorted by K/Kc."""
+    with ``curve`` a 1-D Dataset sorted by K/Kc, without points where Kc ≤ 0
+    (no instability at any K); the label names the model, its damping
+    η̂ = ηV/W where that is one number, and the other axes' values."""
     ds, _ = _squeeze(ds)
     dims = ds["regime"].dims
     xdim = "K_W" if "K_W" in dims else dims[0]
     others = [d for d in dims if d != xdim]
-    model_name = ds.attrs["model"]
     for index in np.ndindex(*(ds.sizes[d] for d in others)):
         curve = ds.isel(dict(zip(others, index, strict=True)))
-        values = {d: curve[d].values for d in others}
-        if model_name == "quasi-dynamic":
-            eta = values.get("eta_W", ds.attrs.get("eta_W"))
-            V = values.get("V", ds.attrs.get("V"))
-            label = f"{model_name}, η̂ = ηV/W = {float(eta) * float(V):g}"
-        else:
-            label = model_name
-        rest = parameter_text({k: v for k, v in values.items() if k not in ("eta_W", "V")})
-        yield (f"{label} ({rest})" if rest else label), curve.sortby("K_over_Kc")
+        label = ds.attrs["model"]
+        eta, V = _scalar(curve, "eta_W"), _scalar(curve, "V")
+        if label == "quasi-dynamic" and eta is not None and V is not None:
+            label += f", η̂ = ηV/W = {eta * V:g}"
+        rest = {d: curve[d].values for d in others if d not in ("eta_W", "V")}
+        if rest:
+            label += f" ({parameter_text(rest)})"
+        unstable_somewhere = np.flatnonzero(curve["critical_K_W"].values > 0)
+        yield label, curve.isel({xdim: unstable_somewhere}).sortby("K_over_Kc")
+
+
+def _scalar(ds, name):
+    """The single value of parameter ``name`` in a result (scalar coordinate or
+    fixed-parameter attribute), or None if it varies or is absent."""
+    if name in ds.coords:
+        return float(ds[name]) if ds[name].ndim == 0 else None
+    return float(ds.attrs[name]) if name in ds.attrs else None
 
 
 def plot_bifurcation(datasets, out, caption=""):
@@ -396,9 +417,8 @@ def plot_bifurcation(datasets, out, caption=""):
         mec="k",
         label="runaway (no bounded attractor)",
     )
-    ax_a.legend(
-        handles=[*model_handles, runaway], loc="upper right", bbox_to_anchor=(1, 0.9), fontsize=8
-    )
+    handles = [*model_handles, runaway] if "runaway" in seen else model_handles
+    ax_a.legend(handles=handles, loc="upper right", bbox_to_anchor=(1, 0.9), fontsize=8)
     regime_legend(
         ax_v,
         [n for n in REGIMES if n in seen and n != "runaway"],
@@ -408,7 +428,7 @@ def plot_bifurcation(datasets, out, caption=""):
         title_fontsize=8,
     )
     title = f"Bifurcation at K = Kc: {describe_common(datasets)}"
-    fig.suptitle("\n".join(filter(None, [title, caption])), fontsize=10)
+    _suptitle(fig, [title, caption])
     return save_figure(fig, out)
 
 

@@ -99,7 +99,8 @@ def pin_config(config, at, t_end=None):
     raw["classification"]["early_exit"] = False
     if t_end is not None:
         raw["integrator"]["t_end"] = float(t_end)
-    return config_from_mapping(raw, source)
+    # errors name the --at values; the result's provenance names the config file
+    return dataclasses.replace(config_from_mapping(raw, source), source=config.source)
 
 
 def decimate(lnv, points):

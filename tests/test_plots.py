@@ -15,6 +15,7 @@ from sweep.plots import (
     critical_crossings,
     plot_bifurcation,
     plot_result,
+    stiffness_ratio,
     unit_text,
 )
 from sweep.runner import compute
@@ -27,11 +28,13 @@ PAPER_FIGURES = ("fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurca
 
 
 def small(path, name, **changes):
-    """A config from ``path`` with top-level keys, sweep axes or integrator settings changed."""
+    """A config from ``path`` with changes: ``sweep`` replaces the axes, other mappings
+    (parameters, integrator, ...) are updated key by key."""
     raw = config_mapping(load_config(path))
     raw["name"] = name
     for key, value in changes.items():
-        raw[key] = {**raw[key], **value} if isinstance(raw.get(key), dict) else value
+        merge = key != "sweep" and isinstance(raw.get(key), dict)
+        raw[key] = {**raw[key], **value} if merge else value
     return config_from_mapping(raw, f"{path} ({name})")
 
 
@@ -100,6 +103,28 @@ def test_critical_line_sits_at_the_analytic_kc(one_d, two_d):
         ratio = two_d["K_over_Kc"].isel(k2_W=j).values
         (kc,) = critical_crossings(two_d["K_W"].values, ratio)
         assert kc == pytest.approx(0.05, rel=1e-12)
+
+
+def test_no_critical_line_or_curve_point_where_kc_is_not_positive(tmp_path):
+    # Radiation damping eta V/W >= B - A makes steady sliding stable at every K
+    # (Kc <= 0, physics brief section 4); K/Kc is then meaningless and must not
+    # produce a second crossing or bifurcation points at K/Kc < 0.
+    config = small(
+        CONFIGS / "bifurcation_qd.yaml",
+        "eta_sweep",
+        parameters={"K_W": 0.045},
+        sweep={"eta_W": {"values": [0.01, 0.03, 0.1, 0.3, 0.6, 1.0]}},
+    )
+    ds = compute(config, show_progress=False)
+    eta = ds["eta_W"].values
+    (crossing,) = critical_crossings(eta, stiffness_ratio(ds).values)
+    # exact: K D0/W = B - A - eta V/W at eta/W = 0.05 s/um; K/Kc is convex in eta, so
+    # linear interpolation between the grid points 0.03 and 0.1 lands within 20 %.
+    assert crossing == pytest.approx(0.05, rel=0.2)
+    ((_, curve),) = bifurcation_curves(ds)
+    assert curve.sizes["eta_W"] == np.count_nonzero(eta * 0.1 < 0.05)
+    assert np.all(curve["K_over_Kc"].values > 0)
+    assert_png(plot_result(ds, tmp_path / "eta.png"))
 
 
 def test_phase_diagram_of_a_1d_sweep(one_d, tmp_path):
