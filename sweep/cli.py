@@ -74,7 +74,51 @@ def build_parser():
     merge = sub.add_parser("merge", help="assemble a NetCDF result from the parts of shards")
     merge.add_argument("parts", nargs="+", metavar="PARTS", help="part files or folders of parts")
     merge.add_argument("--out", required=True, help="output NetCDF path")
+    add_figure_commands(sub)
     return parser
+
+
+def _assignment(text):
+    """``NAME=VALUE`` (a model parameter in physical units) → (name, float)."""
+    name, sep, value = text.partition("=")
+    try:
+        number = float(value)
+    except ValueError:
+        number = None
+    if not sep or not name or number is None:
+        raise argparse.ArgumentTypeError(f"must be NAME=VALUE, e.g. K_W=0.046; got {text!r}")
+    return name.strip(), number
+
+
+def add_figure_commands(sub):
+    """Subcommands plot, trace, bifurcation and figures (``sweep/plots.py``, ``sweep/trace.py``)."""
+    plot = sub.add_parser("plot", help="phase diagram of a result file (PNG)")
+    plot.add_argument("result", help="result NetCDF file of python -m sweep run")
+    plot.add_argument("--out", help="output PNG (default: the result's path with .png)")
+    trace = sub.add_parser("trace", help="time series of one system of a config (NetCDF + PNG)")
+    trace.add_argument("config", help="YAML config file")
+    trace.add_argument(
+        "--at",
+        type=_assignment,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="value of a sweep axis (every axis needs one) or of a fixed parameter, in "
+        "physical units; repeat for several",
+    )
+    trace.add_argument("--t-end", type=float, help="end time, in the config's t_unit")
+    trace.add_argument(
+        "--points", type=_positive_int, default=4000, help="time bins of the series (default 4000)"
+    )
+    trace.add_argument("--out", help="output NetCDF (default results/<name>_trace_<at>.nc)")
+    trace.add_argument("--png", help="output PNG (default: the NetCDF path with .png)")
+    bif = sub.add_parser("bifurcation", help="amplitude against K/Kc of 1-D sweeps (PNG)")
+    bif.add_argument("results", nargs="+", help="result NetCDF files, one curve per model")
+    bif.add_argument("--out", help="output PNG (default: <first result>_bifurcation.png)")
+    figs = sub.add_parser("figures", help="regenerate the paper's figures in results/")
+    figs.add_argument("--config", default="configs/paper.yaml", help="the paper config")
+    figs.add_argument("--out-dir", default="results", help="folder for the PNGs")
+    figs.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
 
 
 def summary_lines(ds):
@@ -139,7 +183,74 @@ def cmd_merge(args):
     return 0
 
 
-COMMANDS = {"run": cmd_run, "merge": cmd_merge}
+def _open_result(path):
+    """A result Dataset from ``path``; a missing or foreign file is bad input (ConfigError)."""
+    import xarray as xr
+
+    try:
+        ds = xr.open_dataset(path)
+    except (OSError, ValueError) as exc:
+        raise ConfigError(path, [f"cannot read result file: {exc}"]) from None
+    missing = [v for v in ("regime", "K_over_Kc", "lnv_amplitude") if v not in ds]
+    if missing:
+        raise ConfigError(path, [f"not a sweep result (no {', '.join(missing)})"])
+    return ds.load()
+
+
+def cmd_plot(args):
+    from pathlib import Path
+
+    from .plots import plot_result
+
+    out = plot_result(_open_result(args.result), args.out or Path(args.result).with_suffix(".png"))
+    print(f"wrote {out}")
+    return 0
+
+
+def cmd_trace(args):
+    from .config import load_config
+    from .trace import run_trace
+
+    config = load_config(args.config)
+    names = [name for name, _ in args.at]
+    twice = sorted({name for name in names if names.count(name) > 1})
+    if twice:
+        raise ConfigError(args.config, [f"--at gives {', '.join(twice)} more than once"])
+    ds, nc, png = run_trace(config, dict(args.at), args.out, args.png, args.t_end, args.points)
+    end = f", t_runaway = {ds.attrs['t_runaway']:.6g} s" if ds.attrs["regime"] == "runaway" else ""
+    print(f"{ds.attrs['regime']} (t_final = {ds.attrs['t_final']:.6g} s{end})")
+    print(f"wrote {nc} ({ds.sizes['time']} time points) and {png}")
+    return 0
+
+
+def cmd_bifurcation(args):
+    from pathlib import Path
+
+    from .plots import plot_bifurcation
+
+    first = Path(args.results[0])
+    out = args.out or first.with_name(first.stem + "_bifurcation.png")
+    out = plot_bifurcation([_open_result(p) for p in args.results], out)
+    print(f"wrote {out}")
+    return 0
+
+
+def cmd_figures(args):
+    from .figures import make_figures
+
+    for path in make_figures(paper=args.config, out_dir=args.out_dir, threads=args.threads):
+        print(f"wrote {path}")
+    return 0
+
+
+COMMANDS = {
+    "run": cmd_run,
+    "merge": cmd_merge,
+    "plot": cmd_plot,
+    "trace": cmd_trace,
+    "bifurcation": cmd_bifurcation,
+    "figures": cmd_figures,
+}
 
 
 def _log_to_stderr(quiet):

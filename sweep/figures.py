@@ -1,0 +1,224 @@
+"""The paper's figures, reproduced honestly (``python -m sweep figures``, ``make figures``).
+
+Every system is derived from ``configs/paper.yaml`` (the paper's one-block
+system, read with D0 = 1 µm: erratum 1) and integrated as a trace
+(``sweep/trace.py``); the phase diagram and bifurcation diagram come from
+ordinary sweeps (``configs/twoblock.yaml``, ``configs/bifurcation_*.yaml``).
+
+Where the paper's quasi-static model runs away (K < Kc has no stick-slip limit
+cycle), the figures show the runaway and, beside it, the same system with a
+small radiation damping η̂ = ηV/W = 0.001 (quasi-dynamic model), which has a
+true stick-slip cycle. Its critical stiffness is Kc/W = (B − A − η̂)/D0 =
+0.049 µm⁻¹, so K/W = 0.046 µm⁻¹ is 6 % below it; the larger η̂ = 0.01 would
+move Kc/W to 0.040 µm⁻¹ and make K/W = 0.046 µm⁻¹ steady.
+"""
+
+from pathlib import Path
+
+import numpy as np
+
+from .config import load_config
+from .plots import (
+    BLOCK_STYLES,
+    draw_trace,
+    initial_text,
+    parameter_text,
+    power_text,
+    pyplot,
+    save_figure,
+)
+from .trace import compute_trace, config_from_mapping, config_mapping, pin_config
+
+#: Radiation damping per normal load of the quasi-dynamic comparison (s/µm): η̂ = η V/W = 0.001.
+ETA_W = 0.01
+#: Coupling-spring stiffness per normal load of the paper's two-block figure (µm⁻¹).
+K2_W = 0.05
+#: Length of the two-block runs relative to the paper config's t_end: an out-of-phase
+#: start excites the in-phase (unstable) mode only at second order, so it takes
+#: about twice as long to grow.
+TWO_BLOCK_SPAN = 2.0
+#: Synchronisation errors of exactly zero are drawn at this floor on the log axis.
+SYNC_FLOOR = 1e-18
+#: State perturbations (Φ/Φss per block) of the two-block runs: the paper's, and out of phase.
+IN_PHASE = (1.01, 1.01)
+OUT_OF_PHASE = (1.01, 0.99)
+
+#: Rows of the one-block figure: label and changes to the paper config.
+ONE_BLOCK_ROWS = (
+    ("quasi-static (the paper's equations)", {}),
+    (
+        "quasi-dynamic: radiation damping η/W = {eta_W:g} s/µm (ηV/W = {eta_hat:g})",
+        {"model": "quasi-dynamic", "eta_W": ETA_W},
+    ),
+)
+#: Rows of the two-block figure (all with k2/W = K2_W).
+TWO_BLOCK_ROWS = (
+    ("quasi-static, both blocks start at Φ/Φss = 1.01 (the paper)", {"phi": IN_PHASE}),
+    ("quasi-static, out of phase: Φ/Φss = 1.01 and 0.99", {"phi": OUT_OF_PHASE}),
+    (
+        "quasi-dynamic (ηV/W = {eta_hat:g}), out of phase",
+        {"phi": OUT_OF_PHASE, "model": "quasi-dynamic", "eta_W": ETA_W},
+    ),
+)
+
+
+def variant(config, name, model=None, eta_W=None, k2_W=None, phi=None):
+    """``config`` changed to another model, damping, coupling or start (validated).
+
+    ``phi``: Φ/Φss per block, which also sets the number of blocks (each starts
+    at v = V). ``eta_W`` in s/µm, ``k2_W`` in µm⁻¹.
+    """
+    raw = config_mapping(config)
+    raw["name"] = name
+    if model is not None:
+        raw["model"] = model
+    if eta_W is not None:
+        raw["parameters"]["eta_W"] = eta_W
+    if k2_W is not None:
+        raw["parameters"]["k2_W"] = k2_W
+    if phi is not None:
+        raw["blocks"] = len(phi)
+        raw["initial"] = {"v_over_V": [1.0] * len(phi), "phi_over_phi_ss": list(phi)}
+    return config_from_mapping(raw, f"{config.source} ({name})")
+
+
+def stiffnesses(config):
+    """The K/W values (µm⁻¹) of the paper config's one sweep axis."""
+    if [a.name for a in config.axes] != ["K_W"]:
+        raise ValueError(f"{config.source}: the paper config must sweep K_W and nothing else")
+    return config.axes[0].values
+
+
+def trace_grid(config, rows, points, t_end=None):
+    """Traces for every (row, K/W): rows of (label, variant changes); ``t_end`` in
+    the config's time unit (default: the config's)."""
+    return [
+        [
+            compute_trace(
+                pin_config(variant(config, f"{config.name}_{r}", **changes), {"K_W": k}, t_end),
+                points,
+            )
+            for k in stiffnesses(config)
+        ]
+        for r, (_, changes) in enumerate(rows)
+    ]
+
+
+def _panel_title(ax, label, ds):
+    """Row label (η/W and ηV/W filled in) and the panel's K/W, Kc/W and K/Kc."""
+    a = ds.attrs
+    label = label.format(eta_W=ETA_W, eta_hat=ETA_W * a["V"])
+    k = f"K/W = {a['K_W']:g} µm⁻¹, Kc/W = {a['critical_K_W']:.3g} µm⁻¹: K/Kc = {a['K_over_Kc']:.3g}"
+    ax.set_title(f"{label}\n{k}", fontsize=9)
+
+
+def figure_one_block(config, out, points=3000):
+    """The paper's Fig. 1 (one block at each K/W) with the quasi-dynamic comparison."""
+    traces = trace_grid(config, ONE_BLOCK_ROWS, points)
+    plt = pyplot()
+    ncol = len(traces[0])
+    fig, axes = plt.subplots(
+        len(traces),
+        ncol,
+        figsize=(5.6 * ncol, 6.6),
+        sharex=True,
+        layout="constrained",
+        squeeze=False,
+    )
+    for r, (label, _) in enumerate(ONE_BLOCK_ROWS):
+        for c, ds in enumerate(traces[r]):
+            draw_trace(axes[r, c], ds, legend=False)
+            _panel_title(axes[r, c], label, ds)
+            if r < len(traces) - 1:
+                axes[r, c].set_xlabel("")
+    ds = traces[0][0]
+    fig.suptitle(
+        f"Fig. 1 reproduced: one block, {parameter_text(_fixed(ds))}; {initial_text(ds)}\n"
+        "D0 = 1 µm, not the printed 0.1 µm (erratum 1): then the printed K/W bracket "
+        f"Kc/W = {ds.attrs['critical_K_W']:.3g} µm⁻¹",
+        fontsize=10,
+    )
+    return save_figure(fig, out)
+
+
+def figure_two_blocks(config, out, points=3000):
+    """The paper's Fig. 2 (two blocks, k2/W = 0.05 µm⁻¹), with an out-of-phase start,
+    the quasi-dynamic comparison, and the synchronisation of the blocks."""
+    rows = tuple((label, {**changes, "k2_W": K2_W}) for label, changes in TWO_BLOCK_ROWS)
+    traces = trace_grid(config, rows, points, TWO_BLOCK_SPAN * config.integrator.t_end)
+    plt = pyplot()
+    ncol = len(traces[0])
+    fig, axes = plt.subplots(
+        len(traces) + 1,
+        ncol,
+        figsize=(5.6 * ncol, 11.5),
+        sharex=True,
+        layout="constrained",
+        squeeze=False,
+    )
+    for r, (label, _) in enumerate(rows):
+        for c, ds in enumerate(traces[r]):
+            draw_trace(axes[r, c], ds, legend=(r == 0 and c == 0))
+            _panel_title(axes[r, c], label, ds)
+            axes[r, c].set_xlabel("")
+    for c in range(ncol):
+        ax = axes[-1, c]
+        for r in range(1, len(rows)):
+            ds = traces[r][c]
+            gap = np.abs(ds["lnv"].values[:, 0] - ds["lnv"].values[:, 1])
+            colour, _ = BLOCK_STYLES[r - 1]
+            label = rows[r][0].format(eta_hat=ETA_W * ds.attrs["V"])
+            ax.plot(
+                ds["time"].values, np.maximum(gap, SYNC_FLOOR), color=colour, lw=1.0, label=label
+            )
+        ax.set_yscale("log")
+        ax.set_ylim(bottom=SYNC_FLOOR / 3)
+        ax.set_xlabel("time t [s]")
+        ax.set_ylabel("|ln(v1/v2)|")
+        ax.set_title(
+            f"out-of-phase starts synchronise (exact 0 drawn at {power_text(SYNC_FLOOR)})",
+            fontsize=9,
+        )
+        ax.legend(loc="upper right", fontsize=8)
+    ds = traces[0][0]
+    fig.suptitle(
+        f"Fig. 2 reproduced: two blocks, {parameter_text(_fixed(ds))}\n"
+        "D0 = 1 µm (erratum 1); the in-phase mode is the one-block system, "
+        "so Kc is the one-block value for every k2",
+        fontsize=10,
+    )
+    return save_figure(fig, out)
+
+
+def _fixed(ds):
+    """Parameters of a trace for a figure title, without the per-panel K/W."""
+    return {k: ds.attrs[k] for k in ("A", "B", "D0", "V", "k2_W") if k in ds.attrs}
+
+
+def make_figures(
+    paper="configs/paper.yaml",
+    twoblock="configs/twoblock.yaml",
+    bifurcation=("configs/bifurcation_qs.yaml", "configs/bifurcation_qd.yaml"),
+    out_dir="results",
+    threads=None,
+):
+    """Regenerate every paper figure into ``out_dir``; returns the PNG paths."""
+    from .plots import plot_bifurcation, plot_result
+    from .runner import compute
+
+    out_dir = Path(out_dir)
+    config = load_config(paper)
+    paths = [
+        figure_one_block(config, out_dir / "fig1_one_block.png"),
+        figure_two_blocks(config, out_dir / "fig2_two_blocks.png"),
+    ]
+    phase = compute(load_config(twoblock), threads=threads, show_progress=False)
+    caption = "the transition stays at the one-block Kc/W = (B − A)/D0 for every coupling k2"
+    paths.append(plot_result(phase, out_dir / "phase_twoblock.png", caption))
+    sweeps = [compute(load_config(p), threads=threads, show_progress=False) for p in bifurcation]
+    caption = (
+        "quasi-static: no cycle below Kc, every run runs away (a jump); "
+        "radiation damping: the cycle grows continuously from zero"
+    )
+    paths.append(plot_bifurcation(sweeps, out_dir / "bifurcation.png", caption))
+    return paths

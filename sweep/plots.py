@@ -1,0 +1,522 @@
+"""Figures of sweep results and traces: phase diagrams, bifurcation diagrams, time series.
+
+All drawing lives here; the numbers come from result Datasets (``sweep/dataset.py``)
+and trace Datasets (``sweep/trace.py``). matplotlib is imported lazily with the
+Agg backend, so importing the package stays light and no display is needed.
+
+One table, :data:`REGIME_COLOURS`, colours each regime in every figure.
+"""
+
+import re
+import textwrap
+
+import numpy as np
+
+from .grid import REGIMES
+from .model import PARAMETERS
+
+#: Colour of each regime in every figure (Okabe–Ito palette, colour-blind safe).
+REGIME_COLOURS = {
+    "steady": "#0072B2",
+    "stick_slip": "#009E73",
+    "runaway": "#D55E00",
+    "undecided": "#999999",
+}
+#: Line colour and width of blocks 1, 2, … in time series (colours kept apart from the
+#: regimes'). Later blocks are wider and drawn underneath, so blocks moving in
+#: synchrony show as a dark line with a coloured halo.
+BLOCK_STYLES = (("#222222", 0.9), ("#CC79A7", 2.6), ("#8C6BB1", 4.2), ("#BBBBBB", 5.8))
+#: Resolution of every PNG (dots per inch): readable, and small files.
+DPI = 100
+#: Parameters shown in figure titles, in this order (mu0, V0, Phi0 do not change the dynamics).
+TITLE_PARAMETERS = ("A", "B", "D0", "V", "K_W", "k2_W", "eta_W", "m_W")
+SYMBOLS = {"D0": "D0", "K_W": "K/W", "k2_W": "k2/W", "eta_W": "η/W", "m_W": "m/W"}
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def pyplot():
+    """matplotlib.pyplot with the non-interactive Agg backend."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def power_text(x):
+    """A number for a label: ``1e6`` → ``"10⁶"``; other numbers as ``:g``."""
+    exponent = np.log10(x) if x > 0 else np.nan
+    if np.isfinite(exponent) and exponent == round(exponent):
+        return "10" + str(int(exponent)).translate(_SUPERSCRIPT)
+    return f"{x:g}"
+
+
+def unit_text(units):
+    """CF-style units → display text: ``"um-1"`` → ``"µm⁻¹"``, ``"1"`` → ``""``."""
+    if units in ("", "1"):
+        return ""
+    words = []
+    for word in units.split():
+        base, power = re.fullmatch(r"([A-Za-z]+)(-?\d*)", word).groups()
+        words.append(base.replace("um", "µm") + power.translate(_SUPERSCRIPT))
+    return " ".join(words)
+
+
+def axis_label(var):
+    """Axis label of a coordinate or variable: its long name and units in brackets."""
+    units = unit_text(var.attrs.get("units", "1"))
+    name = var.attrs.get("long_name", var.name)
+    return f"{name} [{units}]" if units else name
+
+
+def parameter_text(values):
+    """``"A = 0.03, B = 0.08, D0 = 1 µm"`` from a mapping of parameter name → value."""
+    parts = []
+    for name in TITLE_PARAMETERS:
+        if name in values:
+            units = unit_text(PARAMETERS[name].units)
+            parts.append(
+                f"{SYMBOLS.get(name, name)} = {float(values[name]):g}{' ' + units if units else ''}"
+            )
+    return ", ".join(parts)
+
+
+def describe(ds):
+    """Title line of a result or trace: blocks, model, state law and fixed parameters."""
+    blocks = int(ds.attrs["blocks"])
+    kind = "one block" if blocks == 1 else f"{blocks} blocks"
+    fixed = {name: ds.attrs[name] for name in TITLE_PARAMETERS if name in ds.attrs}
+    return f"{kind}, {ds.attrs['model']}, {ds.attrs['state_law']} law: {parameter_text(fixed)}"
+
+
+def initial_text(ds):
+    """The initial perturbation of a result or trace, e.g. ``"start Φ/Φss = 1.01, v/V = 1"``."""
+    phi = np.atleast_1d(ds.attrs["initial_phi_over_phi_ss"])
+    v = np.atleast_1d(ds.attrs["initial_v_over_V"])
+    return (
+        f"start Φ/Φss = {', '.join(f'{x:g}' for x in phi)}; v/V = {', '.join(f'{x:g}' for x in v)}"
+    )
+
+
+def regime_names(ds):
+    """Regime name of every code in a result's ``regime`` flag attributes."""
+    attrs = ds["regime"].attrs
+    return dict(
+        zip((int(c) for c in attrs["flag_values"]), attrs["flag_meanings"].split(), strict=True)
+    )
+
+
+def regime_legend(ax, regimes, counts=None, **kwargs):
+    """A legend of coloured patches naming each regime (with run counts if given)."""
+    from matplotlib.patches import Patch
+
+    handles = [
+        Patch(
+            color=REGIME_COLOURS[name],
+            label=name.replace("_", "-") + (f" ({counts[name]})" if counts else ""),
+        )
+        for name in regimes
+    ]
+    return ax.legend(handles=handles, **kwargs)
+
+
+def _squeeze(ds, keep=None):
+    """Take sweep axes of length one, and any beyond the first ``keep`` longer ones,
+    at their first value; return the Dataset and a note naming those values."""
+    longer = [d for d in ds["regime"].dims if ds.sizes[d] > 1]
+    taken = [d for d in ds["regime"].dims if d not in longer[:keep]]
+    values = {d: ds[d].values[0] for d in taken}
+    return ds.isel({d: 0 for d in taken}), parameter_text(values)
+
+
+def stiffness_ratio(ds):
+    """K/Kc, NaN where Kc ≤ 0 (steady sliding is then stable at every stiffness)."""
+    return ds["K_over_Kc"].where(ds["critical_K_W"] > 0)
+
+
+def _suptitle(fig, lines):
+    """Figure title from non-empty ``lines``, each wrapped to the figure's width."""
+    width = int(12 * fig.get_figwidth())  # characters of 10-point text per line (100 dpi)
+    fig.suptitle("\n".join(textwrap.fill(line, width) for line in lines if line), fontsize=10)
+
+
+def _log_spaced(values):
+    """Whether grid values are evenly spaced in log but not linearly (a log-scale axis)."""
+    v = np.asarray(values, float)
+    if v.size < 3 or np.any(v <= 0):
+        return False
+    return np.allclose(np.diff(np.log(v)), np.log(v[1] / v[0])) and not np.allclose(
+        np.diff(v), v[1] - v[0]
+    )
+
+
+def _edges(values):
+    """Cell edges around grid values (geometric midpoints on a log-spaced axis)."""
+    v = np.asarray(values, float)
+    log = _log_spaced(v)
+    w = np.log(v) if log else v
+    mid = 0.5 * (w[1:] + w[:-1])
+    e = np.concatenate([[2 * w[0] - mid[0]], mid, [2 * w[-1] - mid[-1]]])
+    return np.exp(e) if log else e
+
+
+def critical_crossings(x, ratio):
+    """Values of x where K/Kc crosses 1 (linear interpolation between grid points)."""
+    d = np.asarray(ratio, float) - 1.0
+    out = [x[i] for i in np.flatnonzero(d == 0.0)]
+    for i in np.flatnonzero(d[:-1] * d[1:] < 0):
+        out.append(x[i] - d[i] * (x[i + 1] - x[i]) / (d[i + 1] - d[i]))
+    return out
+
+
+#: Continuous measures shown beside the regimes in a phase diagram.
+MEASURES = ("lnv_amplitude", "growth_rate")
+
+
+def plot_result(ds, out, caption=""):
+    """Phase diagram of a sweep result, written to ``out`` (PNG).
+
+    Two or more sweep axes: regimes as a categorical map over the first two
+    (first axis along x), beside maps of :data:`MEASURES`; one axis: the
+    measures against it, points coloured by regime, with the linear growth
+    rate. The analytic critical stiffness (where K/Kc = 1) is drawn over every
+    panel. Further axes are taken at their first value (named in the title).
+    ``caption``: an extra title line.
+    """
+    ds, fixed_axes = _squeeze(ds, keep=2)
+    plt = pyplot()
+    if ds["regime"].ndim == 2:
+        fig = _phase_map(plt, ds)
+    elif ds["regime"].ndim == 1:
+        fig = _phase_line(plt, ds)
+    else:
+        raise ValueError("a phase diagram needs a sweep axis with more than one value")
+    note = "; ".join(filter(None, [fixed_axes and f"at {fixed_axes}", initial_text(ds)]))
+    _suptitle(fig, [f"{ds.attrs.get('sweep_name', '')}: {describe(ds)}", note, caption])
+    return save_figure(fig, out)
+
+
+def _kc_handle():
+    from matplotlib.lines import Line2D
+
+    return Line2D([], [], color="k", ls="--", lw=1.5, label="analytic Kc (K/Kc = 1)")
+
+
+def _phase_map(plt, ds):
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+
+    xdim, ydim = ds["regime"].dims
+    x, y = ds[xdim].values, ds[ydim].values
+    xe, ye = _edges(x), _edges(y)
+    names = regime_names(ds)
+    fig, axes = plt.subplots(
+        1, 1 + len(MEASURES), figsize=(14.5, 4.8), sharey=True, layout="constrained"
+    )
+    codes = sorted(names)
+    regime = ds["regime"].transpose(ydim, xdim).values
+    cmap = ListedColormap([REGIME_COLOURS[names[c]] for c in codes])
+    norm = BoundaryNorm(np.arange(len(codes) + 1) - 0.5, len(codes))
+    axes[0].pcolormesh(xe, ye, regime, cmap=cmap, norm=norm)
+    axes[0].set_title("regime")
+    counts = {names[c]: int(np.count_nonzero(regime == c)) for c in codes}
+    for ax, measure in zip(axes[1:], MEASURES, strict=True):
+        _measure_map(plt, fig, ax, xe, ye, ds[measure].transpose(ydim, xdim))
+    ratio = stiffness_ratio(ds).transpose(ydim, xdim).values
+    for ax in axes:
+        ax.contour(x, y, ratio, levels=[1.0], colors="k", linewidths=1.5, linestyles="--")
+        ax.set_xlabel(axis_label(ds[xdim]))
+        ax.set_xscale("log" if _log_spaced(x) else "linear")
+        ax.set_yscale("log" if _log_spaced(y) else "linear")
+    axes[0].set_ylabel(axis_label(ds[ydim]))
+    present = [name for name in REGIMES if counts.get(name)]
+    below = {"loc": "upper left", "bbox_to_anchor": (0, -0.15), "fontsize": 8, "frameon": False}
+    regime_legend(axes[0], present, counts, ncol=2, **below)
+    axes[1].legend(handles=[_kc_handle()], **below)
+    return fig
+
+
+def _measure_map(plt, fig, ax, xe, ye, var):
+    """One continuous measure as a colour map: diverging about 0 if it changes sign,
+    else logarithmic; grey where it was not measured (NaN)."""
+    from matplotlib.colors import LogNorm, TwoSlopeNorm
+
+    values = var.values.astype(float)
+    finite = values[np.isfinite(values)]
+    if finite.size == 0 or finite.min() <= 0:
+        top = np.abs(finite).max() if finite.size and finite.any() else 1.0
+        norm, cmap = TwoSlopeNorm(0.0, -top, top), plt.get_cmap("RdBu_r")
+    else:
+        norm, cmap = LogNorm(finite.min(), finite.max()), plt.get_cmap("viridis")
+    cmap = cmap.with_extremes(bad="#DDDDDD")
+    mesh = ax.pcolormesh(xe, ye, np.ma.masked_invalid(values), cmap=cmap, norm=norm)
+    grey = "\n(grey: not measured)" if finite.size < values.size else ""
+    fig.colorbar(mesh, ax=ax, label=axis_label(var) + grey)
+    ax.set_title(var.attrs.get("long_name", var.name))
+
+
+def _phase_line(plt, ds):
+    (xdim,) = ds["regime"].dims
+    x = ds[xdim].values
+    names = regime_names(ds)
+    regime = ds["regime"].values
+    fig, axes = plt.subplots(
+        len(MEASURES), 1, figsize=(7.5, 6.4), sharex=True, layout="constrained"
+    )
+    counts = {name: int(np.count_nonzero(regime == code)) for code, name in names.items()}
+    for ax, measure in zip(axes, MEASURES, strict=True):
+        values = ds[measure].values.astype(float)
+        if measure == "growth_rate":
+            ax.plot(
+                x,
+                ds["linear_growth_rate"].values,
+                color="k",
+                lw=1.2,
+                label="linear theory: max Re λ",
+            )
+            ax.axhline(0.0, color="#BBBBBB", lw=0.8)
+        else:
+            ax.plot(x, values, color="#BBBBBB", lw=1, zorder=1)
+        for code, name in names.items():
+            sel = regime == code
+            ax.scatter(x[sel], values[sel], color=REGIME_COLOURS[name], s=18, zorder=3)
+        finite = values[np.isfinite(values)]
+        if finite.size and finite.min() > 0 and finite.max() > 100 * finite.min():
+            ax.set_yscale("log")
+        for xc in critical_crossings(x, stiffness_ratio(ds).values):
+            ax.axvline(xc, color="k", ls="--", lw=1.5)
+        ax.set_ylabel(axis_label(ds[measure]))
+    axes[-1].set_xlabel(axis_label(ds[xdim]))
+    axes[-1].set_xscale("log" if _log_spaced(x) else "linear")
+    present = [name for name in REGIMES if counts.get(name)]
+    regime_legend(axes[0], present, counts, loc="best", fontsize=8)
+    axes[-1].legend(handles=[*axes[-1].get_lines()[:1], _kc_handle()], loc="best", fontsize=8)
+    return fig
+
+
+#: Marker of each model in a bifurcation diagram (lines in black; colours are regimes).
+MODEL_MARKERS = {"quasi-static": "o", "quasi-dynamic": "s", "inertial": "D"}
+#: Line style and marker area (pt²) of successive curves: later curves smaller, so
+#: curves that coincide (e.g. all steady at zero amplitude) stay visible.
+CURVE_STYLES = (("-", 46), ("--", 22), (":", 11), ("-.", 6))
+
+
+def bifurcation_curves(ds):
+    """The curves of a result for a bifurcation diagram: one per value of the
+    sweep axes other than K/W (or the first axis). Yields ``(label, curve)``
+    with ``curve`` a 1-D Dataset sorted by K/Kc, without points where Kc ≤ 0
+    (no instability at any K); the label names the model, its damping
+    η̂ = ηV/W where that is one number, and the other axes' values."""
+    ds, _ = _squeeze(ds)
+    dims = ds["regime"].dims
+    xdim = "K_W" if "K_W" in dims else dims[0]
+    others = [d for d in dims if d != xdim]
+    for index in np.ndindex(*(ds.sizes[d] for d in others)):
+        curve = ds.isel(dict(zip(others, index, strict=True)))
+        label = ds.attrs["model"]
+        eta, V = _scalar(curve, "eta_W"), _scalar(curve, "V")
+        if label == "quasi-dynamic" and eta is not None and V is not None:
+            label += f", η̂ = ηV/W = {eta * V:g}"
+        rest = {d: curve[d].values for d in others if d not in ("eta_W", "V")}
+        if rest:
+            label += f" ({parameter_text(rest)})"
+        unstable_somewhere = np.flatnonzero(curve["critical_K_W"].values > 0)
+        yield label, curve.isel({xdim: unstable_somewhere}).sortby("K_over_Kc")
+
+
+def _scalar(ds, name):
+    """The single value of parameter ``name`` in a result (scalar coordinate or
+    fixed-parameter attribute), or None if it varies or is absent."""
+    if name in ds.coords:
+        return float(ds[name]) if ds[name].ndim == 0 else None
+    return float(ds.attrs[name]) if name in ds.attrs else None
+
+
+def plot_bifurcation(datasets, out, caption=""):
+    """Bifurcation diagram of 1-D sweeps over K (or any axis), written to ``out`` (PNG).
+
+    Amplitude of the attractor against K/Kc, one curve per model (and per value
+    of any further sweep axis): (a) peak-to-peak ln v, (b) v_max/V and v_min/V.
+    Steady runs are drawn at zero amplitude (v/V = 1: their attractor is steady
+    sliding, whatever transient they showed); runaway runs as triangles at the
+    top (no bounded attractor); marker colours are the regimes. ``caption``:
+    an extra title line.
+    """
+    from matplotlib.lines import Line2D
+
+    plt = pyplot()
+    fig, (ax_a, ax_v) = plt.subplots(1, 2, figsize=(12, 5), layout="constrained")
+    model_handles = []
+    seen = set()
+    curves = [c for ds in datasets for c in bifurcation_curves(ds)]
+    for k, (label, curve) in enumerate(curves):
+        marker = MODEL_MARKERS[curve.attrs["model"]]
+        style, size = CURVE_STYLES[k % len(CURVE_STYLES)]
+        x = curve["K_over_Kc"].values
+        names = regime_names(curve)
+        regime = np.array([names[int(c)] for c in curve["regime"].values])
+        steady = regime == "steady"
+        bounded = ~np.isin(regime, ("runaway",))
+        amp = np.where(steady, 0.0, curve["lnv_amplitude"].values)
+        vmax = np.where(steady, 0.0, curve["lnv_max"].values)
+        vmin = np.where(steady, 0.0, curve["lnv_min"].values)
+        for ax, ys in ((ax_a, (amp,)), (ax_v, (np.exp(vmax), np.exp(vmin)))):
+            for y in ys:
+                ax.plot(x[bounded], y[bounded], color="k", ls=style, lw=1.0, zorder=2)
+                for name in REGIMES:
+                    sel = (regime == name) & bounded
+                    ax.scatter(
+                        x[sel],
+                        y[sel],
+                        marker=marker,
+                        s=size,
+                        color=REGIME_COLOURS[name],
+                        edgecolors="k",
+                        linewidths=0.4,
+                        zorder=3,
+                    )
+            ax.scatter(
+                x[~bounded],
+                np.full((~bounded).sum(), 0.97),
+                marker="^",
+                s=30,
+                color=REGIME_COLOURS["runaway"],
+                edgecolors="k",
+                linewidths=0.4,
+                transform=ax.get_xaxis_transform(),
+                zorder=3,
+                clip_on=False,
+            )
+        seen.update(regime)
+        model_handles.append(
+            Line2D([], [], color="k", ls=style, marker=marker, mfc="white", label=label)
+        )
+    low = max(c["K_over_Kc"].min() for _, c in curves)
+    high = min(c["K_over_Kc"].max() for _, c in curves)
+    pad = 0.02 * (high - low) if high > low else 0.05
+    for ax in (ax_a, ax_v):
+        ax.axvline(1.0, color="k", ls="--", lw=1.2)
+        ax.set_xlabel("K/Kc (each model's own analytic Kc)")
+        if high > low:  # the K/Kc range every curve covers
+            ax.set_xlim(float(low) - pad, float(high) + pad)
+    top = max(np.nanmax(np.where(c["regime"] != 2, c["lnv_amplitude"], np.nan)) for _, c in curves)
+    ax_a.set_ylim(-0.03 * top, 1.12 * top)
+    ax_a.set_ylabel("attractor peak-to-peak ln(v/V)")
+    ax_v.set_yscale("log")
+    ax_v.set_ylabel("attractor v_max/V (above 1) and v_min/V (below 1)")
+    ax_a.set_title("(a) amplitude of ln v")
+    ax_v.set_title("(b) largest and smallest velocity")
+    low_v, high_v = ax_v.get_ylim()
+    ax_v.set_ylim(low_v, high_v * 10.0)  # room for the runaway markers at the top
+    runaway = Line2D(
+        [],
+        [],
+        ls="",
+        marker="^",
+        color=REGIME_COLOURS["runaway"],
+        mec="k",
+        label="runaway (no bounded attractor)",
+    )
+    handles = [*model_handles, runaway] if "runaway" in seen else model_handles
+    ax_a.legend(handles=handles, loc="upper right", bbox_to_anchor=(1, 0.9), fontsize=8)
+    regime_legend(
+        ax_v,
+        [n for n in REGIMES if n in seen and n != "runaway"],
+        loc="upper right",
+        fontsize=8,
+        title="marker colour: regime",
+        title_fontsize=8,
+    )
+    title = f"Bifurcation at K = Kc: {describe_common(datasets)}"
+    _suptitle(fig, [title, caption])
+    return save_figure(fig, out)
+
+
+def describe_common(datasets):
+    """Blocks, state law and the parameters shared by every dataset, for a title."""
+    ds = datasets[0]
+    blocks = int(ds.attrs["blocks"])
+    kind = "one block" if blocks == 1 else f"{blocks} blocks"
+    shared = {
+        name: ds.attrs[name]
+        for name in TITLE_PARAMETERS
+        if all(name in d.attrs and d.attrs[name] == ds.attrs[name] for d in datasets)
+    }
+    return f"{kind}, {ds.attrs['state_law']} law, {parameter_text(shared)}"
+
+
+def trace_summary(ds):
+    """One line on how a trace ended: regime, and runaway time, period or settling time."""
+    regime = ds.attrs["regime"]
+    if regime == "runaway":
+        cap = ds.attrs["classification_v_cap_over_V"]
+        return f"runaway at t = {ds.attrs['t_runaway']:.4g} s (v > {power_text(cap)} V)"
+    if regime == "stick_slip":
+        return f"stick-slip, period {ds.attrs['period']:.3g} s"
+    if regime == "steady" and ds.attrs["t_final"] < ds.attrs["t_end"]:
+        return f"steady: settled at t = {ds.attrs['t_final']:.4g} s"
+    return regime.replace("_", "-")
+
+
+def draw_trace(ax, ds, legend=True):
+    """Block velocities of a trace against time on ``ax``.
+
+    Log scale where the velocities span more than a decade; the load-point
+    velocity V dotted; a runaway time marked by a vertical line; a label in
+    the regime's colour says how the run ended.
+    """
+    t = ds["time"].values
+    V = float(ds["v"].values[0, 0] / np.exp(ds["lnv"].values[0, 0]))
+    lnv = ds["lnv"].values
+    for b in range(ds.sizes["block"]):
+        colour, width = BLOCK_STYLES[b % len(BLOCK_STYLES)]
+        ax.plot(
+            t,
+            ds["v"].values[:, b],
+            color=colour,
+            lw=width,
+            zorder=3 - b / 10,
+            label=f"block {b + 1}",
+        )
+    if np.nanmax(lnv) - np.nanmin(lnv) > np.log(10.0):
+        ax.set_yscale("log")
+    ax.axhline(V, color="#888888", ls=":", lw=1.0, label="load point V")
+    regime = ds.attrs["regime"]
+    if regime == "runaway":
+        ax.axvline(ds.attrs["t_runaway"], color=REGIME_COLOURS["runaway"], lw=1.5)
+    ax.text(
+        0.02,
+        0.95,
+        trace_summary(ds),
+        transform=ax.transAxes,
+        va="top",
+        fontsize=8.5,
+        color="white",
+        bbox={"boxstyle": "round", "facecolor": REGIME_COLOURS[regime], "lw": 0},
+    )
+    ax.set_xlim(0.0, ds.attrs["t_end"])
+    ax.set_xlabel("time t [s]")
+    ax.set_ylabel(axis_label(ds["v"]))
+    if legend:
+        ax.legend(loc="lower right", fontsize=8, framealpha=0.8)
+
+
+def plot_trace(ds, out):
+    """Block velocity against time of one trace, written to ``out`` (PNG)."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(8, 4.2), layout="constrained")
+    draw_trace(ax, ds)
+    ratio = f"K/Kc = {ds.attrs['K_over_Kc']:.3g}"
+    ax.set_title(f"{describe(ds)}\n{ratio}; {initial_text(ds)}", fontsize=9.5)
+    return save_figure(fig, out)
+
+
+def save_figure(fig, out):
+    """Write ``fig`` to ``out`` (PNG, :data:`DPI`), creating folders; close it; return the path."""
+    from pathlib import Path
+
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=DPI)
+    pyplot().close(fig)
+    return out

@@ -1,0 +1,232 @@
+"""Single-system traces: the full time series of one grid point of a config.
+
+A trace pins every sweep axis of a config to one value (``--at K_W=0.046``),
+integrates that one system with the same kernel as a sweep
+(``kernels.integrate_system``, recording the state on a fine uniform time grid)
+and keeps a decimated time series: in each of ``points`` time bins the first
+sample and the samples where some block's ln(v/V) is largest and smallest, so
+slip peaks and stick troughs survive decimation, plus the final state. The
+result is an xarray Dataset with dimensions ``time`` and ``block``.
+
+A trace always runs to the end time (no early exit once the regime is
+settled), except that runaway and decay onto steady sliding (every state
+variable below ``steady_amplitude``) end it, exactly as in a sweep.
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+import xarray as xr
+import yaml
+
+from . import kernels, model
+from .config import ConfigError, parse_config
+from .dataset import derived_fields, provenance
+from .grid import REGIMES, physical_parameters, system_arrays
+from .model import PARAMETERS
+from .variables import variables_for
+
+#: Fine samples recorded per output point before decimation.
+OVERSAMPLE = 50
+
+#: The time series of a trace: name → (units, long_name).
+TRACE_VARIABLES = {
+    "v": ("um s-1", "slip velocity"),
+    "lnv": ("1", "ln(v/V)"),
+    "ln_state": ("1", "ln(Phi/Phi_ss)"),
+    "friction": ("1", "friction coefficient mu0 + A ln(v/V0) + B ln(Phi/Phi0)"),
+}
+
+
+def config_mapping(config):
+    """A :class:`~sweep.config.Config` as the YAML mapping it could be read from."""
+    return {
+        "name": config.name,
+        "description": config.description,
+        "blocks": config.blocks,
+        "model": config.model,
+        "state_law": config.state_law,
+        "parameters": dict(config.parameters),
+        "sweep": {a.name: list(a.values) for a in config.axes},
+        "initial": {
+            "v_over_V": list(config.initial.v_over_V),
+            "phi_over_phi_ss": list(config.initial.phi_over_phi_ss),
+        },
+        "integrator": dataclasses.asdict(config.integrator),
+        "classification": dataclasses.asdict(config.classification),
+        "output": config.output,
+    }
+
+
+def config_from_mapping(raw, source):
+    """Validate a config mapping (as from :func:`config_mapping`, then edited).
+
+    The config text becomes the mapping's YAML, so provenance stays true.
+    Raises :class:`~sweep.config.ConfigError` naming ``source``.
+    """
+    return parse_config(yaml.safe_dump(raw, sort_keys=False, allow_unicode=True), source)
+
+
+def pin_config(config, at, t_end=None):
+    """The one-system config of ``config`` at the parameter values ``at``.
+
+    ``at``: parameter name → value (physical units). Every sweep axis must be
+    given; a fixed parameter given in ``at`` is overridden. ``t_end`` (in the
+    config's ``t_unit``) replaces the end time. Early exit is switched off.
+    Raises :class:`~sweep.config.ConfigError` listing every problem.
+    """
+    text = " ".join(f"--at {name}={value:g}" for name, value in at.items())
+    source = f"{config.source} {text}".strip()
+    problems = [
+        f"--at {name}: unknown parameter; known: {', '.join(PARAMETERS)}"
+        for name in at
+        if name not in PARAMETERS
+    ]
+    for axis in config.axes:
+        if axis.name not in at:
+            units = PARAMETERS[axis.name].units
+            problems.append(
+                f"sweep axis {axis.name} needs a value: add --at {axis.name}=VALUE "
+                f"(the sweep spans {min(axis.values):g} to {max(axis.values):g} {units})"
+            )
+    if problems:
+        raise ConfigError(source, problems)
+    raw = config_mapping(config)
+    swept = set(raw["sweep"])
+    raw["sweep"] = {name: [float(at[name])] for name in raw["sweep"]}
+    raw["parameters"].update({k: float(v) for k, v in at.items() if k not in swept})
+    raw["classification"]["early_exit"] = False
+    if t_end is not None:
+        raw["integrator"]["t_end"] = float(t_end)
+    # errors name the --at values; the result's provenance names the config file
+    return dataclasses.replace(config_from_mapping(raw, source), source=config.source)
+
+
+def decimate(lnv, points):
+    """Indices of samples to keep from a fine time series of ln(v/V) (time × block).
+
+    The series is cut into ``points`` bins of equal sample count; each keeps
+    its first sample and, for every block, its samples of largest and smallest
+    ln(v/V). The last sample is always kept. Returns sorted unique indices.
+    """
+    n = lnv.shape[0]
+    if n <= points:
+        return np.arange(n)
+    width = math.ceil(n / points)
+    bins = math.ceil(n / width)
+    padded = np.full((bins * width, lnv.shape[1]), np.nan)
+    padded[:n] = lnv
+    blocks = padded.reshape(bins, width, lnv.shape[1])
+    start = np.arange(bins)[:, None] * width
+    high = np.where(np.isnan(blocks), -np.inf, blocks).argmax(axis=1) + start
+    low = np.where(np.isnan(blocks), np.inf, blocks).argmin(axis=1) + start
+    keep = np.concatenate([start[:, 0], high.ravel(), low.ravel(), [n - 1]])
+    return np.unique(keep[keep < n])
+
+
+def compute_trace(config, points=4000):
+    """Integrate the single system of a pinned config (see :func:`pin_config`).
+
+    ``points``: number of time bins of the decimated series (each keeps up to
+    1 + 2 × blocks samples). Returns the trace Dataset: ``v`` (µm/s), ``lnv``,
+    ``ln_state``, ``friction`` over (time [s], block); the run's regime,
+    t_runaway and other statistics of the sweep's schema in the attributes.
+    """
+    if math.prod(config.shape) != 1:
+        raise ValueError(
+            f"a trace integrates one system; this config has {config.shape} grid points"
+        )
+    phys = physical_parameters(config)
+    params, y0, settings, time_unit = system_arrays(config, phys)
+    fine = points * OVERSAMPLE
+    rec_t = np.empty(fine + 1)
+    rec_y = np.empty((fine + 1, y0.shape[1]))
+    result = np.empty((1, kernels.N_RESULTS))
+    y_final = np.empty_like(y0)
+    rec_dt = params[0, kernels.P_TAU_END] / (fine - 1)
+    kernels.integrate_system(
+        params[0], y0[0], settings, result[0], y_final[0], rec_dt, rec_t, rec_y
+    )
+    n = int(result[0, kernels.R_N_RECORDED])
+    nb = config.blocks
+    keep = decimate(rec_y[:n, :nb], points)
+    lnv = rec_y[keep, :nb]
+    psi = rec_y[keep, nb : 2 * nb]
+    first = {name: values[0] for name, values in phys.items()}
+    mu_ss = model.steady_friction(first["mu0"], first["A"], first["B"], first["V"], first["V0"])
+    with np.errstate(over="ignore"):
+        series = {
+            "v": first["V"] * np.exp(lnv),
+            "lnv": lnv,
+            "ln_state": psi,
+            "friction": mu_ss + first["A"] * lnv + first["B"] * psi,
+        }
+    data_vars = {
+        name: (
+            ("time", "block"),
+            values,
+            dict(zip(("units", "long_name"), TRACE_VARIABLES[name], strict=True)),
+        )
+        for name, values in series.items()
+    }
+    coords = {
+        "time": ("time", rec_t[keep] * time_unit[0], {"units": "s", "long_name": "time"}),
+        "block": ("block", np.arange(nb), {"long_name": "block index in the chain"}),
+    }
+    return xr.Dataset(
+        data_vars,
+        coords=coords,
+        attrs=trace_attributes(config, phys, params, result, y_final, time_unit),
+    )
+
+
+def trace_attributes(config, phys, params, result, y_final, time_unit):
+    """Provenance of a trace plus its pinned parameters and run statistics (with units)."""
+    attrs = provenance(config)
+    attrs["title"] = f"Rice-Ruina spring-block trace: {config.name}"
+    attrs["history"] = attrs["history"].replace("python -m sweep run", "python -m sweep trace")
+    attrs["time_sampling"] = (
+        f"decimated from a uniform grid: per bin the first sample and each block's "
+        f"largest and smallest ln(v/V) ({OVERSAMPLE} fine samples per output point), "
+        "plus the final state"
+    )
+    attrs["t_end"] = float(params[0, kernels.P_TAU_END] * time_unit[0])
+    attrs["t_end_units"] = "s"
+    for axis in config.axes:
+        attrs[axis.name] = axis.values[0]
+        attrs[f"{axis.name}_units"] = PARAMETERS[axis.name].units
+    fields = derived_fields(config, phys, result, y_final, time_unit)
+    for var in variables_for(config.blocks):
+        if var.per_block:
+            continue
+        value = fields[var.name][0]
+        if var.name == "regime":
+            attrs["regime"] = REGIMES[int(value)]
+            continue
+        attrs[var.name] = value.item()
+        attrs[f"{var.name}_units"] = var.units
+    return attrs
+
+
+def run_trace(config, at, out=None, png=None, t_end=None, points=4000):
+    """Pin ``config`` at ``at``, integrate, write the trace NetCDF and its PNG.
+
+    Default paths: ``results/<name>_trace_<name>=<value>….nc`` and the same
+    with ``.png``. Returns ``(dataset, nc_path, png_path)``.
+    """
+    from pathlib import Path
+
+    from .config import check_writable
+    from .dataset import write_netcdf
+    from .plots import plot_trace
+
+    pinned = pin_config(config, at, t_end)
+    stem = "_".join(f"{name}={value:g}" for name, value in at.items())
+    nc = Path(out) if out else Path("results") / f"{config.name}_trace_{stem}.nc"
+    png = Path(png) if png else nc.with_suffix(".png")
+    check_writable(nc, config.source, "--out")
+    ds = compute_trace(pinned, points)
+    write_netcdf(ds, nc)
+    plot_trace(ds, png)
+    return ds, nc, png

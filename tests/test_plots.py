@@ -1,0 +1,228 @@
+"""Figures (sweep/plots.py, sweep/figures.py): phase diagrams, bifurcation, paper figures."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sweep.cli import main
+from sweep.config import load_config
+from sweep.dataset import write_netcdf
+from sweep.grid import REGIMES
+from sweep.plots import (
+    REGIME_COLOURS,
+    bifurcation_curves,
+    critical_crossings,
+    plot_bifurcation,
+    plot_result,
+    stiffness_ratio,
+    unit_text,
+)
+from sweep.runner import compute
+from sweep.trace import config_from_mapping, config_mapping
+
+ROOT = Path(__file__).resolve().parent.parent
+CONFIGS = ROOT / "configs"
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+PAPER_FIGURES = ("fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation")
+
+
+def small(path, name, **changes):
+    """A config from ``path`` with changes: ``sweep`` replaces the axes, other mappings
+    (parameters, integrator, ...) are updated key by key."""
+    raw = config_mapping(load_config(path))
+    raw["name"] = name
+    for key, value in changes.items():
+        merge = key != "sweep" and isinstance(raw.get(key), dict)
+        raw[key] = {**raw[key], **value} if merge else value
+    return config_from_mapping(raw, f"{path} ({name})")
+
+
+def assert_png(path, min_bytes=10_000):
+    """A real, non-trivial PNG: right magic bytes, decodable, not a blank canvas."""
+    import matplotlib.image
+
+    data = Path(path).read_bytes()
+    assert data[:8] == PNG_MAGIC and len(data) > min_bytes
+    pixels = matplotlib.image.imread(path)
+    assert min(pixels.shape[:2]) > 200 and pixels[..., :3].std() > 0.05
+
+
+@pytest.fixture(scope="module")
+def one_d():
+    return compute(load_config(CONFIGS / "quick.yaml"), show_progress=False)
+
+
+@pytest.fixture(scope="module")
+def two_d():
+    config = small(
+        CONFIGS / "twoblock.yaml",
+        "twoblock_small",
+        sweep={"K_W": [0.04, 0.045, 0.0475, 0.0525, 0.055, 0.06], "k2_W": [0.0, 0.05, 0.1]},
+        integrator={"t_end": 1000.0},
+    )
+    return compute(config, show_progress=False)
+
+
+@pytest.fixture(scope="module")
+def quasi_dynamic():
+    config = small(
+        CONFIGS / "bifurcation_qd.yaml",
+        "qd_small",
+        sweep={"eta_W": [0.01, 0.1], "K_W": [0.03, 0.035, 0.0375, 0.045, 0.05]},
+    )
+    return compute(config, show_progress=False)
+
+
+def test_every_regime_has_its_own_colour():
+    assert set(REGIME_COLOURS) == set(REGIMES)
+    assert len(set(REGIME_COLOURS.values())) == len(REGIMES)
+
+
+@pytest.mark.parametrize(
+    "units, text",
+    [
+        ("um-1", "µm⁻¹"),
+        ("s um-1", "s µm⁻¹"),
+        ("um s-1", "µm s⁻¹"),
+        ("s2 um-1", "s² µm⁻¹"),
+        ("1", ""),
+        ("s", "s"),
+    ],
+)
+def test_unit_text(units, text):
+    assert unit_text(units) == text
+
+
+def test_critical_line_sits_at_the_analytic_kc(one_d, two_d):
+    # Kc/W = (B - A)/D0 = 0.05 um^-1 (physics brief, section 3); K/Kc is linear in K,
+    # so interpolating between grid points is exact up to rounding (1e-12).
+    (kc,) = critical_crossings(one_d["K_W"].values, one_d["K_over_Kc"].values)
+    assert kc == pytest.approx((0.08 - 0.03) / 1.0, rel=1e-12)
+    for j in range(two_d.sizes["k2_W"]):
+        ratio = two_d["K_over_Kc"].isel(k2_W=j).values
+        (kc,) = critical_crossings(two_d["K_W"].values, ratio)
+        assert kc == pytest.approx(0.05, rel=1e-12)
+
+
+def test_no_critical_line_or_curve_point_where_kc_is_not_positive(tmp_path):
+    # Radiation damping eta V/W >= B - A makes steady sliding stable at every K
+    # (Kc <= 0, physics brief section 4); K/Kc is then meaningless and must not
+    # produce a second crossing or bifurcation points at K/Kc < 0.
+    config = small(
+        CONFIGS / "bifurcation_qd.yaml",
+        "eta_sweep",
+        parameters={"K_W": 0.045},
+        sweep={"eta_W": {"values": [0.01, 0.03, 0.1, 0.3, 0.6, 1.0]}},
+    )
+    ds = compute(config, show_progress=False)
+    eta = ds["eta_W"].values
+    (crossing,) = critical_crossings(eta, stiffness_ratio(ds).values)
+    # exact: K D0/W = B - A - eta V/W at eta/W = 0.05 s/um; K/Kc is convex in eta, so
+    # linear interpolation between the grid points 0.03 and 0.1 lands within 20 %.
+    assert crossing == pytest.approx(0.05, rel=0.2)
+    ((_, curve),) = bifurcation_curves(ds)
+    assert curve.sizes["eta_W"] == np.count_nonzero(eta * 0.1 < 0.05)
+    assert np.all(curve["K_over_Kc"].values > 0)
+    assert_png(plot_result(ds, tmp_path / "eta.png"))
+
+
+def test_phase_diagram_of_a_1d_sweep(one_d, tmp_path):
+    assert_png(plot_result(one_d, tmp_path / "one_d.png"))
+
+
+def test_phase_diagram_of_a_2d_sweep(two_d, tmp_path):
+    assert_png(plot_result(two_d, tmp_path / "two_d.png"))
+
+
+def test_bifurcation_curves_one_per_model_and_damping(one_d, quasi_dynamic):
+    labels = [label for label, _ in bifurcation_curves(one_d)]
+    assert labels == ["quasi-static"]
+    curves = list(bifurcation_curves(quasi_dynamic))
+    # eta_hat = eta V / W with V = 0.1 um/s
+    assert [label for label, _ in curves] == [
+        "quasi-dynamic, η̂ = ηV/W = 0.001",
+        "quasi-dynamic, η̂ = ηV/W = 0.01",
+    ]
+    for _, curve in curves:
+        assert curve["K_over_Kc"].dims == ("K_W",)
+        assert np.all(np.diff(curve["K_over_Kc"].values) > 0)
+
+
+def test_bifurcation_diagram(one_d, quasi_dynamic, tmp_path):
+    assert_png(plot_bifurcation([one_d, quasi_dynamic], tmp_path / "bifurcation.png"))
+
+
+def test_plot_and_bifurcation_commands(one_d, quasi_dynamic, tmp_path):
+    qs = write_netcdf(one_d, tmp_path / "qs.nc")
+    qd = write_netcdf(quasi_dynamic, tmp_path / "qd.nc")
+    assert main(["plot", str(qs)]) == 0
+    assert_png(tmp_path / "qs.png")
+    assert main(["bifurcation", str(qs), str(qd), "--out", str(tmp_path / "b.png")]) == 0
+    assert_png(tmp_path / "b.png")
+
+
+def test_plot_command_rejects_a_missing_file(tmp_path, capsys):
+    assert main(["plot", str(tmp_path / "none.nc")]) == 2
+    assert "cannot read result file" in capsys.readouterr().err
+
+
+def test_bifurcation_configs_show_the_jump_and_the_continuous_onset():
+    """What the bifurcation figure claims (physics brief, section 4)."""
+    qs = compute(load_config(CONFIGS / "bifurcation_qs.yaml"), show_progress=False)
+    ratio = qs["K_over_Kc"].values
+    regime = qs["regime"].values
+    # quasi-static: every K < Kc runs away, every K > Kc decays (the jump)
+    assert np.all(regime[ratio < 1 - 1e-9] == REGIMES.index("runaway"))
+    assert np.all(regime[ratio > 1 + 1e-9] == REGIMES.index("steady"))
+    qd = compute(load_config(CONFIGS / "bifurcation_qd.yaml"), show_progress=False)
+    for label, curve in bifurcation_curves(qd):
+        ratio = curve["K_over_Kc"].values
+        regime = curve["regime"].values
+        below, above = ratio < 1 - 1e-9, ratio > 1 + 1e-9
+        assert np.all(regime[below] == REGIMES.index("stick_slip")), label
+        assert np.all(regime[above] == REGIMES.index("steady")), label
+        # the cycle shrinks continuously towards Kc: amplitude falls as K rises
+        amplitude = curve["lnv_amplitude"].values[below]
+        assert np.all(np.diff(amplitude) < 0), label
+
+
+def test_quasi_dynamic_cycle_near_onset_matches_the_physics_brief():
+    # Physics brief, section 4 (checked there): eta_hat = 0.01, K = 0.99 Kc gives a
+    # limit cycle with v_max/V ~ 1.6; quoted to two digits, hence +-0.05.
+    config = small(
+        CONFIGS / "bifurcation_qd.yaml", "qd_onset", sweep={"eta_W": [0.1], "K_W": [0.99 * 0.04]}
+    )
+    ds = compute(config, show_progress=False)
+    assert int(ds["regime"].item()) == REGIMES.index("stick_slip")
+    assert float(ds["v_max"].item() / 0.1) == pytest.approx(1.6, abs=0.05)
+
+
+@pytest.mark.slow
+def test_make_figures_on_small_configs(tmp_path):
+    from sweep.figures import make_figures
+
+    paper = small(CONFIGS / "paper.yaml", "paper_small", integrator={"t_end": 400.0})
+    twoblock = small(
+        CONFIGS / "twoblock.yaml",
+        "twoblock_small",
+        sweep={"K_W": [0.045, 0.055], "k2_W": [0.0, 0.1]},
+        integrator={"t_end": 500.0},
+    )
+    qs = small(CONFIGS / "bifurcation_qs.yaml", "qs_small", sweep={"K_W": [0.04, 0.045, 0.055]})
+    paths = []
+    for config in (paper, twoblock, qs):
+        path = tmp_path / f"{config.name}.yaml"
+        path.write_text(config.text)
+        paths.append(path)
+    out = make_figures(paths[0], paths[1], (paths[2],), out_dir=tmp_path / "figures", threads=1)
+    assert [p.stem for p in out] == list(PAPER_FIGURES)
+    for path in out:
+        assert_png(path)
+
+
+@pytest.mark.parametrize("name", PAPER_FIGURES)
+def test_committed_figures_are_present_and_small(name):
+    path = ROOT / "results" / f"{name}.png"
+    assert_png(path)
+    assert path.stat().st_size < 300_000
