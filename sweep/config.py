@@ -249,7 +249,10 @@ def parse_config(text, source="<config>"):
     law = c.choice(raw.get("state_law", "aging"), "state_law", STATE_LAWS) or "aging"
 
     axes = _parse_sweep(c, raw)
-    swept = {a.name for a in axes}
+    # every named axis counts as swept, valid or not: a bad axis is reported once, not
+    # again as a missing parameter
+    spec = raw.get("sweep")
+    swept = {name for name in spec if name in PARAMETERS} if isinstance(spec, dict) else set()
     params = _parse_parameters(c, raw, blocks, model, swept)
     initial = _parse_initial(c, raw, blocks)
     integrator = _parse_integrator(c, raw)

@@ -96,13 +96,13 @@ def rhs(y, p, model, law, nb, ev, dydt):
     kappa1 = p[P_KAPPA1]
     kappa2 = p[P_KAPPA2]
     for i in range(nb):
-        ev[i] = math.exp(y[i])
+        ev[i] = np.exp(y[i])
     for i in range(nb):
         lnv = y[i]
         psi = y[nb + i]
         e = ev[i]
         if law == AGING:
-            dpsi = math.exp(-psi) - e
+            dpsi = np.exp(-psi) - e
         else:
             dpsi = -e * (lnv + psi)
         load = kappa1 * (1.0 - e)
@@ -116,7 +116,7 @@ def rhs(y, p, model, law, nb, ev, dydt):
             dlnv = (load - B * dpsi) / (A + p[P_ETA] * e)
         else:
             dydt[2 * nb + i] = load
-            dlnv = (y[2 * nb + i] - A * lnv - B * psi) * math.exp(-lnv) / p[P_MASS]
+            dlnv = (y[2 * nb + i] - A * lnv - B * psi) * np.exp(-lnv) / p[P_MASS]
         dydt[i] = dlnv
         dydt[nb + i] = dpsi
 

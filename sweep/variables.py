@@ -31,7 +31,8 @@ VARIABLES = (
     Variable("lnv_max", "float64", "1", "maximum ln(v/V)", "in the final window"),
     Variable("lnv_min", "float64", "1", "minimum ln(v/V)", "in the final window"),
     Variable("v_max", "float64", "um s-1", "maximum slip velocity",
-             "V exp(lnv_max); for runaway runs the velocity cap"),
+             "V exp(lnv_max); for runaway runs the velocity after the step that crossed the "
+             "cap (at least the cap), or the last finite value if the run blew up first"),
     Variable("v_min", "float64", "um s-1", "minimum slip velocity",
              "V exp(lnv_min); may underflow to 0 in deep stick phases (use lnv_min)"),
     Variable("period", "float64", "s", "oscillation period",

@@ -1,0 +1,136 @@
+"""Shared test helpers: small configs from dicts, the kernels on one grid, and an
+independent SciPy reference written from the physics brief (not from the kernels).
+"""
+
+import copy
+import math
+
+import numpy as np
+import pytest
+import yaml
+from scipy.integrate import solve_ivp
+
+from sweep import grid, kernels, runner
+from sweep.config import parse_config
+
+#: The seed paper's friction coefficients (physics brief, section 1).
+PAPER_A, PAPER_B = 0.03, 0.08
+#: Critical stiffness per normal load Kc/W = (B − A)/D0 for D0 = 1 µm, in µm⁻¹.
+KC_W = PAPER_B - PAPER_A
+
+#: A one-block quasi-static config like configs/quick.yaml (D0 = 1 µm, V = 0.1 µm/s,
+#: so the time unit D0/V is 10 s); tests override only what they need.
+BASE_CONFIG = {
+    "name": "test",
+    "blocks": 1,
+    "model": "quasi-static",
+    "state_law": "aging",
+    "parameters": {"A": PAPER_A, "B": PAPER_B, "mu0": 0.4, "V": 0.1, "Phi0": 1.0, "D0": 1.0},
+    "sweep": {"K_W": [0.04, 0.06]},
+    "initial": {"v_over_V": 1.0, "phi_over_phi_ss": 1.01},
+    "integrator": {"method": "dopri5", "rtol": 1.0e-8, "atol": 1.0e-10, "t_end": 2000.0},
+    "classification": {"v_cap_over_V": 1.0e6},
+    "output": "results/test.nc",
+}
+
+
+def merge(base, overrides):
+    """``base`` updated by ``overrides`` recursively: nested dicts merge, other values
+    replace, and ``None`` removes the key."""
+    out = copy.deepcopy(base)
+    for key, value in overrides.items():
+        if value is None:
+            out.pop(key, None)
+        elif isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = merge(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+def config_dict(overrides=None, **sections):
+    """:data:`BASE_CONFIG` with ``overrides`` (a dict) and keyword sections merged in."""
+    return merge(merge(BASE_CONFIG, overrides or {}), sections)
+
+
+def make_config(overrides=None, source="<test>", **sections):
+    """A validated :class:`sweep.config.Config` built through ``parse_config``."""
+    return parse_config(yaml.safe_dump(config_dict(overrides, **sections)), source)
+
+
+def write_config(path, overrides=None, **sections):
+    """Write a config (YAML) to ``path`` and return the path."""
+    path.write_text(yaml.safe_dump(config_dict(overrides, **sections)))
+    return path
+
+
+def run_grid(config):
+    """Integrate every system of ``config`` → ``(results, y_final)`` (kernel units, D0/V)."""
+    params, y0, settings, _ = grid.system_arrays(config)
+    return runner.integrate_chunks(params, y0, settings)
+
+
+def run_recorded(config, rec_dt, index=0):
+    """Integrate system ``index`` of ``config`` recording the state every ``rec_dt`` (D0/V).
+
+    Returns ``(result, rec_t, rec_y)`` trimmed to the recorded points.
+    """
+    params, y0, settings, _ = grid.system_arrays(config)
+    n_rec = int(params[index, kernels.P_TAU_END] / rec_dt) + 3
+    rec_t = np.zeros(n_rec)
+    rec_y = np.zeros((n_rec, y0.shape[1]))
+    result = np.zeros(kernels.N_RESULTS)
+    y_final = np.zeros(y0.shape[1])
+    kernels.integrate_system(
+        params[index], y0[index], settings, result, y_final, rec_dt, rec_t, rec_y
+    )
+    n = int(result[kernels.R_N_RECORDED])
+    return result, rec_t[:n], rec_y[:n]
+
+
+def log_form_rhs(t, y, A, B, kappa1, kappa2=0.0, n_blocks=1, law="aging", eta_hat=0.0):
+    """Right-hand side of the log form (physics brief, section 2), plain numpy.
+
+    State ``y = (ℓ_1 … ℓ_N, ψ_1 … ψ_N)``, time in D0/V; an open chain with κ2 on
+    each coupling spring; ``eta_hat`` > 0 adds radiation damping (quasi-dynamic).
+    Written independently of ``sweep.kernels`` to serve as the reference.
+    """
+    lnv, psi = y[:n_blocks], y[n_blocks:]
+    v = np.exp(lnv)
+    if law == "aging":
+        dpsi = np.exp(-psi) - v
+    else:  # slip law: dΦ/dt = −(vΦ/D0) ln(vΦ/D0), i.e. ψ' = −e^ℓ (ℓ + ψ)
+        dpsi = -v * (lnv + psi)
+    coupling = np.zeros(n_blocks)
+    coupling[1:] += v[:-1] - v[1:]
+    coupling[:-1] += v[1:] - v[:-1]
+    dlnv = (kappa1 * (1.0 - v) + kappa2 * coupling - B * dpsi) / (A + eta_hat * v)
+    return np.concatenate([dlnv, dpsi])
+
+
+def scipy_runaway_time(kappa_over_kc, lnv0, psi0, v_cap_over_V=1e6, t_max=3000.0):
+    """Time (D0/V) at which one quasi-static block (paper A, B) first reaches the cap.
+
+    Reference call: ``solve_ivp(log_form_rhs, method="DOP853", rtol=1e-10,
+    atol=1e-12)`` with a terminal event at ℓ = ln(v_cap/V).
+    """
+    kappa = kappa_over_kc * (PAPER_B - PAPER_A)
+
+    def cap(t, y, *args):
+        return y[0] - math.log(v_cap_over_V)
+
+    cap.terminal = True
+    cap.direction = 1
+    sol = solve_ivp(
+        log_form_rhs, (0.0, t_max), [lnv0, psi0], method="DOP853", rtol=1e-10, atol=1e-12,
+        args=(PAPER_A, PAPER_B, kappa), events=cap,
+    )  # fmt: skip
+    assert sol.status == 1, "the reference run did not reach the cap"
+    return float(sol.t_events[0][0])
+
+
+@pytest.fixture
+def in_tmp(tmp_path, monkeypatch):
+    """Run the test inside a fresh temporary directory."""
+    monkeypatch.chdir(tmp_path)
+    return tmp_path

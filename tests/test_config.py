@@ -1,0 +1,190 @@
+"""Config validation: every bad config is refused with exit status 2, a message naming
+the file and the key, and no change to an existing result."""
+
+import math
+
+import pytest
+import yaml
+from conftest import config_dict, make_config, write_config
+
+from sweep import cli
+from sweep.config import ConfigError, load_config, parse_config
+
+SENTINEL = b"an earlier result that must survive\n"
+
+# (id, overrides of the base config, the key path the message must name)
+BAD_CONFIGS = [
+    ("missing blocks", {"blocks": None}, "blocks"),
+    ("missing parameter", {"parameters": {"A": None}}, "parameters.A"),
+    ("missing sweep", {"sweep": None}, "sweep"),
+    ("unknown top-level key", {"colour": "red"}, "colour"),
+    ("unknown parameter", {"parameters": {"C": 1.0}}, "parameters.C"),
+    ("unknown integrator key", {"integrator": {"order": 5}}, "integrator.order"),
+    ("unknown classification key", {"classification": {"v_cap": 1e6}}, "classification.v_cap"),
+    (
+        "unknown axis key",
+        {"sweep": {"K_W": {"start": 0.04, "stop": 0.06, "step": 0.01}}},
+        "sweep.K_W",
+    ),
+    ("unknown sweep axis", {"sweep": {"K": [0.05]}}, "sweep.K"),
+    ("wrong type parameter", {"parameters": {"A": "0.03"}}, "parameters.A"),
+    ("wrong type blocks", {"blocks": "one"}, "blocks"),
+    ("wrong type bool", {"parameters": {"A": True}}, "parameters.A"),
+    ("wrong type rtol", {"integrator": {"rtol": "tight"}}, "integrator.rtol"),
+    (
+        "wrong type early_exit",
+        {"classification": {"early_exit": "yes"}},
+        "classification.early_exit",
+    ),
+    ("wrong type section", {"integrator": [1, 2]}, "integrator"),
+    ("A zero", {"parameters": {"A": 0.0}}, "parameters.A"),
+    ("A negative", {"parameters": {"A": -0.01}}, "parameters.A"),
+    ("D0 zero", {"parameters": {"D0": 0.0}}, "parameters.D0"),
+    ("D0 negative", {"parameters": {"D0": -1.0}}, "parameters.D0"),
+    ("V zero", {"parameters": {"V": 0.0}}, "parameters.V"),
+    ("V negative", {"parameters": {"V": -0.1}}, "parameters.V"),
+    ("K_W zero on axis", {"sweep": {"K_W": [0.0, 0.05]}}, "sweep.K_W"),
+    (
+        "K_W negative start",
+        {"sweep": {"K_W": {"start": -0.01, "stop": 0.06, "num": 3}}},
+        "sweep.K_W",
+    ),
+    (
+        "K_W zero fixed",
+        {"parameters": {"K_W": 0.0, "D0": None}, "sweep": {"K_W": None, "D0": [1.0, 2.0]}},
+        "parameters.K_W",
+    ),
+    ("B negative", {"parameters": {"B": -0.08}}, "parameters.B"),
+    ("empty axis list", {"sweep": {"K_W": []}}, "sweep.K_W"),
+    ("empty axis values", {"sweep": {"K_W": {"values": []}}}, "sweep.K_W"),
+    ("axis num zero", {"sweep": {"K_W": {"start": 0.04, "stop": 0.06, "num": 0}}}, "sweep.K_W.num"),
+    ("no axis", {"sweep": {"K_W": None}}, "sweep"),
+    ("nan on axis", {"sweep": {"K_W": [0.04, math.nan]}}, "sweep.K_W"),
+    ("inf on axis", {"sweep": {"K_W": [0.04, math.inf]}}, "sweep.K_W"),
+    (
+        "inf axis stop",
+        {"sweep": {"K_W": {"start": 0.04, "stop": math.inf, "num": 3}}},
+        "sweep.K_W.stop",
+    ),
+    ("nan parameter", {"parameters": {"B": math.nan}}, "parameters.B"),
+    ("initial wrong length", {"initial": {"v_over_V": [1.0, 1.0]}}, "initial.v_over_V"),
+    ("initial not positive", {"initial": {"phi_over_phi_ss": 0.0}}, "initial.phi_over_phi_ss"),
+    ("rtol out of range", {"integrator": {"rtol": 1.0}}, "integrator.rtol"),
+    ("method unknown", {"integrator": {"method": "euler"}}, "integrator.method"),
+    ("cap below one", {"classification": {"v_cap_over_V": 0.5}}, "classification.v_cap_over_V"),
+    ("mass on quasi-static", {"parameters": {"m_W": 1.0}}, "parameters.m_W"),
+    ("coupling on one block", {"parameters": {"k2_W": 0.05}}, "parameters.k2_W"),
+    ("output not netcdf", {"output": "out.txt"}, "output"),
+]
+
+
+@pytest.fixture
+def sentinel_output(in_tmp):
+    """An earlier result at the path the configs write to."""
+    out = in_tmp / "results" / "test.nc"
+    out.parent.mkdir()
+    out.write_bytes(SENTINEL)
+    return out
+
+
+def run_cli(argv, capsys):
+    status = cli.main(argv)
+    return status, capsys.readouterr()
+
+
+@pytest.mark.parametrize(
+    "overrides, key", [c[1:] for c in BAD_CONFIGS], ids=[c[0] for c in BAD_CONFIGS]
+)
+def test_bad_config_exits_2_and_names_file_and_key(in_tmp, sentinel_output, capsys, overrides, key):
+    path = write_config(in_tmp / "bad.yaml", overrides)
+    status, captured = run_cli(["run", str(path), "--quiet"], capsys)
+    assert status == 2
+    assert str(path) in captured.err
+    assert key in captured.err, captured.err
+    assert captured.out == ""
+    assert sentinel_output.read_bytes() == SENTINEL
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    assert any(key in problem for problem in info.value.problems)
+
+
+def test_all_problems_are_reported_together():
+    overrides = {"parameters": {"A": -1.0, "D0": 0.0}, "integrator": {"method": "euler"}}
+    with pytest.raises(ConfigError) as info:
+        make_config(overrides, source="many.yaml")
+    text = str(info.value)
+    for key in ("parameters.A", "parameters.D0", "integrator.method"):
+        assert f"many.yaml: {key}" in text
+    assert "must be in (0, inf), got -1" in text  # what is allowed and what was found
+
+
+def test_bad_axis_is_reported_once():
+    """A swept parameter with a bad value is not also reported as missing."""
+    with pytest.raises(ConfigError) as info:
+        make_config(sweep={"K_W": [0.04, math.nan]})
+    assert info.value.problems == ["sweep.K_W must be a finite number in (0, inf), got nan"]
+
+
+def test_b_zero_is_allowed():
+    """B may be zero (no evolution effect); only B < 0 is refused."""
+    assert make_config(parameters={"B": 0.0}).fixed["B"] == 0.0
+
+
+def test_yaml_exponent_floats_are_numbers():
+    """1e6 and 1.0e-8 are floats (YAML 1.2 style), not strings."""
+    text = yaml.safe_dump(config_dict(classification=None, integrator=None)) + (
+        "classification:\n  v_cap_over_V: 1e6\nintegrator:\n  rtol: 1.0e-8\n  atol: 1e-10\n"
+    )
+    config = parse_config(text)
+    assert config.classification.v_cap_over_V == 1e6
+    assert config.integrator.rtol == 1e-8 and config.integrator.atol == 1e-10
+
+
+@pytest.mark.parametrize("where", ["config", "--out"])
+@pytest.mark.parametrize("target", ["under a file", "proc"])
+def test_unwritable_output_exits_2(in_tmp, sentinel_output, capsys, where, target):
+    """An output under a regular file, or in /proc, is refused before any run; the
+    blocking file and an earlier result stay byte-identical."""
+    blocker = in_tmp / "blocker"
+    blocker.write_bytes(SENTINEL)
+    out = str(blocker / "out.nc") if target == "under a file" else "/proc/rsf-sweep-test/out.nc"
+    if where == "config":
+        path = write_config(in_tmp / "c.yaml", output=out)
+        argv, key = ["run", str(path), "--quiet"], "output"
+    else:
+        path = write_config(in_tmp / "c.yaml")
+        argv, key = ["run", str(path), "--quiet", "--out", out], "--out"
+    status, captured = run_cli(argv, capsys)
+    assert status == 2
+    assert str(path) in captured.err and key in captured.err and out in captured.err
+    assert blocker.read_bytes() == SENTINEL
+    assert sentinel_output.read_bytes() == SENTINEL
+
+
+def test_output_directory_is_refused(in_tmp, capsys):
+    path = write_config(in_tmp / "c.yaml")
+    (in_tmp / "dir.nc").mkdir()
+    status, captured = run_cli(["run", str(path), "--quiet", "--out", "dir.nc"], capsys)
+    assert status == 2 and "is a directory" in captured.err
+
+
+def test_missing_config_file_exits_2(in_tmp, capsys):
+    status, captured = run_cli(["run", "nowhere.yaml"], capsys)
+    assert status == 2
+    assert "nowhere.yaml" in captured.err and "cannot read config" in captured.err
+
+
+def test_not_yaml_exits_2(in_tmp, capsys):
+    path = in_tmp / "broken.yaml"
+    path.write_text("blocks: [1,\n")
+    status, captured = run_cli(["run", str(path)], capsys)
+    assert status == 2 and str(path) in captured.err and "not valid YAML" in captured.err
+
+
+def test_config_is_frozen_and_keeps_its_text():
+    config = make_config()
+    with pytest.raises(AttributeError):
+        config.blocks = 2
+    assert "K_W" in config.text
+    assert config.shape == (2,)
+    assert config.fixed["D0"] == 1.0

@@ -1,0 +1,175 @@
+"""The result Dataset: schema from ``sweep/variables.py``, units, derived fields, and
+atomic NetCDF writing."""
+
+import math
+import os
+
+import numpy as np
+import pytest
+import xarray as xr
+from conftest import KC_W, PAPER_A, PAPER_B, make_config, run_grid
+
+from sweep import kernels, runner
+from sweep.dataset import write_netcdf
+from sweep.grid import REGIMES
+from sweep.model import PARAMETERS
+from sweep.variables import BY_NAME, VARIABLES, variables_for
+
+A, B = PAPER_A, PAPER_B
+ONE_BLOCK = {"sweep": {"K_W": (KC_W * np.array([0.8, 0.95, 1.0, 1.1])).tolist()}}
+TWO_BLOCKS = {
+    "blocks": 2,
+    "sweep": {"K_W": [0.045, 0.055], "k2_W": [0.0, 0.05, 0.5]},
+    "initial": {"v_over_V": [1.0, 1.0], "phi_over_phi_ss": [1.01, 1.0]},
+}
+
+
+@pytest.fixture(scope="module", params=[1, 2], ids=["one block", "two blocks"])
+def result(request):
+    config = make_config(ONE_BLOCK if request.param == 1 else TWO_BLOCKS)
+    return config, runner.compute(config, show_progress=False)
+
+
+def test_variables_follow_the_table(result):
+    config, ds = result
+    dims = tuple(a.name for a in config.axes)
+    expected = {v.name for v in variables_for(config.blocks)}
+    assert set(ds.data_vars) == expected
+    assert ("sync_error" in ds) == (config.blocks >= 2)
+    for name in expected:
+        var, da = BY_NAME[name], ds[name]
+        assert da.dims == (dims + ("block",) if var.per_block else dims), name
+        assert da.dtype == np.dtype(var.dtype), name
+        assert da.attrs["long_name"] == var.long_name
+        if name != "regime":  # a flag variable has flag_values instead of units
+            assert da.attrs["units"] == var.units, name
+
+
+def test_table_is_complete():
+    """Every variable the brief's issue names is declared, with units."""
+    for name in (
+        "regime", "lnv_amplitude", "v_max", "v_min", "period", "growth_rate",
+        "friction_drop", "t_runaway", "linear_growth_rate", "sync_error",
+    ):  # fmt: skip
+        assert name in BY_NAME and BY_NAME[name].units
+    assert len(BY_NAME) == len(VARIABLES)  # names are unique
+
+
+def test_regime_flags_and_axes(result):
+    config, ds = result
+    regime = ds["regime"]
+    np.testing.assert_array_equal(regime.attrs["flag_values"], np.arange(4, dtype=np.int8))
+    assert regime.attrs["flag_meanings"].split() == list(REGIMES)
+    assert [REGIMES[c] for c in (kernels.STEADY, kernels.STICK_SLIP, kernels.RUNAWAY,
+                                 kernels.UNDECIDED)] == ["steady", "stick_slip", "runaway",
+                                                         "undecided"]  # fmt: skip
+    for axis in config.axes:
+        coord = ds[axis.name]
+        np.testing.assert_array_equal(coord.values, axis.values)
+        assert coord.attrs["units"] == PARAMETERS[axis.name].units
+        assert coord.attrs["long_name"] == PARAMETERS[axis.name].long_name
+
+
+def test_provenance_attributes(result):
+    config, ds = result
+    attrs = ds.attrs
+    for name, value in config.parameters:
+        assert attrs[name] == value
+        assert attrs[f"{name}_units"] == PARAMETERS[name].units
+    for key in ("method", "rtol", "atol", "dt", "max_step", "t_end", "t_unit", "max_steps"):
+        assert attrs[f"integrator_{key}"] == getattr(config.integrator, key)
+    assert attrs["config_text"] == config.text
+    for key in ("package_version", "numba_version", "created", "Conventions"):
+        assert attrs[key]
+
+
+def test_derived_fields_in_physical_units():
+    """Kernel numbers (units of D0/V) → seconds and µm/s with D0/V = 10 s, V = 0.1 µm/s;
+    analytic fields from the brief's closed forms."""
+    config = make_config(ONE_BLOCK)
+    results, y_final = run_grid(config)
+    ds = runner.compute(config, show_progress=False)
+    t_unit, V = 10.0, 0.1
+    k_w = np.asarray(config.axes[0].values)
+    np.testing.assert_allclose(ds["period"], results[:, kernels.R_PERIOD] * t_unit, rtol=1e-15)
+    np.testing.assert_allclose(ds["t_runaway"], results[:, kernels.R_TAU_RUNAWAY] * t_unit)
+    np.testing.assert_allclose(ds["growth_rate"], results[:, kernels.R_GROWTH] / t_unit)
+    np.testing.assert_allclose(ds["v_max"], V * np.exp(results[:, kernels.R_LNV_MAX]))
+    np.testing.assert_allclose(
+        ds["lnv_amplitude"], results[:, kernels.R_LNV_MAX] - results[:, kernels.R_LNV_MIN]
+    )
+    np.testing.assert_array_equal(ds["lnv_final"].values[:, 0], y_final[:, 0])
+    np.testing.assert_array_equal(ds["ln_state_final"].values[:, 0], y_final[:, 1])
+    np.testing.assert_allclose(ds["critical_K_W"], (B - A) / 1.0)
+    np.testing.assert_allclose(ds["K_over_Kc"], k_w / KC_W)
+    # Re λ = (B − A − κ)/(2A) per D0/V while the pair is complex (all four points)
+    np.testing.assert_allclose(
+        ds["linear_growth_rate"], (B - A - k_w) / (2 * A) / t_unit, rtol=1e-12, atol=1e-15
+    )
+    np.testing.assert_allclose(ds["onset_period"], 2 * math.pi / math.sqrt((B - A) / A) * t_unit)
+    stick_slip = ds["regime"].values == kernels.STICK_SLIP
+    assert stick_slip.any()
+    np.testing.assert_allclose(
+        ds["slip_per_event"].values[stick_slip], V * ds["period"][stick_slip]
+    )
+    assert np.isnan(ds["slip_per_event"].values[~stick_slip]).all()
+
+
+def test_netcdf_round_trip(in_tmp, result):
+    _, ds = result
+    path = write_netcdf(ds, in_tmp / "out" / "r.nc")
+    with xr.open_dataset(path) as back:
+        for name in ds.data_vars:
+            a, b = ds[name].values, back[name].values
+            assert b.dtype == a.dtype, name
+            assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), name
+            assert back[name].attrs.get("units") == ds[name].attrs.get("units")
+        np.testing.assert_array_equal(back["regime"].attrs["flag_values"], np.arange(4))
+        assert back.attrs["config_text"] == ds.attrs["config_text"]
+    assert sorted(os.listdir(in_tmp / "out")) == ["r.nc"]  # no temporary file left
+
+
+def failing_to_netcdf(self, path, *args, **kwargs):
+    """Stand-in for Dataset.to_netcdf that writes a partial file, then fails."""
+    with open(path, "wb") as f:
+        f.write(b"partial")
+    raise OSError(28, "No space left on device")
+
+
+def test_failed_write_keeps_earlier_result(in_tmp, result, monkeypatch):
+    _, ds = result
+    target = in_tmp / "r.nc"
+    target.write_bytes(b"earlier result")
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", failing_to_netcdf)
+    with pytest.raises(OSError, match="No space left"):
+        write_netcdf(ds, target)
+    assert target.read_bytes() == b"earlier result"
+    assert sorted(os.listdir(in_tmp)) == ["r.nc"]
+
+
+def test_failed_sweep_write_keeps_earlier_result(in_tmp, monkeypatch):
+    """The same through ``run_sweep`` (its writability probe leaves nothing behind either)."""
+    config = make_config(ONE_BLOCK, output="res/r.nc")
+    (in_tmp / "res").mkdir()
+    (in_tmp / "res" / "r.nc").write_bytes(b"earlier result")
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", failing_to_netcdf)
+    with pytest.raises(OSError):
+        runner.run_sweep(config, show_progress=False)
+    assert (in_tmp / "res" / "r.nc").read_bytes() == b"earlier result"
+    assert sorted(os.listdir(in_tmp / "res")) == ["r.nc"]
+
+
+def test_interrupted_write_keeps_earlier_result(in_tmp, result, monkeypatch):
+    """Ctrl-C while writing: the temporary file goes too."""
+    _, ds = result
+    target = in_tmp / "r.nc"
+    target.write_bytes(b"earlier result")
+
+    def interrupted(self, path, *args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        write_netcdf(ds, target)
+    assert target.read_bytes() == b"earlier result"
+    assert sorted(os.listdir(in_tmp)) == ["r.nc"]

@@ -1,0 +1,176 @@
+"""From a config to the grid of systems, and what a whole sweep finds: the transition
+where the physics brief puts it, independent of chunking, threads and kernel."""
+
+import math
+
+import numpy as np
+import pytest
+from conftest import KC_W, PAPER_A, PAPER_B, make_config
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from sweep import grid, kernels, runner
+
+A, B = PAPER_A, PAPER_B
+
+# --- the grid --------------------------------------------------------------------------
+
+
+def test_grid_is_c_ordered_product_of_axes():
+    config = make_config(
+        blocks=2,
+        parameters={"D0": 2.0},
+        sweep={"K_W": [0.01, 0.02, 0.03], "k2_W": [0.0, 0.5]},
+        initial={"v_over_V": [1.0, 1.0], "phi_over_phi_ss": [1.01, 1.0]},
+    )
+    phys = grid.physical_parameters(config)
+    assert config.shape == (3, 2)
+    # the last axis varies fastest
+    np.testing.assert_array_equal(phys["K_W"], [0.01, 0.01, 0.02, 0.02, 0.03, 0.03])
+    np.testing.assert_array_equal(phys["k2_W"], [0.0, 0.5] * 3)
+    np.testing.assert_array_equal(phys["D0"], np.full(6, 2.0))
+    np.testing.assert_array_equal(phys["V0"], phys["D0"] / phys["Phi0"])  # V0 = D0/Φ0
+    np.testing.assert_array_equal(phys["eta_W"], np.zeros(6))  # unset: zero
+    params, y0, settings, time_unit = grid.system_arrays(config, phys)
+    np.testing.assert_allclose(params[:, kernels.P_KAPPA1], phys["K_W"] * 2.0, rtol=1e-15)
+    np.testing.assert_allclose(params[:, kernels.P_KAPPA2], phys["k2_W"] * 2.0, rtol=1e-15)
+    np.testing.assert_allclose(time_unit, 2.0 / 0.1)  # D0/V in s
+    assert y0.shape == (6, 4)
+    np.testing.assert_allclose(y0[0], [0.0, 0.0, math.log(1.01), 0.0], rtol=1e-15)
+    assert settings[kernels.S_NBLOCKS] == 2
+    assert settings[kernels.S_LNV_CAP] == pytest.approx(math.log(1e6))
+
+
+def test_times_in_seconds_are_converted_per_system():
+    """t_unit: s → end time, rk4 step and largest step in D0/V of each system."""
+    config = make_config(
+        sweep={"K_W": None, "D0": [1.0, 2.0]},
+        parameters={"K_W": 0.05, "D0": None},
+        integrator={"t_unit": "s", "t_end": 100.0, "dt": 0.5, "max_step": 2.0},
+    )
+    params, *_ = grid.system_arrays(config)
+    tau_unit = np.array([10.0, 20.0])  # D0/V in s
+    np.testing.assert_allclose(params[:, kernels.P_TAU_END], 100.0 / tau_unit)
+    np.testing.assert_allclose(params[:, kernels.P_DT], 0.5 / tau_unit)
+    np.testing.assert_allclose(params[:, kernels.P_MAX_STEP], 2.0 / tau_unit)
+
+
+def test_inertial_start_is_in_force_balance():
+    """σ = A ℓ + B ψ: zero acceleration at t = 0."""
+    config = make_config(
+        model="inertial",
+        parameters={"m_W": 0.5},
+        initial={"v_over_V": 1.2, "phi_over_phi_ss": 1.01},
+    )
+    _, y0, *_ = grid.system_arrays(config)
+    np.testing.assert_allclose(y0[:, 2], A * math.log(1.2) + B * math.log(1.01), rtol=1e-15)
+
+
+# --- the transition a sweep finds ---------------------------------------------------------
+
+
+def transition(k_w, regime):
+    """Midpoint between the last non-steady and the first steady K/W, after checking
+    that the regimes split cleanly (non-steady below, steady above)."""
+    steady = np.asarray(regime) == kernels.STEADY
+    first = int(np.argmax(steady))
+    assert steady.any() and not steady[:first].any() and steady[first:].all(), regime
+    assert first > 0, "no non-steady run: the sweep does not bracket the transition"
+    return 0.5 * (k_w[first - 1] + k_w[first])
+
+
+@pytest.mark.parametrize("D0", [1.0, 0.1])
+def test_one_block_sweep_finds_kc(D0):
+    """Kc/W = (B − A)/D0 (0.05 µm⁻¹ at D0 = 1 µm, 0.5 µm⁻¹ at D0 = 0.1 µm, erratum 1),
+    found within one grid step by a sweep through ``runner.compute``. The grid straddles
+    Kc without hitting it (K = Kc itself is the degenerate closed-orbit case)."""
+    kc_w = (B - A) / D0
+    k_w = kc_w * np.linspace(0.855, 1.155, 21)  # step 1.5 % of Kc
+    config = make_config(
+        parameters={"D0": D0},
+        sweep={"K_W": k_w.tolist()},
+        integrator={"t_end": 3000.0},
+    )
+    ds = runner.compute(config, show_progress=False)
+    step = k_w[1] - k_w[0]
+    assert abs(transition(k_w, ds["regime"].values) - kc_w) <= step
+    assert not np.any(ds["regime"].values[k_w < kc_w] == kernels.STEADY)
+
+
+def test_two_block_sweep_finds_kc_for_every_coupling():
+    """Two blocks: the transition stays at K/W = (B − A)/D0 for k2/W = 0, 0.05, 0.5 µm⁻¹."""
+    k_w = KC_W * np.linspace(0.855, 1.155, 21)
+    config = make_config(
+        blocks=2,
+        sweep={"K_W": k_w.tolist(), "k2_W": [0.0, 0.05, 0.5]},
+        initial={"v_over_V": [1.0, 1.0], "phi_over_phi_ss": [1.01, 1.0]},
+        integrator={"t_end": 3000.0},
+    )
+    ds = runner.compute(config, show_progress=False)
+    step = k_w[1] - k_w[0]
+    found = [transition(k_w, ds["regime"].values[:, j]) for j in range(3)]
+    assert found[0] == found[1] == found[2]
+    assert abs(found[0] - KC_W) <= step
+
+
+# --- results do not depend on how the grid is cut or who runs it -------------------------
+
+#: Every regime and plenty of NaN in 22 short runs: one block from 0.3 Kc (fast
+#: runaway) to 1.3 Kc (steady); K = Kc exactly (D0 = 1 µm) keeps its closed orbit
+#: (stick-slip) and K/Kc = 0.99 (D0 = 0.99 µm) has not run away by t_end (undecided).
+MIXED = {
+    "parameters": {"D0": None},
+    "sweep": {"K_W": (KC_W * np.linspace(0.3, 1.3, 11)).tolist(), "D0": [1.0, 0.99]},
+    "integrator": {"t_end": 300.0},
+}
+
+
+def same(ds_a, ds_b):
+    """Bitwise equality of every data variable, NaN positions included."""
+    for name in ds_a.data_vars:
+        a, b = ds_a[name].values, ds_b[name].values
+        assert a.dtype == b.dtype
+        assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), name
+    return True
+
+
+@pytest.fixture(scope="module")
+def mixed_reference():
+    return runner.compute(make_config(MIXED), threads=1, chunk_size=1, show_progress=False)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("chunk_size", [1, 7, None])
+def test_results_do_not_depend_on_threads_or_chunks(mixed_reference, threads, chunk_size):
+    chunk = chunk_size or mixed_reference["regime"].size  # None: the whole grid at once
+    ds = runner.compute(make_config(MIXED), threads=threads, chunk_size=chunk, show_progress=False)
+    regimes = set(np.unique(mixed_reference["regime"].values))
+    assert regimes == {kernels.STEADY, kernels.STICK_SLIP, kernels.RUNAWAY, kernels.UNDECIDED}
+    assert np.isnan(mixed_reference["period"].values).any()
+    assert same(ds, mixed_reference)
+
+
+@settings(max_examples=10, deadline=None)
+@given(chunk_size=st.integers(1, 30), threads=st.sampled_from([1, 2]))
+def test_results_do_not_depend_on_chunking_property(mixed_reference, chunk_size, threads):
+    ds = runner.compute(
+        make_config(MIXED), threads=threads, chunk_size=chunk_size, show_progress=False
+    )
+    assert same(ds, mixed_reference)
+
+
+def test_serial_and_parallel_kernels_agree():
+    """The serial grid kernel (used under Dask) gives the parallel kernel's numbers."""
+    params, y0, shared, _ = grid.system_arrays(make_config(MIXED))
+    n = params.shape[0]
+    out = {}
+    for name, kernel in (
+        ("serial", kernels.integrate_grid_serial),
+        ("parallel", kernels.integrate_grid_parallel),
+    ):
+        results = np.full((n, kernels.N_RESULTS), -1.0)
+        y_final = np.full_like(y0, -1.0)
+        kernel(params, y0, shared, results, y_final)
+        out[name] = (results, y_final)
+    assert np.array_equal(out["serial"][0], out["parallel"][0], equal_nan=True)
+    assert np.array_equal(out["serial"][1], out["parallel"][1], equal_nan=True)
