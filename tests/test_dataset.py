@@ -148,15 +148,16 @@ def test_failed_write_keeps_earlier_result(in_tmp, result, monkeypatch):
 
 
 def test_failed_sweep_write_keeps_earlier_result(in_tmp, monkeypatch):
-    """The same through ``run_sweep`` (its writability probe leaves nothing behind either)."""
+    """The same through ``run_sweep``: its writability probe leaves nothing behind, and
+    the finished chunks stay as parts so that ``--resume`` can finish the job."""
     config = make_config(ONE_BLOCK, output="res/r.nc")
     (in_tmp / "res").mkdir()
     (in_tmp / "res" / "r.nc").write_bytes(b"earlier result")
     monkeypatch.setattr(xr.Dataset, "to_netcdf", failing_to_netcdf)
-    with pytest.raises(OSError):
+    with pytest.raises(runner.RunError, match="No space left"):
         runner.run_sweep(config, show_progress=False)
     assert (in_tmp / "res" / "r.nc").read_bytes() == b"earlier result"
-    assert sorted(os.listdir(in_tmp / "res")) == ["r.nc"]
+    assert sorted(os.listdir(in_tmp / "res")) == ["r.nc", "r.parts"]
 
 
 def test_interrupted_write_keeps_earlier_result(in_tmp, result, monkeypatch):
