@@ -85,7 +85,9 @@ class Initial:
 
 @dataclass(frozen=True)
 class Integrator:
-    """Integrator settings; times in ``t_unit`` (``"D0/V"`` or ``"s"``)."""
+    """Integrator settings. ``t_end`` is in ``t_unit`` (``"D0/V"`` or ``"s"``); the step
+    sizes ``dt`` and ``max_step`` resolve the dynamics, whose time scale is D0/V,
+    so they are always in units of D0/V."""
 
     method: str = "dopri5"
     rtol: float = 1e-8

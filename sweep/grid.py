@@ -67,8 +67,8 @@ def system_arrays(config, phys=None):
     """Dimensionless parameters (n, N_PARAMS) and initial states (n, n_vars).
 
     Returns ``(params, y0, settings, time_unit)`` with ``time_unit`` = D0/V in s
-    per system. With ``t_unit: s`` the end time, the rk4 step and the largest
-    dopri5 step are converted to units of D0/V per system.
+    per system. With ``t_unit: s`` the end time is converted to units of D0/V
+    per system; step sizes are always in D0/V.
     """
     phys = physical_parameters(config) if phys is None else phys
     dl = model.dimensionless(
@@ -86,8 +86,8 @@ def system_arrays(config, phys=None):
     params[:, kernels.P_ETA] = dl["eta_hat"]
     params[:, kernels.P_MASS] = dl["mass_hat"]
     params[:, kernels.P_TAU_END] = integ.t_end * to_tau
-    params[:, kernels.P_DT] = integ.dt * to_tau
-    params[:, kernels.P_MAX_STEP] = integ.max_step * to_tau
+    params[:, kernels.P_DT] = integ.dt
+    params[:, kernels.P_MAX_STEP] = integ.max_step
     settings = settings_array(config)
     y0 = initial_state(config, dl["A"], dl["B"])
     return params, y0, settings, dl["time_unit"]
