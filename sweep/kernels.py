@@ -446,12 +446,14 @@ def decay_confirmed(nb, last_lmax, last_lmin, mratios, n_mratios, n_check, env_t
 
     Every block's last cycle must be small (peak-to-peak ℓ below
     ``LINEAR_AMPLITUDE``): the irregular cycles of two inertial blocks far
-    below Kc shrink for several cycles in a row (test_regularised.py::
-    test_transition_two_blocks). With several blocks, the envelope of the
-    in-phase coordinate mean(ℓ_i) must shrink too over the last ``n_check``
-    cycles (log ratios ``mratios``, a ring buffer): near Kc a decaying
-    anti-phase mode beating against the slowly growing in-phase mode makes ℓ_0
-    shrink for many cycles (test_regularised.py::test_beating_modes_are_not_steady).
+    below Kc, and two weakly coupled blocks drifting into anti-phase, shrink
+    for many cycles in a row (test_regularised.py::
+    test_weakly_coupled_blocks_lock_in_anti_phase). With several blocks, the
+    envelope of the in-phase coordinate mean(ℓ_i) must shrink too over the last
+    ``n_check`` cycles (log ratios ``mratios``, a ring buffer): near Kc a
+    decaying anti-phase mode beating against the slowly growing in-phase mode
+    makes ℓ_0 shrink for many cycles (test_regularised.py::
+    test_beating_modes_are_not_steady).
     """
     for i in range(nb):
         if not (last_lmax[i] - last_lmin[i] < LINEAR_AMPLITUDE):
