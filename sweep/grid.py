@@ -18,7 +18,7 @@ MODEL_CODES = {
     "inertial": kernels.INERTIAL,
 }
 LAW_CODES = {"aging": kernels.AGING, "slip": kernels.SLIP}
-METHOD_CODES = {"dopri5": kernels.DOPRI5, "rk4": kernels.RK4}
+METHOD_CODES = {"dopri5": kernels.DOPRI5, "rk4": kernels.RK4, "rosenbrock": kernels.ROSENBROCK}
 #: Regime codes and names, in code order (the CF flag_values / flag_meanings).
 REGIMES = ("steady", "stick_slip", "runaway", "undecided")
 
@@ -89,22 +89,20 @@ def system_arrays(config, phys=None):
     params[:, kernels.P_DT] = integ.dt
     params[:, kernels.P_MAX_STEP] = integ.max_step
     settings = settings_array(config)
-    y0 = initial_state(config, dl["A"], dl["B"])
+    y0 = initial_state(config, n)
     return params, y0, settings, dl["time_unit"]
 
 
-def initial_state(config, A, B):
-    """Initial log-form state of every system (rows) from the config's perturbation.
+def initial_state(config, n_systems):
+    """Initial log-form state of ``n_systems`` systems (rows) from the config's perturbation.
 
     ℓ_i = ln(v_i/V), ψ_i = ln(Φ_i/Φss); for the inertial model the spring force
-    starts in balance with friction, σ_i = A ℓ_i + B ψ_i (zero acceleration).
+    starts in balance with friction: inertial force z_i = 0 (zero acceleration).
     """
     nb = config.blocks
     lnv = np.log(np.asarray(config.initial.v_over_V, float))
     psi = np.log(np.asarray(config.initial.phi_over_phi_ss, float))
-    A = np.asarray(A, float)[:, None]
-    B = np.asarray(B, float)[:, None]
-    columns = [np.broadcast_to(lnv, (A.shape[0], nb)), np.broadcast_to(psi, (A.shape[0], nb))]
+    columns = [np.broadcast_to(lnv, (n_systems, nb)), np.broadcast_to(psi, (n_systems, nb))]
     if config.model == "inertial":
-        columns.append(A * lnv + B * psi)
+        columns.append(np.zeros((n_systems, nb)))
     return np.ascontiguousarray(np.concatenate(columns, axis=1))

@@ -11,9 +11,14 @@ Dimensionless log form (physics brief, section 2)::
     aging law:  ψ' = e^(−ψ) − e^ℓ          slip law:  ψ' = −e^ℓ (ℓ + ψ)
     quasi-static:   ℓ' = [κ(1 − e^ℓ) − B ψ'] / A
     quasi-dynamic:  ℓ' = [κ(1 − e^ℓ) − B ψ'] / (A + η̂ e^ℓ)
-    inertial:       σ' = κ(1 − e^ℓ),  ℓ' = (σ − Aℓ − Bψ) e^(−ℓ) / M̂
+    inertial:       ℓ' = z e^(−ℓ) / M̂,   z' = κ(1 − e^ℓ) − B ψ' − A ℓ'
 
-with σ = (K/W)(Vt − x) − μ_ss the spring force in excess of steady friction.
+with z = (m/W) dv/dt = σ − Aℓ − Bψ the inertial force per unit normal load and
+σ = (K/W)(Vt − x) − μ_ss the spring force in excess of steady friction. The
+inertial state is z, not σ: in stick phases force balance holds to within
+z ~ M̂ e^ℓ ℓ', far below the round-off of σ − Aℓ − Bψ, so ℓ' computed from σ
+would be noise times e^(−ℓ)/M̂; z keeps full relative precision there. The
+quasi-static model is the limit z → 0.
 Blocks form an open chain: block i feels κ2 (e^ℓj − e^ℓi) from each neighbour j.
 """
 
@@ -91,7 +96,7 @@ def mode_jacobian(model, A, B, kappa, eta_hat=0.0, mass_hat=0.0):
     """Jacobian at steady sliding of one normal mode with stiffness ``kappa``.
 
     Rows/columns are (ℓ, ψ) for the quasi-static and quasi-dynamic models and
-    (ℓ, ψ, σ) for the inertial model; time in units of D0/V. Both state laws
+    (ℓ, ψ, z) for the inertial model; time in units of D0/V. Both state laws
     linearise to ψ' = −ℓ − ψ, so the law does not enter. Arrays broadcast;
     the matrix axes come last.
     """
@@ -106,9 +111,9 @@ def mode_jacobian(model, A, B, kappa, eta_hat=0.0, mass_hat=0.0):
     elif model == "inertial":
         zero = np.zeros_like(A)
         rows = [
-            [-A / mass_hat, -B / mass_hat, one / mass_hat],
+            [zero, zero, one / mass_hat],
             [-one, -one, zero],
-            [-kappa, zero, zero],
+            [B - kappa, B, -A / mass_hat],
         ]
     else:
         raise ValueError(f"model must be one of {MODELS}, got {model!r}")

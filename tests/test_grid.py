@@ -56,14 +56,16 @@ def test_times_in_seconds_are_converted_per_system():
 
 
 def test_inertial_start_is_in_force_balance():
-    """σ = A ℓ + B ψ: zero acceleration at t = 0."""
+    """The inertial force z = (m/W) dv/dt starts at 0: zero acceleration at t = 0."""
     config = make_config(
         model="inertial",
         parameters={"m_W": 0.5},
         initial={"v_over_V": 1.2, "phi_over_phi_ss": 1.01},
     )
     _, y0, *_ = grid.system_arrays(config)
-    np.testing.assert_allclose(y0[:, 2], A * math.log(1.2) + B * math.log(1.01), rtol=1e-15)
+    np.testing.assert_allclose(y0[:, 0], math.log(1.2), rtol=1e-15)
+    np.testing.assert_allclose(y0[:, 1], math.log(1.01), rtol=1e-15)
+    np.testing.assert_array_equal(y0[:, 2], 0.0)
 
 
 # --- the transition a sweep finds ---------------------------------------------------------
