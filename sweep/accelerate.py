@@ -12,6 +12,12 @@ Decisions (each tested in ``tests/test_accelerate.py``):
   would let LLVM assume they never occur).
 * ``error_model="numpy"``: a division by zero gives inf/NaN (a classified
   outcome), not a Python exception raised from inside a parallel loop.
+* The right-hand side and the explicit steps are inlined into the integration
+  loop at numba-IR level (``inline="always"``): left to LLVM's heuristics, they
+  stayed calls passing a dozen arrays each, and the RK4 loop ran at 160 ns per
+  step against 45 ns for the same arithmetic written plainly (``make bench``);
+  inlined, 78 ns. The cost is a longer first compile (about 12 → 19 s), which
+  the cache pays once.
 * Threads have one owner: on one machine ``prange`` in the parallel grid kernel;
   under Dask each task calls the serial grid kernel and Dask owns the threads.
 """
@@ -31,6 +37,11 @@ prange = numba.prange
 def jit(func):
     """Compile a serial kernel with the project's numba policy."""
     return numba.njit(**_COMMON)(func)
+
+
+def jit_inline(func):
+    """Compile a small hot function that numba inlines into every caller."""
+    return numba.njit(inline="always", **_COMMON)(func)
 
 
 def parallel_jit(func):

@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from .accelerate import jit, parallel_jit, prange
+from .accelerate import jit, jit_inline, parallel_jit, prange
 
 # --- codes shared with the Python side --------------------------------------
 QUASI_STATIC, QUASI_DYNAMIC, INERTIAL = 0, 1, 2
@@ -114,7 +114,7 @@ _RODAS_C = np.array(
 )  # fmt: skip
 
 
-@jit
+@jit_inline
 def rhs(y, p, model, law, nb, ev, dydt):
     """Time derivative (per D0/V) of the log-form state ``y`` into ``dydt``.
 
@@ -249,7 +249,7 @@ def lu_solve(a, perm, b, x):
         x[i] = acc / a[i, i]
 
 
-@jit
+@jit_inline
 def step_rk4(y, f, h, p, model, law, nb, ev, k2, k3, k4, ytmp, ynew):
     """One classical RK4 step of size h from (y, f = rhs(y)) into ``ynew``."""
     n = y.size
@@ -266,7 +266,7 @@ def step_rk4(y, f, h, p, model, law, nb, ev, k2, k3, k4, ytmp, ynew):
         ynew[j] = y[j] + h / 6.0 * (f[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
 
 
-@jit
+@jit_inline
 def step_dopri5(y, f, h, p, model, law, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, fnew, rtol, atol):
     """One Dormand–Prince 5(4) step; returns the scaled RMS error estimate.
 
@@ -760,12 +760,13 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
                     break
 
         # decayed onto steady sliding
-        big = 0.0
-        for j in range(n):
-            big = max(big, abs(y[j]))
-        if big < steady_amp:
-            regime = STEADY
-            break
+        if early_exit:
+            big = 0.0
+            for j in range(n):
+                big = max(big, abs(y[j]))
+            if big < steady_amp:
+                regime = STEADY
+                break
 
     # final window: the last completed cycle, except for runaway runs and runs
     # that never completed one, which report the cycle in progress
