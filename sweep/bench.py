@@ -36,8 +36,16 @@ PAPER = {"A": 0.03, "B": 0.08, "mu0": 0.4, "V": 0.1, "Phi0": 1.0, "D0": 1.0}
 KC_W = (PAPER["B"] - PAPER["A"]) / PAPER["D0"]  # um^-1
 
 
-def one_block_config(k_values, t_end, model="quasi-static", blocks=1, extra=None, early=True,
-                     method="dopri5", dt=0.01):  # fmt: skip
+def one_block_config(
+    k_values,
+    t_end,
+    model="quasi-static",
+    blocks=1,
+    extra=None,
+    early=True,
+    method="dopri5",
+    dt=0.01,
+):
     """A config over ``K_W = k_values`` with the paper's parameters (D0 = 1 um)."""
     raw = {
         "name": "bench",
@@ -92,9 +100,16 @@ def scipy_classify(k_w, t_end, method, lnv_cap):
     A, B = PAPER["A"], PAPER["B"]
     y0 = [0.0, math.log(1.01)]
     sol = solve_ivp(
-        scipy_rhs, (0.0, t_end), y0, method=method, rtol=1e-8, atol=1e-10,
-        args=(A, B, k_w * PAPER["D0"]), events=cap, dense_output=True,
-    )  # fmt: skip
+        scipy_rhs,
+        (0.0, t_end),
+        y0,
+        method=method,
+        rtol=1e-8,
+        atol=1e-10,
+        args=(A, B, k_w * PAPER["D0"]),
+        events=cap,
+        dense_output=True,
+    )
     if sol.status == 1 or not np.all(np.isfinite(sol.y[:, -1])):
         return "runaway"
     t = np.linspace(0.6 * t_end, t_end, 4000)
@@ -118,7 +133,7 @@ def bench_scipy(n_points, t_end):
         start = time.perf_counter()
         ref = [scipy_classify(k, t_end, method, cap) for k in k_values]
         seconds = time.perf_counter() - start
-        agree = [a == b for a, b, o in zip(engine_regimes, ref, outside) if o]
+        agree = [a == b for a, b, o in zip(engine_regimes, ref, outside, strict=True) if o]
         out[method] = {
             "seconds": seconds,
             "speedup_per_core": seconds / engine_s,
@@ -144,8 +159,9 @@ def bench_throughput(n_systems, t_end):
         for blocks in (1, 2):
             kc = _critical_k_w(model, extra)
             k_values = np.linspace(k_over_kc, k_over_kc * 1.01, n_systems) * kc
-            config = one_block_config(k_values, t_end, model, blocks, extra, early=False,
-                                      method=method)  # fmt: skip
+            config = one_block_config(
+                k_values, t_end, model, blocks, extra, early=False, method=method
+            )
             results, seconds = engine_run(config, threads=1)
             steps = results[:, kernels.R_N_STEPS].sum() + results[:, kernels.R_N_REJECTED].sum()
             out[f"{label}/{blocks}"] = {"steps": int(steps), "steps_per_second": steps / seconds}
@@ -158,8 +174,16 @@ def bench_throughput(n_systems, t_end):
 def _critical_k_w(model, extra):
     from .model import critical_kappa, dimensionless
 
-    d = dimensionless(PAPER["A"], PAPER["B"], PAPER["D0"], PAPER["V"], 1.0, 0.0,
-                      extra.get("eta_W", 0.0), extra.get("m_W", 0.0))  # fmt: skip
+    d = dimensionless(
+        PAPER["A"],
+        PAPER["B"],
+        PAPER["D0"],
+        PAPER["V"],
+        1.0,
+        0.0,
+        extra.get("eta_W", 0.0),
+        extra.get("m_W", 0.0),
+    )
     return float(critical_kappa(model, d["A"], d["B"], d["eta_hat"], d["mass_hat"])) / PAPER["D0"]
 
 
@@ -274,24 +298,34 @@ def main(argv=None):
     figures = {"quick": quick, "machine_cores": os.cpu_count()}
     figures["scipy"] = bench_scipy(n_points=6 if quick else 41, t_end=300 if quick else 2000)
     _print_scipy(figures["scipy"])
-    figures["throughput"] = bench_throughput(n_systems=2 if quick else 16, t_end=50 if quick else 500)
+    figures["throughput"] = bench_throughput(
+        n_systems=2 if quick else 16, t_end=50 if quick else 500
+    )
     _print_throughput(figures["throughput"])
     figures["rk4"] = bench_rk4_reference(n_steps=10_000 if quick else 2_000_000)
     r = figures["rk4"]
-    print(f"RK4 kernel {r['engine_ns_per_step']:.0f} ns/step vs plain loop "
-          f"{r['plain_ns_per_step']:.0f} ns/step: ratio {r['engine_over_plain']:.2f}")  # fmt: skip
+    print(
+        f"RK4 kernel {r['engine_ns_per_step']:.0f} ns/step vs plain loop "
+        f"{r['plain_ns_per_step']:.0f} ns/step: ratio {r['engine_over_plain']:.2f}"
+    )
     for name in ("oneblock", "twoblock"):
         figures[name] = t = bench_sweep("configs/quick.yaml" if quick else f"configs/{name}.yaml")
-        print(f"{t['config']} ({t['runs']} runs): {t['seconds_1_thread']:.2f} s on 1 thread "
-              f"({t['runs_per_second_1_thread']:.0f} runs/s), {t['seconds_2_thread']:.2f} s on 2 "
-              f"({t['runs_per_second_2_thread']:.0f} runs/s), speed-up {t['speedup_2_threads']:.2f}x")  # fmt: skip
+        print(
+            f"{t['config']} ({t['runs']} runs): {t['seconds_1_thread']:.2f} s on 1 thread "
+            f"({t['runs_per_second_1_thread']:.0f} runs/s), {t['seconds_2_thread']:.2f} s on 2 "
+            f"({t['runs_per_second_2_thread']:.0f} runs/s), speed-up {t['speedup_2_threads']:.2f}x"
+        )
     figures["dask"] = d = bench_dask("configs/quick.yaml" if quick else "configs/twoblock.yaml")
-    print(f"LocalCluster of 2 workers: start {d['cluster_start']:.1f} s, sweep {d['cluster']:.2f} s "
-          f"= {d['cluster_over_threads']:.1f}x the 2-thread time ({d['threads_n']:.2f} s)")  # fmt: skip
+    print(
+        f"LocalCluster of 2 workers: start {d['cluster_start']:.1f} s, sweep {d['cluster']:.2f} s "
+        f"= {d['cluster_over_threads']:.1f}x the 2-thread time ({d['threads_n']:.2f} s)"
+    )
     figures["compile"] = bench_compile("configs/quick.yaml")
     c = figures["compile"]
-    print(f"JIT compile {c['compile_seconds']:.1f} s (fresh process: {c['cache_off_seconds']:.1f} s "
-          f"with cache off, {c['cache_warm_seconds']:.1f} s with a warm cache)")  # fmt: skip
+    print(
+        f"JIT compile {c['compile_seconds']:.1f} s (fresh process: {c['cache_off_seconds']:.1f} s "
+        f"with cache off, {c['cache_warm_seconds']:.1f} s with a warm cache)"
+    )
     _print_targets(figures)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(figures, indent=2) + "\n")
@@ -303,21 +337,41 @@ def _print_targets(f):
     """The issue tracker's speed targets beside the measured figures."""
     lsoda = f["scipy"]["LSODA"]
     rows = [
-        ("one block vs SciPy LSODA per core", ">= 300x at >= 99 % agreement",
-         f"{lsoda['speedup_per_core']:.0f}x at {lsoda['agreement_percent']:.1f} %"),
-        ("two-block default config, 2 threads, JIT warm", "< 10 s",
-         f"{f['twoblock']['seconds_2_thread']:.2f} s"),
-        ("two-block default config incl. JIT compile", "< 30 s",
-         f"{f['twoblock']['seconds_2_thread'] + f['compile']['compile_seconds']:.1f} s"),
-        ("2-thread speed-up (two-block config)", ">= 1.8x",
-         f"{f['twoblock']['speedup_2_threads']:.2f}x"),
-        ("RK4 kernel time per step vs plain loop", "<= 1.2x",
-         f"{f['rk4']['engine_over_plain']:.2f}x"),
-    ]  # fmt: skip
+        (
+            "one block vs SciPy LSODA per core",
+            ">= 300x at >= 99 % agreement",
+            f"{lsoda['speedup_per_core']:.0f}x at {lsoda['agreement_percent']:.1f} %",
+        ),
+        (
+            "two-block default config, 2 threads, JIT warm",
+            "< 10 s",
+            f"{f['twoblock']['seconds_2_thread']:.2f} s",
+        ),
+        (
+            "two-block default config incl. JIT compile",
+            "< 30 s",
+            f"{f['twoblock']['seconds_2_thread'] + f['compile']['compile_seconds']:.1f} s",
+        ),
+        (
+            "2-thread speed-up (two-block config)",
+            ">= 1.8x",
+            f"{f['twoblock']['speedup_2_threads']:.2f}x",
+        ),
+        (
+            "RK4 kernel time per step vs plain loop",
+            "<= 1.2x",
+            f"{f['rk4']['engine_over_plain']:.2f}x",
+        ),
+    ]
     explicit = [v for k, v in f["throughput"].items() if "dopri5" in k]
     worst = min(v["relative_to_quasi_static"] for v in explicit)
-    rows.append(("regularised kernels (dopri5) steps/s vs quasi-static", ">= 0.5x",
-                 f"{worst:.2f}x (lowest)"))  # fmt: skip
+    rows.append(
+        (
+            "regularised kernels (dopri5) steps/s vs quasi-static",
+            ">= 0.5x",
+            f"{worst:.2f}x (lowest)",
+        )
+    )
     print("\ntargets:")
     for what, target, measured in rows:
         print(f"  {what:<48} target {target:<30} measured {measured}")
@@ -326,16 +380,20 @@ def _print_targets(f):
 def _print_scipy(s):
     for method in ("LSODA", "DOP853"):
         m = s[method]
-        print(f"one block, {s['grid_points']} runs to {s['t_end_D0_over_V']:g} D0/V: engine "
-              f"{m['speedup_per_core']:.0f}x faster per core than a SciPy {method} loop, "
-              f"{m['agreement_percent']:.1f} % same regime outside +-1 % of Kc")  # fmt: skip
+        print(
+            f"one block, {s['grid_points']} runs to {s['t_end_D0_over_V']:g} D0/V: engine "
+            f"{m['speedup_per_core']:.0f}x faster per core than a SciPy {method} loop, "
+            f"{m['agreement_percent']:.1f} % same regime outside +-1 % of Kc"
+        )
 
 
 def _print_throughput(t):
     for key, value in t.items():
         label, blocks = key.rsplit("/", 1)
-        print(f"{label:<21} {blocks} block(s): {value['steps_per_second'] / 1e6:5.2f} M steps/s "
-              f"per core ({value['relative_to_quasi_static']:.2f}x quasi-static dopri5)")  # fmt: skip
+        print(
+            f"{label:<21} {blocks} block(s): {value['steps_per_second'] / 1e6:5.2f} M steps/s "
+            f"per core ({value['relative_to_quasi_static']:.2f}x quasi-static dopri5)"
+        )
 
 
 if __name__ == "__main__":

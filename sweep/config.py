@@ -175,9 +175,8 @@ class _Checker:
 
     def number(self, value, key, low=-math.inf, low_open=False, high=math.inf, high_open=False):
         """A finite real within bounds, or None after recording the problem."""
-        interval = (
-            f"{'(' if low_open else '['}{low:g}, {high:g}{')' if high_open or high == math.inf else ']'}"
-        )
+        close = ")" if high_open or high == math.inf else "]"
+        interval = f"{'(' if low_open else '['}{low:g}, {high:g}{close}"
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             self.add(f"{key} must be a number in {interval}, got {value!r}")
             return None
@@ -387,7 +386,9 @@ def _parse_parameters(c, raw, blocks, model, swept):
         )
     for name, needs in (("eta_W", "quasi-dynamic"), ("m_W", "inertial")):
         if name in present and model != needs:
-            c.add(f"parameters.{name} only applies to model {needs}; this config's model is {model}")
+            c.add(
+                f"parameters.{name} only applies to model {needs}; this config's model is {model}"
+            )
     if "k2_W" in present and blocks == 1:
         c.add("parameters.k2_W (coupling spring) needs blocks >= 2")
     for name in swept & set(given):
@@ -485,7 +486,9 @@ def check_writable(path, source="<config>", key="output"):
         raise ConfigError(source, [f"{key} {path} is a directory; give a file path ending in .nc"])
     blocking = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
     if blocking is not None:
-        raise ConfigError(source, [f"{key} {path} cannot be written: {blocking} is a file, not a directory"])
+        raise ConfigError(
+            source, [f"{key} {path} cannot be written: {blocking} is a file, not a directory"]
+        )
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.probe-"):

@@ -297,9 +297,7 @@ def step_dopri5(y, f, h, p, model, law, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, 
     rhs(ynew, p, model, law, nb, ev, fnew)
     err2 = 0.0
     for j in range(n):
-        e = h * (
-            _E1 * f[j] + _E3 * k3[j] + _E4 * k4[j] + _E5 * k5[j] + _E6 * k6[j] + _E7 * fnew[j]
-        )
+        e = h * (_E1 * f[j] + _E3 * k3[j] + _E4 * k4[j] + _E5 * k5[j] + _E6 * k6[j] + _E7 * fnew[j])
         scale = atol + rtol * max(abs(y[j]), abs(ynew[j]))
         err2 += (e / scale) ** 2
     return math.sqrt(err2 / n)
