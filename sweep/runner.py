@@ -139,8 +139,12 @@ def missing_ranges(ranges, have):
 
 
 def compile_grid_kernel(kernel):
-    """Compile (or load from the numba cache) a grid kernel for the runner's signature."""
-    kernel.compile(GRID_SIGNATURE)
+    """Compile (or load from the numba cache) a grid kernel for the runner's signature.
+
+    Nothing to do under ``NUMBA_DISABLE_JIT=1``, where kernels are plain Python.
+    """
+    if hasattr(kernel, "compile"):
+        kernel.compile(GRID_SIGNATURE)
 
 
 def threaded_chunks(params, y0, settings, ranges, threads=None):
