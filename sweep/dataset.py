@@ -8,14 +8,13 @@ never replaces an earlier result.
 """
 
 import datetime
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
 from . import __version__, kernels, model
+from .atomic import replaced_atomically
 from .grid import REGIMES
 from .model import PARAMETERS
 from .variables import variables_for
@@ -153,25 +152,11 @@ def _now():
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 
 
-def _umask():
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
 def write_netcdf(ds, path):
     """Write ``ds`` to ``path`` atomically (temporary file in the same folder, then rename)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        encoding = {name: {"zlib": True, "complevel": 4} for name in ds.data_vars}
+    encoding = {name: {"zlib": True, "complevel": 4} for name in ds.data_vars}
+    with replaced_atomically(path) as tmp:
         ds.to_netcdf(tmp, engine="netcdf4", encoding=encoding)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; results are meant to be shared
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
     return path

@@ -23,13 +23,13 @@ import hashlib
 import json
 import os
 import re
-import secrets
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
 from . import __version__
+from .atomic import replaced_atomically
 
 #: Bumped when the layout of a part file changes.
 PART_FORMAT = 1
@@ -121,18 +121,10 @@ def write_part(directory, config, chash, start, stop, n, results, y_final):
         "config_text": config.text,
         "config_source": config.source,
     }
-    tmp = directory / f"{TEMP_PREFIX}{os.getpid()}-{secrets.token_hex(4)}.tmp"
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)  # mode as umask allows
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, results=results, y_final=y_final, meta=np.array(json.dumps(meta)))
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
+    with replaced_atomically(path, prefix=TEMP_PREFIX) as tmp, open(tmp, "wb") as f:
+        np.savez(f, results=results, y_final=y_final, meta=np.array(json.dumps(meta)))
+        f.flush()
+        os.fsync(f.fileno())
     return path
 
 
