@@ -4,6 +4,7 @@ independent SciPy reference written from the physics brief (not from the kernels
 
 import copy
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,7 +12,7 @@ import yaml
 from scipy.integrate import solve_ivp
 
 from sweep import grid, kernels, runner
-from sweep.config import parse_config
+from sweep.config import load_config, parse_config
 
 #: The seed paper's friction coefficients (physics brief, section 1).
 PAPER_A, PAPER_B = 0.03, 0.08
@@ -134,3 +135,20 @@ def in_tmp(tmp_path, monkeypatch):
     """Run the test inside a fresh temporary directory."""
     monkeypatch.chdir(tmp_path)
     return tmp_path
+
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK = ROOT / "configs" / "quick.yaml"
+
+
+def without_provenance(ds):
+    """``ds`` without its file attributes (creation time, command line, paths)."""
+    out = ds.copy()
+    out.attrs = {}
+    return out
+
+
+@pytest.fixture(scope="module")
+def quick():
+    """The validated ``configs/quick.yaml``."""
+    return load_config(QUICK)

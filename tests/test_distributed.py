@@ -5,36 +5,19 @@ code whichever process, thread or shard runs it. Dataset-level attributes are
 dropped before comparing: they hold creation times.
 """
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import QUICK, without_provenance
 
 from sweep import accelerate, parts, runner
 from sweep.cli import main
-from sweep.config import load_config
 from sweep.grid import system_arrays
 
 dask = pytest.importorskip("dask")
 distributed = pytest.importorskip("distributed")
 
 from sweep import distributed as sweep_distributed  # noqa: E402 (needs dask)
-
-ROOT = Path(__file__).resolve().parents[1]
-QUICK = ROOT / "configs" / "quick.yaml"
-
-
-def without_provenance(ds):
-    """``ds`` without its file attributes (creation time, command line, paths)."""
-    out = ds.copy()
-    out.attrs = {}
-    return out
-
-
-@pytest.fixture(scope="module")
-def quick():
-    return load_config(QUICK)
 
 
 @pytest.fixture(scope="module")

@@ -1,29 +1,14 @@
 """The chunk store: part files are complete or rejected, and never mix configs."""
 
 import logging
-from pathlib import Path
 
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import QUICK, without_provenance
 
 from sweep import parts, runner
-from sweep.config import load_config, parse_config
-
-ROOT = Path(__file__).resolve().parents[1]
-QUICK = ROOT / "configs" / "quick.yaml"
-
-
-def without_provenance(ds):
-    """``ds`` without its file attributes (creation time, command line, paths)."""
-    out = ds.copy()
-    out.attrs = {}
-    return out
-
-
-@pytest.fixture(scope="module")
-def quick():
-    return load_config(QUICK)
+from sweep.config import parse_config
 
 
 @pytest.fixture(scope="module")

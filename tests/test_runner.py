@@ -13,20 +13,17 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import QUICK, without_provenance
 from hypothesis import given
 from hypothesis import strategies as st
 
 from sweep import parts, runner
 from sweep.cli import main
-from sweep.config import load_config, parse_config
-
-ROOT = Path(__file__).resolve().parents[1]
-QUICK = ROOT / "configs" / "quick.yaml"
+from sweep.config import parse_config
 
 #: Slow enough per run to kill a sweep part-way: fixed-step RK4 with 1e6 steps per run
 #: (about 0.2 s each on one thread), runs kept going to t_end (early_exit false, and a
@@ -44,20 +41,8 @@ classification: {early_exit: false, steady_amplitude: 1.0e-12}
 """
 
 
-def without_provenance(ds):
-    """``ds`` without its file attributes (creation time, command line, paths)."""
-    out = ds.copy()
-    out.attrs = {}
-    return out
-
-
 def assert_same_result(ds, reference):
     xr.testing.assert_identical(without_provenance(ds), without_provenance(reference))
-
-
-@pytest.fixture(scope="module")
-def quick():
-    return load_config(QUICK)
 
 
 @pytest.fixture(scope="module")
