@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 CONFIG ?= configs/twoblock.yaml
 THREADS ?=
 
-.PHONY: sweep test bench figures lint clean venv
+.PHONY: sweep test test-nojit bench figures lint clean venv
 
 venv: $(STAMP)
 
@@ -21,6 +21,14 @@ sweep: $(STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest -q
+
+# The kernels as plain Python, so they count in coverage runs: the tests of the
+# model, kernels, grid, files and CLI (the long regularised, batch and figure runs
+# would take hours without the JIT).
+NOJIT_TESTS := tests/test_model.py tests/test_kernels.py tests/test_grid.py \
+	tests/test_cli.py tests/test_config.py tests/test_dataset.py tests/test_accelerate.py
+test-nojit: $(STAMP)
+	NUMBA_DISABLE_JIT=1 $(PY) -m pytest -q $(NOJIT_TESTS)
 
 bench: $(STAMP)
 	$(PY) -m sweep.bench
