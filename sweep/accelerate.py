@@ -49,9 +49,13 @@ def parallel_jit(func):
     return numba.njit(parallel=True, **_COMMON)(func)
 
 
+def thread_count(n_threads):
+    """Threads a run asks for: ``n_threads``, or all available when None."""
+    return numba.config.NUMBA_NUM_THREADS if n_threads is None else int(n_threads)
+
+
 def set_threads(n_threads):
-    """Set how many numba threads the parallel kernels use (1 ≤ n ≤ available)."""
-    if n_threads is None:
-        return numba.get_num_threads()
-    numba.set_num_threads(int(n_threads))
-    return int(n_threads)
+    """Set how many numba threads the parallel kernels use (None: all available)."""
+    n = thread_count(n_threads)
+    numba.set_num_threads(n)
+    return n

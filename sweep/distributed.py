@@ -83,11 +83,14 @@ def connect(scheduler=None, local_workers=None):
             cluster.close()
 
 
-def load_kernels():
-    """Load (or compile) the serial grid kernel in this process, e.g. on every worker."""
+def load_kernels(parallel=False):
+    """Load (or compile) the serial grid kernel in this process, e.g. on every worker;
+    with ``parallel``, the threaded one as well (to warm the cache before job arrays)."""
     from . import kernels
 
     compile_grid_kernel(kernels.integrate_grid_serial)
+    if parallel:
+        compile_grid_kernel(kernels.integrate_grid_parallel)
 
 
 def worker_threads(client):

@@ -107,7 +107,7 @@ def write_part(directory, config, chash, start, stop, n, results, y_final):
     """Write rows ``start:stop`` atomically into ``directory``; return the path.
 
     ``results`` and ``y_final`` are the kernels' outputs for those rows. The
-    file is written under a temporary name, flushed to disk and renamed.
+    file is written under a temporary name, synced to disk and renamed.
     """
     directory = Path(directory)
     path = directory / part_name(chash, start, stop, n)
@@ -123,8 +123,6 @@ def write_part(directory, config, chash, start, stop, n, results, y_final):
     }
     with replaced_atomically(path, prefix=TEMP_PREFIX) as tmp, open(tmp, "wb") as f:
         np.savez(f, results=results, y_final=y_final, meta=np.array(json.dumps(meta)))
-        f.flush()
-        os.fsync(f.fileno())
     return path
 
 
@@ -184,16 +182,21 @@ def scan(directory):
 
 
 def remove_parts(directory):
-    """Remove every part and leftover temporary file in ``directory``, then the folder if empty.
+    """Remove every part and this process's temporary files from ``directory``, then
+    the folder if it is empty.
 
-    Other files are left alone. Returns the number of files removed.
+    Called once the output those parts were for has been written, which
+    supersedes parts of earlier configs too. Other processes' temporary files
+    (a shard still writing) and other files are left alone. Returns the number
+    of files removed.
     """
     directory = Path(directory)
     if not directory.is_dir():
         return 0
     removed = 0
+    own_temp = f"{TEMP_PREFIX}{os.getpid()}-"
     for f in directory.iterdir():
-        if PART_NAME.match(f.name) or f.name.startswith(TEMP_PREFIX):
+        if PART_NAME.match(f.name) or f.name.startswith(own_temp):
             f.unlink()
             removed += 1
     if not any(directory.iterdir()):

@@ -150,26 +150,20 @@ def compile_grid_kernel(kernel):
 def threaded_chunks(params, y0, settings, ranges, threads=None):
     """Integrate ``ranges`` of systems on numba threads; yield each as it finishes.
 
-    Yields ``(start, stop, results, y_final)``. Within a chunk, systems are
-    handed to threads one at a time (dynamic scheduling), since run lengths
+    Yields ``(start, stop, results, y_final)``. Each chunk's rows are shuffled
+    (:func:`balanced_order`) so that threads share the costly runs; run lengths
     differ by orders of magnitude between steady and runaway runs.
     """
-    import numba
-
     from .kernels import integrate_grid_parallel
 
     accelerate.set_threads(threads)
-    old = numba.set_parallel_chunksize(1)
-    try:
-        for a, b in ranges:
-            order = balanced_order(b - a)  # row a + order[j] is computed in place j
-            shuffled = np.empty((b - a, N_RESULTS)), np.empty((b - a, y0.shape[1]))
-            integrate_grid_parallel(params[a + order], y0[a + order], settings, *shuffled)
-            results, y_final = np.empty_like(shuffled[0]), np.empty_like(shuffled[1])
-            results[order], y_final[order] = shuffled
-            yield a, b, results, y_final
-    finally:
-        numba.set_parallel_chunksize(old)
+    for a, b in ranges:
+        order = balanced_order(b - a)  # row a + order[j] is computed in place j
+        shuffled = np.empty((b - a, N_RESULTS)), np.empty((b - a, y0.shape[1]))
+        integrate_grid_parallel(params[a + order], y0[a + order], settings, *shuffled)
+        results, y_final = np.empty_like(shuffled[0]), np.empty_like(shuffled[1])
+        results[order], y_final[order] = shuffled
+        yield a, b, results, y_final
 
 
 def balanced_order(n_rows):
@@ -177,10 +171,11 @@ def balanced_order(n_rows):
 
     Costly runs (slow decay or growth near Kc) sit next to each other in the grid,
     and numba's OpenMP layer splits a ``prange`` into equal contiguous blocks
-    whatever ``set_parallel_chunksize`` says: on ``configs/twoblock.yaml`` two
-    threads were 1.15x faster than one in grid order and 1.85x after this
-    shuffle. Every system is integrated independently, so the numbers do not
-    change; only the order in which the threads meet them does.
+    (``numba.set_parallel_chunksize(1)`` made no difference there): on
+    ``configs/twoblock.yaml`` two threads were 1.15x faster than one in grid
+    order and 1.85x after this shuffle. Every system is integrated
+    independently, so the numbers do not change; only the order in which the
+    threads meet them does.
     """
     return np.random.default_rng(0).permutation(n_rows)
 
@@ -364,7 +359,7 @@ def _default_chunk_size(n, threads, client, shard):
         return default_chunk_size(n)
     if client is not None:
         return default_chunk_size(n, dask_threads=max(1, _dask_threads(client)))
-    return default_chunk_size(n, accelerate.set_threads(threads))
+    return default_chunk_size(n, accelerate.thread_count(threads))
 
 
 def _make_folder(parts_dir):
@@ -422,19 +417,24 @@ def merge_parts(paths, out):
     Uses the one config whose valid parts cover its whole grid (parts of
     other configs are ignored; corrupt parts are reported and never used).
     That config's parts are removed once ``out`` is written, and folders left
-    empty with them. Raises ``RunError`` naming the missing rows when no
-    config is complete. Returns the Dataset.
+    empty with them. Raises ``ConfigError`` for paths that are not parts and
+    ``RunError`` naming the missing rows when no config is complete. Returns
+    the Dataset.
     """
     check_writable(out, "merge", "--out")
     files = parts.part_files(paths)
     groups = {}
     for f in files:
+        if not f.exists():
+            raise ConfigError("merge", [f"{f}: no such file or folder"])
         m = parts.PART_NAME.match(f.name)
         if m is None or not f.is_file():
-            raise RunError(f"{f} is not a part file (<hash>_<start>-<stop>_of_<n>.npz)")
+            raise ConfigError(
+                "merge", [f"{f} is not a part file (<hash>_<start>-<stop>_of_<n>.npz)"]
+            )
         groups.setdefault(m["hash"], []).append((int(m["start"]), int(m["stop"]), int(m["n"]), f))
     if not groups:
-        raise RunError(f"no part files in {', '.join(map(str, paths))}")
+        raise ConfigError("merge", [f"no part files in {', '.join(map(str, paths))}"])
     problems = []
     for chash, entries in groups.items():
         config = _part_config(entries)

@@ -252,3 +252,28 @@ def test_unwritable_output_is_bad_input(tmp_path, capsys):
     blocker.write_text("a file, not a folder")
     assert main(["run", str(QUICK), "--out", str(blocker / "r.nc"), "--quiet"]) == 2
     assert re.search(r"--out .*file/r\.nc cannot be written", capsys.readouterr().err)
+
+
+@pytest.mark.parametrize("what", ["missing", "empty folder", "not a part"])
+def test_merge_of_no_parts_is_bad_input(tmp_path, capsys, what):
+    """Exit 2 with one line naming the path; nothing is written."""
+    target = tmp_path / "in"
+    if what == "empty folder":
+        target.mkdir()
+    elif what == "not a part":
+        target.write_text("hello")
+    assert main(["merge", str(target), "--out", str(tmp_path / "r.nc")]) == 2
+    err = capsys.readouterr().err
+    assert str(target) in err and err.count("\n") == 1
+    assert not (tmp_path / "r.nc").exists()
+
+
+def test_default_threads_are_all_threads_after_an_explicit_count():
+    """``threads=None`` means every core, even after a run asked for one thread."""
+    import numba
+
+    from sweep import accelerate
+
+    accelerate.set_threads(1)
+    assert accelerate.set_threads(None) == numba.config.NUMBA_NUM_THREADS
+    assert numba.get_num_threads() == numba.config.NUMBA_NUM_THREADS
