@@ -197,13 +197,25 @@ def _open_result(path):
     return ds.load()
 
 
+def _plotted(source, draw, out):
+    """``draw(out)`` after checking ``out``; a result it cannot draw is bad input."""
+    from .config import check_writable
+
+    check_writable(out, source, "--out", ".png")
+    try:
+        return draw(out)
+    except ValueError as exc:
+        raise ConfigError(source, [f"cannot plot: {exc}"]) from None
+
+
 def cmd_plot(args):
     from pathlib import Path
 
     from .plots import plot_result
 
-    out = plot_result(_open_result(args.result), args.out or Path(args.result).with_suffix(".png"))
-    print(f"wrote {out}")
+    ds = _open_result(args.result)
+    out = args.out or Path(args.result).with_suffix(".png")
+    print(f"wrote {_plotted(args.result, lambda o: plot_result(ds, o), out)}")
     return 0
 
 
@@ -230,8 +242,9 @@ def cmd_bifurcation(args):
 
     first = Path(args.results[0])
     out = args.out or first.with_name(first.stem + "_bifurcation.png")
-    out = plot_bifurcation([_open_result(p) for p in args.results], out)
-    print(f"wrote {out}")
+    datasets = [_open_result(p) for p in args.results]
+    source = ", ".join(args.results)
+    print(f"wrote {_plotted(source, lambda o: plot_bifurcation(datasets, o), out)}")
     return 0
 
 

@@ -474,16 +474,20 @@ def _parse_classification(c, raw):
     return Classification(cap, amp, tol, cycles, early)
 
 
-def check_writable(path, source="<config>", key="output"):
-    """Raise :class:`ConfigError` unless a file can be created at ``path``.
+def check_writable(path, source="<config>", key="output", suffix=".nc"):
+    """Raise :class:`ConfigError` unless a ``suffix`` file can be created at ``path``.
 
     Creates missing parent directories and a probe file (removed at once), so
     the answer is the file system's, not a guess from permission bits (which
     root ignores).
     """
     path = Path(path)
+    if path.suffix != suffix:
+        raise ConfigError(source, [f"{key} {path} must be a file name ending in {suffix}"])
     if path.is_dir():
-        raise ConfigError(source, [f"{key} {path} is a directory; give a file path ending in .nc"])
+        raise ConfigError(
+            source, [f"{key} {path} is a directory; give a file path ending in {suffix}"]
+        )
     blocking = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
     if blocking is not None:
         raise ConfigError(

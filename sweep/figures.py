@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import load_config
+from .config import check_writable, load_config
 from .plots import (
     BLOCK_STYLES,
     draw_trace,
@@ -207,15 +207,19 @@ def make_figures(
     from .runner import compute
 
     out_dir = Path(out_dir)
+    # every input and the output folder are checked before any work
     config = load_config(paper)
+    phase_config = load_config(twoblock)
+    bifurcation_configs = [load_config(p) for p in bifurcation]
+    check_writable(out_dir / "fig1_one_block.png", str(out_dir), "--out-dir", ".png")
     paths = [
         figure_one_block(config, out_dir / "fig1_one_block.png"),
         figure_two_blocks(config, out_dir / "fig2_two_blocks.png"),
     ]
-    phase = compute(load_config(twoblock), threads=threads, show_progress=False)
+    phase = compute(phase_config, threads=threads, show_progress=False)
     caption = "the transition stays at the one-block Kc/W = (B − A)/D0 for every coupling k2"
     paths.append(plot_result(phase, out_dir / "phase_twoblock.png", caption))
-    sweeps = [compute(load_config(p), threads=threads, show_progress=False) for p in bifurcation]
+    sweeps = [compute(c, threads=threads, show_progress=False) for c in bifurcation_configs]
     caption = (
         "quasi-static: no cycle below Kc, every run runs away (a jump); "
         "radiation damping: the cycle grows continuously from zero"

@@ -348,7 +348,9 @@ def plot_bifurcation(datasets, out, caption=""):
     fig, (ax_a, ax_v) = plt.subplots(1, 2, figsize=(12, 5), layout="constrained")
     model_handles = []
     seen = set()
-    curves = [c for ds in datasets for c in bifurcation_curves(ds)]
+    curves = [c for ds in datasets for c in bifurcation_curves(ds) if c[1]["regime"].size]
+    if not curves:
+        raise ValueError("no point with an analytic Kc > 0 (no instability to show)")
     for k, (label, curve) in enumerate(curves):
         marker = MODEL_MARKERS[curve.attrs["model"]]
         style, size = CURVE_STYLES[k % len(CURVE_STYLES)]
@@ -399,7 +401,14 @@ def plot_bifurcation(datasets, out, caption=""):
         ax.set_xlabel("K/Kc (each model's own analytic Kc)")
         if high > low:  # the K/Kc range every curve covers
             ax.set_xlim(float(low) - pad, float(high) + pad)
-    top = max(np.nanmax(np.where(c["regime"] != 2, c["lnv_amplitude"], np.nan)) for _, c in curves)
+    bounded_amplitudes = [
+        c["lnv_amplitude"].values[
+            [regime_names(c)[int(r)] != "runaway" for r in c["regime"].values]
+        ]
+        for _, c in curves
+    ]
+    top = max((float(np.nanmax(a)) for a in bounded_amplitudes if a.size), default=np.nan)
+    top = top if np.isfinite(top) and top > 0 else 1.0  # e.g. every run ran away
     ax_a.set_ylim(-0.03 * top, 1.12 * top)
     ax_a.set_ylabel("attractor peak-to-peak ln(v/V)")
     ax_v.set_yscale("log")
@@ -407,6 +416,8 @@ def plot_bifurcation(datasets, out, caption=""):
     ax_a.set_title("(a) amplitude of ln v")
     ax_v.set_title("(b) largest and smallest velocity")
     low_v, high_v = ax_v.get_ylim()
+    if low_v <= 0:  # no bounded point at all: no data to set the log range
+        low_v, high_v = 0.1, 10.0
     ax_v.set_ylim(low_v, high_v * 10.0)  # room for the runaway markers at the top
     runaway = Line2D(
         [],
@@ -446,15 +457,13 @@ def describe_common(datasets):
 
 
 def trace_summary(ds):
-    """One line on how a trace ended: regime, and runaway time, period or settling time."""
+    """One line on how a trace ended: regime, and runaway time or period."""
     regime = ds.attrs["regime"]
     if regime == "runaway":
         cap = ds.attrs["classification_v_cap_over_V"]
         return f"runaway at t = {ds.attrs['t_runaway']:.4g} s (v > {power_text(cap)} V)"
     if regime == "stick_slip":
         return f"stick-slip, period {ds.attrs['period']:.3g} s"
-    if regime == "steady" and ds.attrs["t_final"] < ds.attrs["t_end"]:
-        return f"steady: settled at t = {ds.attrs['t_final']:.4g} s"
     return regime.replace("_", "-")
 
 
@@ -512,11 +521,17 @@ def plot_trace(ds, out):
 
 
 def save_figure(fig, out):
-    """Write ``fig`` to ``out`` (PNG, :data:`DPI`), creating folders; close it; return the path."""
+    """Write ``fig`` to ``out`` (PNG, :data:`DPI`) atomically, creating folders; close it;
+    return the path."""
     from pathlib import Path
+
+    from .atomic import replaced_atomically
 
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=DPI)
-    pyplot().close(fig)
+    try:
+        with replaced_atomically(out) as tmp:
+            fig.savefig(tmp, dpi=DPI, format="png")
+    finally:
+        pyplot().close(fig)
     return out

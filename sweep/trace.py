@@ -8,9 +8,9 @@ sample and the samples where some block's ln(v/V) is largest and smallest, so
 slip peaks and stick troughs survive decimation, plus the final state. The
 result is an xarray Dataset with dimensions ``time`` and ``block``.
 
-A trace always runs to the end time (no early exit once the regime is
-settled), except that runaway and decay onto steady sliding (every state
-variable below ``steady_amplitude``) end it, exactly as in a sweep.
+A trace always runs to the end time (early exit is off, so a settled or
+decayed run is followed to the end), except that a runaway ends it, exactly
+as in a sweep.
 """
 
 import dataclasses
@@ -226,6 +226,7 @@ def run_trace(config, at, out=None, png=None, t_end=None, points=4000):
     nc = Path(out) if out else Path("results") / f"{config.name}_trace_{stem}.nc"
     png = Path(png) if png else nc.with_suffix(".png")
     check_writable(nc, config.source, "--out")
+    check_writable(png, config.source, "--png", ".png")
     ds = compute_trace(pinned, points)
     write_netcdf(ds, nc)
     plot_trace(ds, png)

@@ -1,8 +1,9 @@
 """The output schema: every data variable of a result file, declared once.
 
-This table feeds the Dataset constructor (``sweep/dataset.py``), the README's
-reference and the tests. ``per_block``: the variable has a trailing ``block``
-dimension; ``min_blocks``: written only for sweeps of at least that many blocks.
+This table feeds the Dataset constructor (``sweep/dataset.py``) and the tests;
+the README's reference table is checked against it. ``per_block``: the
+variable has a trailing ``block`` dimension; ``min_blocks``: written only for
+sweeps of at least that many blocks.
 """
 
 from dataclasses import dataclass

@@ -79,6 +79,7 @@ def test_set_threads():
     top = numba.config.NUMBA_NUM_THREADS
     try:
         assert accelerate.set_threads(1) == 1 and numba.get_num_threads() == 1
-        assert accelerate.set_threads(None) == 1  # None: keep the current setting
+        # None: every core (the CLI's default), not whatever an earlier run set
+        assert accelerate.set_threads(None) == top and numba.get_num_threads() == top
     finally:
         numba.set_num_threads(top)

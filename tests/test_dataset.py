@@ -174,3 +174,21 @@ def test_interrupted_write_keeps_earlier_result(in_tmp, result, monkeypatch):
         write_netcdf(ds, target)
     assert target.read_bytes() == b"earlier result"
     assert sorted(os.listdir(in_tmp)) == ["r.nc"]
+
+
+def test_readme_table_matches_the_schema():
+    """README's output-variable table lists exactly the declared variables, with their units."""
+    import re
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = readme.split("### Output variables", 1)[1].split("\n\n", 2)[1]
+    pretty = {"–": None, "1": "1", "s": "s", "µm": "um", "s⁻¹": "s-1", "µm s⁻¹": "um s-1",
+              "µm⁻¹": "um-1"}  # fmt: skip
+    documented = {}
+    for row in section.splitlines()[2:]:
+        names, units = (cell.strip() for cell in row.strip("|").split("|")[:2])
+        for name in re.findall(r"`(\w+)`", names):
+            documented[name] = pretty[units]
+    declared = {v.name: (None if v.name == "regime" else v.units) for v in VARIABLES}
+    assert documented == declared

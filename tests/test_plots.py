@@ -167,6 +167,32 @@ def test_plot_command_rejects_a_missing_file(tmp_path, capsys):
     assert "cannot read result file" in capsys.readouterr().err
 
 
+def test_plot_commands_reject_what_they_cannot_draw_or_write(tmp_path, capsys):
+    """Exit 2 with one line, no traceback and no file: a single-point result, a
+    non-PNG output name, an output under a regular file."""
+    single = compute(small(CONFIGS / "quick.yaml", "single", sweep={"K_W": [0.04]}),
+                     show_progress=False)  # fmt: skip
+    path = write_netcdf(single, tmp_path / "single.nc")
+    (tmp_path / "afile").write_text("")
+    for argv in (
+        ["plot", str(path)],
+        ["plot", str(path), "--out", str(tmp_path / "x.txt")],
+        ["bifurcation", str(path), "--out", str(tmp_path / "afile" / "b.png")],
+    ):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.startswith("error: ") and err.count("\n") == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "single.nc"]
+
+
+def test_bifurcation_of_runaways_only(tmp_path):
+    """Every run below Kc runs away: the diagram still draws (runaway markers only)."""
+    ds = compute(small(CONFIGS / "quick.yaml", "runaways", sweep={"K_W": [0.03, 0.04]}),
+                 show_progress=False)  # fmt: skip
+    assert set(ds["regime"].values) == {REGIMES.index("runaway")}
+    assert_png(plot_bifurcation([ds], tmp_path / "b.png"), min_bytes=5_000)
+
+
 def test_bifurcation_configs_show_the_jump_and_the_continuous_onset():
     """What the bifurcation figure claims (physics brief, section 4)."""
     qs = compute(load_config(CONFIGS / "bifurcation_qs.yaml"), show_progress=False)

@@ -266,14 +266,3 @@ def test_merge_of_no_parts_is_bad_input(tmp_path, capsys, what):
     err = capsys.readouterr().err
     assert str(target) in err and err.count("\n") == 1
     assert not (tmp_path / "r.nc").exists()
-
-
-def test_default_threads_are_all_threads_after_an_explicit_count():
-    """``threads=None`` means every core, even after a run asked for one thread."""
-    import numba
-
-    from sweep import accelerate
-
-    accelerate.set_threads(1)
-    assert accelerate.set_threads(None) == numba.config.NUMBA_NUM_THREADS
-    assert numba.get_num_threads() == numba.config.NUMBA_NUM_THREADS
