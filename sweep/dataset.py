@@ -68,7 +68,7 @@ def derived_fields(config, phys, results, y_final, time_unit):
     return fields
 
 
-def build_dataset(config, phys, results, y_final, time_unit):
+def build_dataset(config, phys, results, y_final, time_unit, command="run"):
     """Assemble the result Dataset of a sweep from the kernels' outputs."""
     shape = config.shape
     dims = tuple(a.name for a in config.axes)
@@ -97,10 +97,10 @@ def build_dataset(config, phys, results, y_final, time_unit):
     regime_attrs["flag_values"] = np.arange(len(REGIMES), dtype=np.int8)
     regime_attrs["flag_meanings"] = " ".join(REGIMES)
     regime_attrs.pop("units")
-    return xr.Dataset(data_vars, coords=coords, attrs=provenance(config))
+    return xr.Dataset(data_vars, coords=coords, attrs=provenance(config, command))
 
 
-def provenance(config):
+def provenance(config, command="run"):
     """File attributes: model, fixed parameters with units, settings, versions."""
     import numba
 
@@ -110,7 +110,7 @@ def provenance(config):
         "title": f"Rice-Ruina spring-block sweep: {config.name}",
         "institution": "rsf-sweep",
         "source": f"rsf-sweep {__version__} (sweep package), numba {numba.__version__}",
-        "history": f"{_now()} created by python -m sweep run {config.source}",
+        "history": f"{_now()} created by python -m sweep {command} {config.source}",
         "created": _now(),
         "sweep_name": config.name,
         "description": config.description,

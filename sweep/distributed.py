@@ -113,7 +113,8 @@ def dask_chunks(client, params, y0, settings, ranges, stop=None):
     flying = {}
     try:
         while todo or flying:
-            window = max(8, 4 * worker_threads(client))
+            # (asked again each round: adaptive clusters grow and shrink)
+            window = max(8, 4 * worker_threads(client)) if todo else 0
             while todo and len(flying) < window:
                 a, b = todo.pop()
                 future = client.submit(integrate_chunk, params[a:b], y0[a:b], settings, pure=False)

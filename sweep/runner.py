@@ -459,7 +459,7 @@ def merge_parts(paths, out):
             continue
         for problem in problems:
             log.warning("%s", problem)
-        ds = build_dataset(config, phys, results, y_final, time_unit)
+        ds = build_dataset(config, phys, results, y_final, time_unit, "merge")
         _write_result(ds, out, "the parts")
         for f in used:
             f.unlink()
