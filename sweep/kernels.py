@@ -468,6 +468,23 @@ def decay_confirmed(nb, last_lmax, last_lmin, mratios, n_mratios, n_check, env_t
 
 
 @jit
+def start_window(y, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin):
+    """Start a cycle's statistics at state ``y``: extremes of ℓ_i and of the friction
+    A ℓ_i + B ψ_i at their current values. Returns (max |ℓ_i − ℓ_0|, mean ℓ_i)."""
+    sync = 0.0
+    mbar = 0.0
+    for i in range(nb):
+        win_lmax[i] = y[i]
+        win_lmin[i] = y[i]
+        mu = A * y[i] + B * y[nb + i]
+        win_mumax[i] = mu
+        win_mumin[i] = mu
+        sync = max(sync, abs(y[i] - y[0]))
+        mbar += y[i] / nb
+    return sync, mbar
+
+
+@jit
 def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     """Integrate one system from ``y0`` and write its statistics into ``result``.
 
@@ -528,21 +545,9 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     mratios = np.zeros(8)
     n_mratios = 0
     mamp_prev = np.nan
-    mbar = 0.0
-    for i in range(nb):
-        mbar += y[i] / nb
+    win_sync, mbar = start_window(y, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin)
     win_mbar_max = mbar
     win_mbar_min = mbar
-
-    for i in range(nb):
-        win_lmax[i] = y[i]
-        win_lmin[i] = y[i]
-        mu = A * y[i] + B * y[nb + i]
-        win_mumax[i] = mu
-        win_mumin[i] = mu
-    win_sync = 0.0
-    for i in range(1, nb):
-        win_sync = max(win_sync, abs(y[i] - y[0]))
     last_sync = np.nan
     win_t_peak_last_block = np.nan
     last_phase = np.nan
@@ -731,20 +736,9 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
                     last_phase = lag - math.floor(lag + 0.5)
             t_peak = t_new_peak
             # the new cycle starts at this peak
-            for i in range(nb):
-                win_lmax[i] = y[i]
-                win_lmin[i] = y[i]
-                mu = A * y[i] + B * y[nb + i]
-                win_mumax[i] = mu
-                win_mumin[i] = mu
+            win_sync, mbar = start_window(y, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin)
             win_lmax[0] = max(win_lmax[0], peak_value)
-            win_sync = 0.0
-            for i in range(1, nb):
-                win_sync = max(win_sync, abs(y[i] - y[0]))
             win_t_peak_last_block = np.nan
-            mbar = 0.0
-            for i in range(nb):
-                mbar += y[i] / nb
             win_mbar_max = mbar
             win_mbar_min = mbar
             if early_exit:
