@@ -167,18 +167,22 @@ def part_files(paths):
     return sorted(set(found))
 
 
-def scan(directory):
-    """Part files in ``directory`` grouped by config hash: {hash: [(start, stop, n, path)]}."""
+def group(files):
+    """Part files grouped by config hash: {hash: [(start, stop, n, path)]}, in the
+    order given; names that are not part names are skipped."""
     groups = {}
-    directory = Path(directory)
-    if not directory.is_dir():
-        return groups
-    for f in sorted(directory.iterdir()):
+    for f in map(Path, files):
         m = PART_NAME.match(f.name)
         if m:
             entry = (int(m["start"]), int(m["stop"]), int(m["n"]), f)
             groups.setdefault(m["hash"], []).append(entry)
     return groups
+
+
+def scan(directory):
+    """Part files in ``directory`` grouped by config hash (see :func:`group`)."""
+    directory = Path(directory)
+    return group(sorted(directory.iterdir())) if directory.is_dir() else {}
 
 
 def remove_parts(directory):

@@ -423,16 +423,14 @@ def merge_parts(paths, out):
     """
     check_writable(out, "merge", "--out")
     files = parts.part_files(paths)
-    groups = {}
     for f in files:
         if not f.exists():
             raise ConfigError("merge", [f"{f}: no such file or folder"])
-        m = parts.PART_NAME.match(f.name)
-        if m is None or not f.is_file():
+        if parts.PART_NAME.match(f.name) is None or not f.is_file():
             raise ConfigError(
                 "merge", [f"{f} is not a part file (<hash>_<start>-<stop>_of_<n>.npz)"]
             )
-        groups.setdefault(m["hash"], []).append((int(m["start"]), int(m["stop"]), int(m["n"]), f))
+    groups = parts.group(files)
     if not groups:
         raise ConfigError("merge", [f"no part files in {', '.join(map(str, paths))}"])
     problems = []
