@@ -112,25 +112,32 @@ def _panel_title(ax, label, ds):
     ax.set_title(f"{label}\n{k}", fontsize=9)
 
 
-def figure_one_block(config, out, points=3000):
-    """The paper's Fig. 1 (one block at each K/W) with the quasi-dynamic comparison."""
-    traces = trace_grid(config, ONE_BLOCK_ROWS, points)
-    plt = pyplot()
-    ncol = len(traces[0])
-    fig, axes = plt.subplots(
-        len(traces),
+def _trace_panels(rows, traces, height, extra_rows=0, legend_first=False):
+    """Figure with one row of trace panels per ``rows`` entry (one column per K/W) and
+    ``extra_rows`` free rows below; time labels on the bottom row only. Returns
+    ``(fig, axes)``."""
+    n_rows, ncol = len(traces) + extra_rows, len(traces[0])
+    fig, axes = pyplot().subplots(
+        n_rows,
         ncol,
-        figsize=(5.6 * ncol, 6.6),
+        figsize=(5.6 * ncol, height),
         sharex=True,
         layout="constrained",
         squeeze=False,
     )
-    for r, (label, _) in enumerate(ONE_BLOCK_ROWS):
+    for r, (label, _) in enumerate(rows):
         for c, ds in enumerate(traces[r]):
-            draw_trace(axes[r, c], ds, legend=False)
+            draw_trace(axes[r, c], ds, legend=legend_first and r == 0 and c == 0)
             _panel_title(axes[r, c], label, ds)
-            if r < len(traces) - 1:
+            if r < n_rows - 1:
                 axes[r, c].set_xlabel("")
+    return fig, axes
+
+
+def figure_one_block(config, out, points=3000):
+    """The paper's Fig. 1 (one block at each K/W) with the quasi-dynamic comparison."""
+    traces = trace_grid(config, ONE_BLOCK_ROWS, points)
+    fig, _ = _trace_panels(ONE_BLOCK_ROWS, traces, height=6.6)
     ds = traces[0][0]
     fig.suptitle(
         f"Fig. 1 reproduced: one block, {parameter_text(_fixed(ds))}; {initial_text(ds)}\n"
@@ -146,21 +153,8 @@ def figure_two_blocks(config, out, points=3000):
     the quasi-dynamic comparison, and the synchronisation of the blocks."""
     rows = tuple((label, {**changes, "k2_W": K2_W}) for label, changes in TWO_BLOCK_ROWS)
     traces = trace_grid(config, rows, points, TWO_BLOCK_SPAN * config.integrator.t_end)
-    plt = pyplot()
+    fig, axes = _trace_panels(rows, traces, height=11.5, extra_rows=1, legend_first=True)
     ncol = len(traces[0])
-    fig, axes = plt.subplots(
-        len(traces) + 1,
-        ncol,
-        figsize=(5.6 * ncol, 11.5),
-        sharex=True,
-        layout="constrained",
-        squeeze=False,
-    )
-    for r, (label, _) in enumerate(rows):
-        for c, ds in enumerate(traces[r]):
-            draw_trace(axes[r, c], ds, legend=(r == 0 and c == 0))
-            _panel_title(axes[r, c], label, ds)
-            axes[r, c].set_xlabel("")
     for c in range(ncol):
         ax = axes[-1, c]
         for r in range(1, len(rows)):
