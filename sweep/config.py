@@ -107,19 +107,23 @@ class Integrator:
 
 @dataclass(frozen=True)
 class Classification:
-    """Thresholds that turn a run's oscillation into a regime.
+    """How a run's oscillation becomes a regime (README: How a run is classified).
 
     ``v_cap_over_V``: runaway once any v/V exceeds this. ``steady_amplitude``:
-    steady once every |ln v/V|, |ln Φ/Φss| (and spring-force excess) is below
-    this. ``envelope_tolerance``: |ln(amplitude ratio)| per cycle below which
-    the envelope counts as constant (a limit cycle). ``trend_cycles``: number of
-    consecutive agreeing cycles that settle a run early (0: never by trend).
+    steady once every |ln v/V|, |ln Φ/Φss| (and inertial force) is below this
+    (where steady sliding is linearly stable). ``accuracy``: relative accuracy to
+    which the limit of the cycle-to-cycle sequence (zero, or a limit cycle's
+    features) must be known to settle a run. ``confirm_cycles``: consecutive
+    cycles that verdict must hold before a run stops early. ``max_t_end``: runs
+    still unsettled at ``integrator.t_end`` go on up to this time (same unit;
+    ``None``: ten times ``t_end``). ``early_exit``: stop each run once settled.
     """
 
     v_cap_over_V: float = 1e6
     steady_amplitude: float = 1e-6
-    envelope_tolerance: float = 1e-4
-    trend_cycles: int = 3
+    accuracy: float = 1e-3
+    confirm_cycles: int = 2
+    max_t_end: float = None
     early_exit: bool = True
 
 
@@ -265,7 +269,7 @@ def parse_config(text, source="<config>"):
         _check_mass(c, params, axes)
     initial = _parse_initial(c, raw, blocks)
     integrator = _parse_integrator(c, raw, model)
-    classification = _parse_classification(c, raw)
+    classification = _parse_classification(c, raw, integrator.t_end)
     output = raw.get("output", f"results/{name}.nc")
     if not isinstance(output, str) or not output.endswith(".nc"):
         c.add(f"output must be a file path ending in .nc, got {output!r}")
@@ -449,29 +453,47 @@ def _parse_integrator(c, raw, model):
     return Integrator(method=method, t_unit=unit, t_end=t_end, max_steps=max_steps, **values)
 
 
-def _parse_classification(c, raw):
+#: Classification keys of earlier versions and what replaced them.
+RETIRED_CLASSIFICATION_KEYS = {
+    "envelope_tolerance": "accuracy (relative accuracy of the extrapolated limit, default 1e-3)",
+    "trend_cycles": "confirm_cycles (consecutive cycles a verdict must hold, default 2)",
+}
+
+
+def _parse_classification(c, raw, t_end):
     spec = c.mapping(raw.get("classification", {}), "classification")
     d = Classification()
-    c.unknown(spec, "classification", tuple(Classification.__dataclass_fields__))
     key = "classification."
+    for old, new in RETIRED_CLASSIFICATION_KEYS.items():
+        if old in spec:
+            c.add(f"{key}{old} is no longer used; use {key}{new}")
+    spec = {k: v for k, v in spec.items() if k not in RETIRED_CLASSIFICATION_KEYS}
+    c.unknown(spec, "classification", tuple(Classification.__dataclass_fields__))
     cap = c.number(spec.get("v_cap_over_V", d.v_cap_over_V), key + "v_cap_over_V", 1.0, True)
     amp = c.number(
         spec.get("steady_amplitude", d.steady_amplitude), key + "steady_amplitude", 0.0, True
     )
-    tol = c.number(
-        spec.get("envelope_tolerance", d.envelope_tolerance), key + "envelope_tolerance", 0.0, True
+    accuracy = c.number(
+        spec.get("accuracy", d.accuracy), key + "accuracy", 0.0, True, high=0.5, high_open=False
     )
-    cycles = c.integer(spec.get("trend_cycles", d.trend_cycles), key + "trend_cycles", 0)
+    cycles = c.integer(spec.get("confirm_cycles", d.confirm_cycles), key + "confirm_cycles", 1)
+    max_t_end = spec.get("max_t_end")
+    if max_t_end is None:
+        max_t_end = None if t_end is None else 10.0 * t_end
+    else:
+        max_t_end = c.number(max_t_end, key + "max_t_end", 0.0, True)
+        if max_t_end is not None and t_end is not None and max_t_end < t_end:
+            c.add(
+                f"{key}max_t_end must be at least integrator.t_end ({t_end:g}), got {max_t_end:g}"
+            )
+            max_t_end = None
     early = spec.get("early_exit", d.early_exit)
     if not isinstance(early, bool):
         c.add(f"{key}early_exit must be true or false, got {early!r}")
         early = None
-    if cycles is not None and cycles > 8:
-        c.add(f"{key}trend_cycles must be at most 8, got {cycles}")
-        cycles = None
-    if None in (cap, amp, tol, cycles, early):
+    if None in (cap, amp, accuracy, cycles, max_t_end, early):
         return d
-    return Classification(cap, amp, tol, cycles, early)
+    return Classification(cap, amp, accuracy, cycles, max_t_end, early)
 
 
 def check_writable(path, source="<config>", key="output", suffix=".nc"):

@@ -53,6 +53,7 @@ def derived_fields(config, phys, results, y_final, time_unit):
             "slip_per_event": np.where(regime == kernels.STICK_SLIP, V * period, np.nan),
             "t_runaway": r[:, kernels.R_TAU_RUNAWAY] * time_unit,
             "t_final": r[:, kernels.R_TAU_FINAL] * time_unit,
+            "convergence": r[:, kernels.R_CONVERGENCE],
             "n_steps": r[:, kernels.R_N_STEPS].astype(np.int64),
             "n_rejected": r[:, kernels.R_N_REJECTED].astype(np.int64),
             "n_peaks": r[:, kernels.R_N_PEAKS].astype(np.int64),
@@ -132,8 +133,11 @@ def provenance(config, command="run"):
         "integrator_max_steps": np.int64(integ.max_steps),
         "classification_v_cap_over_V": cls.v_cap_over_V,
         "classification_steady_amplitude": cls.steady_amplitude,
-        "classification_envelope_tolerance": cls.envelope_tolerance,
-        "classification_trend_cycles": np.int32(cls.trend_cycles),
+        "classification_accuracy": cls.accuracy,
+        "classification_confirm_cycles": np.int32(cls.confirm_cycles),
+        "classification_max_t_end": (
+            10.0 * integ.t_end if cls.max_t_end is None else cls.max_t_end
+        ),
         "classification_early_exit": np.int8(cls.early_exit),
         "package_version": __version__,
         "numba_version": numba.__version__,

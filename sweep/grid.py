@@ -57,8 +57,8 @@ def settings_array(config):
     s[kernels.S_MAX_STEPS] = integ.max_steps
     s[kernels.S_LNV_CAP] = math.log(cls.v_cap_over_V)
     s[kernels.S_STEADY_AMP] = cls.steady_amplitude
-    s[kernels.S_ENV_TOL] = cls.envelope_tolerance
-    s[kernels.S_TREND_CYCLES] = cls.trend_cycles
+    s[kernels.S_ACCURACY] = cls.accuracy
+    s[kernels.S_CONFIRM_CYCLES] = cls.confirm_cycles
     s[kernels.S_EARLY_EXIT] = 1.0 if cls.early_exit else 0.0
     return s
 
@@ -88,6 +88,13 @@ def system_arrays(config, phys=None):
     params[:, kernels.P_TAU_END] = integ.t_end * to_tau
     params[:, kernels.P_DT] = integ.dt
     params[:, kernels.P_MAX_STEP] = integ.max_step
+    max_t_end = config.classification.max_t_end
+    max_t_end = 10.0 * integ.t_end if max_t_end is None else max_t_end
+    params[:, kernels.P_TAU_MAX] = max_t_end * to_tau
+    params[:, kernels.P_LIN_GROWTH] = model.linear_growth_rate(
+        config.model, config.blocks, dl["A"], dl["B"], dl["kappa1"], dl["kappa2"],
+        dl["eta_hat"], dl["mass_hat"],
+    )  # fmt: skip
     settings = settings_array(config)
     y0 = initial_state(config, n)
     return params, y0, settings, dl["time_unit"]

@@ -12,7 +12,7 @@ m dv/dt per unit normal load). Time τ is in units of D0/V.
 Each run keeps only running statistics over the current oscillation cycle (from
 one maximum of ℓ_0 to the next) and over the last completed one, so memory does
 not depend on run length. Extrema are located inside a step with the cubic
-Hermite interpolant built from the values and slopes at both ends of the step.
+interpolant of the step (DOPRI5's dense output; cubic Hermite for RK4 and RODAS4).
 """
 
 import math
@@ -26,13 +26,33 @@ QUASI_STATIC, QUASI_DYNAMIC, INERTIAL = 0, 1, 2
 AGING, SLIP = 0, 1
 DOPRI5, RK4, ROSENBROCK = 0, 1, 2
 STEADY, STICK_SLIP, RUNAWAY, UNDECIDED = 0, 1, 2, 3
-# A shrinking envelope means steady sliding only for an oscillation this small
-# (peak-to-peak ln v/V): see decay_confirmed.
+# A decaying oscillation is called steady only once it is this small (peak-to-peak
+# ln v/V of every block), i.e. in the linear regime where decay is geometric: see
+# steady_verdict.
 LINEAR_AMPLITUDE = 0.1
+# Cycle values that change by less than NOISE_FACTOR * (atol + rtol |x|) from one
+# cycle to the next are converged to round-off: the Hermite-located extrema of a
+# converged DOPRI5 cycle scatter by about 1e-9 at rtol 1e-8 (measured on the
+# quasi-dynamic cycles of tests/test_classification.py).
+NOISE_FACTOR = 10.0
+# Cycles of history kept per observable (the extrapolation uses the last four).
+HISTORY = 4
 
 # --- columns of the per-system parameter array (all dimensionless) ----------
-P_A, P_B, P_KAPPA1, P_KAPPA2, P_ETA, P_MASS, P_TAU_END, P_DT, P_MAX_STEP = range(9)
-N_PARAMS = 9
+(
+    P_A,  # direct effect
+    P_B,  # evolution effect
+    P_KAPPA1,  # driving stiffness K D0/W
+    P_KAPPA2,  # coupling stiffness k2 D0/W
+    P_ETA,  # radiation damping ηV/W
+    P_MASS,  # mass mV²/(W D0)
+    P_TAU_END,  # end time (D0/V)
+    P_DT,  # fixed step of rk4 (D0/V)
+    P_MAX_STEP,  # largest adaptive step (D0/V)
+    P_TAU_MAX,  # unsettled runs continue up to this time (D0/V), ≥ P_TAU_END
+    P_LIN_GROWTH,  # max Re λ of the linearisation at steady sliding (V/D0)
+) = range(11)
+N_PARAMS = 11
 
 # --- entries of the settings array, shared by all systems of a sweep --------
 (
@@ -45,8 +65,8 @@ N_PARAMS = 9
     S_MAX_STEPS,  # step budget per run (accepted + rejected)
     S_LNV_CAP,  # runaway when any ln(v/V) exceeds this
     S_STEADY_AMP,  # steady when every |state variable| falls below this
-    S_ENV_TOL,  # |ln(amplitude ratio)| per cycle below this: constant envelope
-    S_TREND_CYCLES,  # consecutive agreeing cycles that settle a regime early
+    S_ACCURACY,  # relative accuracy of the extrapolated limit that settles a run
+    S_CONFIRM_CYCLES,  # consecutive cycles a verdict must hold to settle a run early
     S_EARLY_EXIT,  # 1: stop as soon as the regime is settled
 ) = range(12)
 N_SETTINGS = 12
@@ -68,8 +88,9 @@ N_SETTINGS = 12
     R_N_PEAKS,  # maxima of ℓ_0 seen
     R_LNV_MAX_RUN,  # max ln(v/V) over the whole run
     R_N_RECORDED,  # points written to the recording buffers
-) = range(15)
-N_RESULTS = 15
+    R_CONVERGENCE,  # estimated relative distance of the last cycle to its limit
+) = range(16)
+N_RESULTS = 16
 
 # Dormand–Prince 5(4) tableau (Hairer, Nørsett & Wanner, Table II.5.2).
 _A21 = 1 / 5
@@ -348,32 +369,61 @@ def step_rosenbrock(y, f, h, p, model, law, nb, ev, k, mat, perm, ytmp, ynew, fn
     return math.sqrt(err2 / n)
 
 
+# Dormand–Prince continuous extension of order 4 (Hairer, Nørsett & Wanner, dense
+# output of DOPRI5, section II.6): the fifth coefficient of the interpolant.
+_D1, _D3, _D4 = -12715105075 / 11282082432, 87487479700 / 32700410799, -10690763975 / 1880347072
+_D5, _D6, _D7 = 701980252875 / 199316789632, -1453857185 / 822651844, 69997945 / 29380423
+
+
+@jit_inline
+def dense_r5(j, h, f, k3, k4, k5, k6, fnew):
+    """Fifth coefficient of the DOPRI5 interpolant of component ``j`` over a step of
+    size h (stages k1 = ``f``, k3 … k6, k7 = ``fnew``)."""
+    return h * (_D1 * f[j] + _D3 * k3[j] + _D4 * k4[j] + _D5 * k5[j] + _D6 * k6[j] + _D7 * fnew[j])
+
+
 @jit
-def hermite_value(y0, y1, d0, d1, h, theta):
-    """Cubic Hermite interpolant at fraction ``theta`` of a step of size h."""
-    t2 = theta * theta
-    t3 = t2 * theta
+def dense_value(y0, y1, d0, d1, h, r5, theta):
+    """Interpolant at fraction ``theta`` of a step of size h from (y0, slope d0) to
+    (y1, slope d1): DOPRI5's continuous extension (order 4) with its coefficient
+    ``r5``, the cubic Hermite interpolant for ``r5`` = 0 (RK4, RODAS4).
+
+    The extrema of a cycle are read from it: with the cubic Hermite interpolant over
+    0.5 D0/V steps they scattered by ~1e-4 of the amplitude from cycle to cycle,
+    too much to extrapolate the cycle-to-cycle sequence near Kc
+    (test_classification.py); the dense output is as accurate as the steps.
+    """
+    r2 = y1 - y0
+    r3 = h * d0 - r2
+    r4 = r2 - h * d1 - r3
+    return y0 + theta * (r2 + (1.0 - theta) * (r3 + theta * (r4 + (1.0 - theta) * r5)))
+
+
+@jit
+def dense_slope(y0, y1, d0, d1, h, r5, theta):
+    """h × the time derivative of :func:`dense_value` at fraction ``theta``."""
+    r2 = y1 - y0
+    r3 = h * d0 - r2
+    r4 = r2 - h * d1 - r3
+    u = 1.0 - theta
     return (
-        (2 * t3 - 3 * t2 + 1) * y0
-        + (t3 - 2 * t2 + theta) * h * d0
-        + (-2 * t3 + 3 * t2) * y1
-        + (t3 - t2) * h * d1
+        r2
+        + (u - theta) * r3
+        + theta * (2.0 - 3.0 * theta) * r4
+        + 2.0 * theta * u * (u - theta) * r5
     )
 
 
 @jit
-def hermite_extremum(y0, y1, d0, d1, h):
-    """Fraction θ ∈ [0, 1] of the step where the Hermite interpolant's slope
-    vanishes, given slopes d0 and d1 of opposite sign (bisection, 50 halvings)."""
-    a = 6.0 * (y0 - y1) + 3.0 * h * (d0 + d1)
-    b = -6.0 * (y0 - y1) - 4.0 * h * d0 - 2.0 * h * d1
-    c = h * d0
+def dense_extremum(y0, y1, d0, d1, h, r5):
+    """Fraction θ ∈ [0, 1] of the step where the interpolant's slope vanishes, given
+    slopes d0 and d1 of opposite sign (bisection, 50 halvings)."""
     lo = 0.0
     hi = 1.0
+    rising = d0 > 0.0
     for _ in range(50):
         mid = 0.5 * (lo + hi)
-        s = (a * mid + b) * mid + c
-        if (s > 0.0) == (c > 0.0):
+        if (dense_slope(y0, y1, d0, d1, h, r5, mid) > 0.0) == rising:
             lo = mid
         else:
             hi = mid
@@ -381,14 +431,14 @@ def hermite_extremum(y0, y1, d0, d1, h):
 
 
 @jit
-def hermite_crossing(y0, y1, d0, d1, h, level):
-    """Fraction θ of the step where the Hermite interpolant rises through
-    ``level`` (y0 < level ≤ y1; bisection, 50 halvings)."""
+def dense_crossing(y0, y1, d0, d1, h, r5, level):
+    """Fraction θ of the step where the interpolant rises through ``level``
+    (y0 < level ≤ y1; bisection, 50 halvings)."""
     lo = 0.0
     hi = 1.0
     for _ in range(50):
         mid = 0.5 * (lo + hi)
-        if hermite_value(y0, y1, d0, d1, h, mid) < level:
+        if dense_value(y0, y1, d0, d1, h, r5, mid) < level:
             lo = mid
         else:
             hi = mid
@@ -396,75 +446,142 @@ def hermite_crossing(y0, y1, d0, d1, h, level):
 
 
 @jit
-def classify_end(n_ratios, ratio_last, amp_last, steady_amp, env_tol):
-    """Regime of a run that reached its end time without running away.
+def aitken_limit(x0, x1, x2, x3, noise):
+    """Limit of a sequence that converges geometrically, from its last four terms.
 
-    Decayed below ``steady_amp`` → steady; otherwise the last envelope ratio
-    decides: shrinking → steady, constant → stick-slip, growing or unknown →
-    undecided (the run did not settle in the time allowed).
+    Returns ``(limit, error)``: Aitken's Δ² extrapolation from the last three terms
+    and its error estimate, the change from the extrapolation one term earlier.
+    ``error`` is inf where the differences do not contract (|ratio| ≥ 1);
+    differences within ``noise`` count as converged (limit ``x3``).
     """
-    if amp_last < steady_amp:
-        return STEADY
-    if n_ratios == 0:
-        return UNDECIDED
-    if ratio_last < -env_tol:
-        return STEADY
-    if ratio_last <= env_tol:
-        return STICK_SLIP
-    return UNDECIDED
+    d1 = x1 - x0
+    d2 = x2 - x1
+    d3 = x3 - x2
+    if abs(d3) <= noise and abs(d2) <= noise:
+        return x3, abs(d2) + abs(d3)
+    if d1 == 0.0 or d2 == 0.0:
+        return x3, np.inf
+    q = d3 / d2
+    q_prev = d2 / d1
+    if not (abs(q) < 1.0 and abs(q_prev) < 1.0):
+        return x3, np.inf
+    limit = x3 + d3 * q / (1.0 - q)
+    limit_prev = x2 + d2 * q_prev / (1.0 - q_prev)
+    return limit, abs(limit - limit_prev)
 
 
 @jit
-def trend_settled(ratios, n_ratios, n_trend, env_tol):
-    """Regime settled by the envelope trend of the last ``n_trend`` cycles, or −1.
-
-    Stick-slip when every log amplitude ratio is within ±env_tol (a limit
-    cycle); steady when all are below −env_tol and agree within 10 % (a single
-    decaying linear mode, so the sign of Re λ is known).
-    """
-    if n_trend <= 0 or n_ratios < n_trend:
-        return -1
-    m = ratios.size
-    lo = np.inf
-    hi = -np.inf
-    for k in range(n_trend):
-        r = ratios[(n_ratios - 1 - k) % m]
-        lo = min(lo, r)
-        hi = max(hi, r)
-    if -env_tol <= lo and hi <= env_tol:
-        return STICK_SLIP
-    if hi < -env_tol and (hi - lo) <= 0.1 * abs(hi):
-        return STEADY
-    return -1
+def history_value(hist, k, n_cycles, back):
+    """Observable ``k`` of the cycle ``back`` cycles before the last one."""
+    return hist[k, (n_cycles - 1 - back) % HISTORY]
 
 
 @jit
-def decay_confirmed(nb, last_lmax, last_lmin, mratios, n_mratios, n_check, env_tol):
-    """Whether a shrinking envelope of ℓ_0 is the decay onto steady sliding.
+def ptp_value(hist, nb, i, n_cycles, back):
+    """Peak-to-peak ℓ_i (rows i and nb + i of ``hist``) ``back`` cycles before the last."""
+    return history_value(hist, i, n_cycles, back) - history_value(hist, nb + i, n_cycles, back)
 
-    Every block's last cycle must be small (peak-to-peak ℓ below
-    ``LINEAR_AMPLITUDE``): the irregular cycles of two inertial blocks far
-    below Kc, and two weakly coupled blocks drifting into anti-phase, shrink
-    for many cycles in a row (test_regularised.py::
-    test_weakly_coupled_blocks_lock_in_anti_phase). With several blocks, the
-    envelope of the in-phase coordinate mean(ℓ_i) must shrink too over the last
-    ``n_check`` cycles (log ratios ``mratios``, a ring buffer): near Kc a
-    decaying anti-phase mode beating against the slowly growing in-phase mode
-    makes ℓ_0 shrink for many cycles (test_regularised.py::
-    test_beating_modes_are_not_steady).
-    """
-    for i in range(nb):
-        if not (last_lmax[i] - last_lmin[i] < LINEAR_AMPLITUDE):
-            return False
-    if nb == 1:
+
+@jit
+def decays_to_zero(x0, x1, x2, x3, accuracy, steady_amp, noise):
+    """Whether amplitudes x0 > x1 > x2 > x3 head for zero: already below
+    ``steady_amp``, or decreasing with an extrapolated limit of zero to within
+    ``accuracy`` × x3."""
+    if x3 < steady_amp:
         return True
-    n_check = max(n_check, 1)
-    if n_mratios < n_check:
+    if not (x0 > x1 > x2 > x3):
         return False
-    for k in range(n_check):
-        if not (mratios[(n_mratios - 1 - k) % mratios.size] < -env_tol):
+    limit, error = aitken_limit(x0, x1, x2, x3, noise)
+    return abs(limit) + error <= accuracy * x3
+
+
+@jit
+def steady_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, atol):
+    """Whether the last four cycles show the decay onto steady sliding.
+
+    Only where steady sliding is linearly stable (``lin_growth`` < 0): an unstable
+    fixed point is never the attractor, whatever a transient does (two weakly
+    coupled blocks whose anti-phase mode decays first while the in-phase mode grows,
+    test_classification.py). Every block's oscillation must be small (peak-to-peak
+    ℓ below ``LINEAR_AMPLITUDE``) and extrapolate to zero; with several blocks so
+    must the in-phase coordinate mean(ℓ_i) (row 2 nb + 1), so a slowly decaying
+    in-phase mode hidden behind a faster anti-phase one is seen.
+    """
+    if not (lin_growth < 0.0) or n_cycles < HISTORY:
+        return False
+    noise = NOISE_FACTOR * atol
+    for i in range(nb):
+        x3 = ptp_value(hist, nb, i, n_cycles, 0)
+        if not (x3 < LINEAR_AMPLITUDE):
+            return False
+        x0 = ptp_value(hist, nb, i, n_cycles, 3)
+        x1 = ptp_value(hist, nb, i, n_cycles, 2)
+        x2 = ptp_value(hist, nb, i, n_cycles, 1)
+        if not decays_to_zero(x0, x1, x2, x3, accuracy, steady_amp, noise):
+            return False
+    if nb > 1:
+        k = 2 * nb + 1
+        x0 = history_value(hist, k, n_cycles, 3)
+        x1 = history_value(hist, k, n_cycles, 2)
+        x2 = history_value(hist, k, n_cycles, 1)
+        x3 = history_value(hist, k, n_cycles, 0)
+        if not decays_to_zero(x0, x1, x2, x3, accuracy, steady_amp, noise):
             return False
     return True
+
+
+@jit
+def cycle_convergence(hist, n_cycles, nb, rtol, atol):
+    """Estimated relative distance of the last cycle to the limit cycle.
+
+    The largest, over the cycle's observables, of the distance to the extrapolated
+    limit plus that limit's error (:func:`aitken_limit`), relative to the
+    observable's scale: for the extremes of every block's ℓ, min(1, peak-to-peak ℓ)
+    (so v_max and v_min are known to that relative accuracy, and the peak-to-peak
+    too); for the period, the period; for the in-phase amplitude, the peak-to-peak
+    ℓ. inf with fewer than four cycles or where an observable does not contract.
+    """
+    if n_cycles < HISTORY:
+        return np.inf
+    ptp = 0.0
+    for i in range(nb):
+        ptp = max(ptp, ptp_value(hist, nb, i, n_cycles, 0))
+    worst = 0.0
+    for k in range(2 * nb + 2):
+        if k == 2 * nb + 1 and nb == 1:
+            break
+        x0 = history_value(hist, k, n_cycles, 3)
+        x1 = history_value(hist, k, n_cycles, 2)
+        x2 = history_value(hist, k, n_cycles, 1)
+        x3 = history_value(hist, k, n_cycles, 0)
+        noise = NOISE_FACTOR * (atol + rtol * abs(x3))
+        limit, error = aitken_limit(x0, x1, x2, x3, noise)
+        error += abs(limit - x3)
+        if k < 2 * nb:
+            scale = min(1.0, ptp)
+        elif k == 2 * nb:
+            scale = abs(x3)
+        else:
+            scale = ptp
+        if not (error <= worst * scale):
+            worst = error / scale if scale > 0.0 else np.inf
+    return worst
+
+
+@jit
+def cycle_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, atol):
+    """Regime settled by the last four cycles, or −1; and the cycle's convergence.
+
+    Steady: :func:`steady_verdict`. Stick-slip: every cycle observable within
+    ``accuracy`` (relative, see :func:`cycle_convergence`) of its extrapolated
+    limit, so the reported features are those of the limit cycle to that accuracy.
+    """
+    if steady_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, atol):
+        return STEADY, np.nan
+    conv = cycle_convergence(hist, n_cycles, nb, rtol, atol)
+    if conv <= accuracy:
+        return STICK_SLIP, conv
+    return -1, conv
 
 
 @jit
@@ -503,12 +620,15 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     max_steps = settings[S_MAX_STEPS]
     lnv_cap = settings[S_LNV_CAP]
     steady_amp = settings[S_STEADY_AMP]
-    env_tol = settings[S_ENV_TOL]
-    n_trend = int(settings[S_TREND_CYCLES])
+    accuracy = settings[S_ACCURACY]
+    n_confirm = max(1, int(settings[S_CONFIRM_CYCLES]))
     early_exit = settings[S_EARLY_EXIT] > 0.5
     A = p[P_A]
     B = p[P_B]
     tau_end = p[P_TAU_END]
+    # unsettled runs go on past tau_end only with early exit (else: fixed-length runs)
+    tau_max = max(p[P_TAU_MAX], tau_end) if early_exit else tau_end
+    lin_growth = p[P_LIN_GROWTH]
     max_step = p[P_MAX_STEP]
 
     n = y0.size
@@ -540,11 +660,12 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     last_lmin = np.full(nb, np.nan)
     last_mumax = np.full(nb, np.nan)
     last_mumin = np.full(nb, np.nan)
-    ratios = np.zeros(8)
-    # envelope of the in-phase coordinate mean(ℓ_i) over the same cycles (nb > 1)
-    mratios = np.zeros(8)
-    n_mratios = 0
-    mamp_prev = np.nan
+    # per completed cycle: max ℓ_i, min ℓ_i, period, peak-to-peak of mean(ℓ_i)
+    hist = np.zeros((2 * nb + 2, HISTORY))
+    n_cycles = 0
+    n_agree = 0
+    last_verdict = -1
+    conv = np.inf
     win_sync, mbar = start_window(y, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin)
     win_mbar_max = mbar
     win_mbar_min = mbar
@@ -560,7 +681,6 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     t_peak = np.nan
     period = np.nan
     amp_prev = np.nan
-    n_ratios = 0
     growth = np.nan
     regime = -1
     tau_runaway = np.nan
@@ -580,10 +700,17 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     expo = -0.25 if method == ROSENBROCK else -0.2
     n_steps = 0
     n_rejected = 0
-    while t < tau_end:
+    # unsettled at tau_end: go on (settling early from then on) up to tau_max
+    tau_stop = tau_end
+    while t < tau_stop or (regime < 0 and t < tau_max):
+        if t >= tau_stop:
+            tau_stop = tau_max
+            if last_verdict >= 0:
+                regime = last_verdict
+                break
         if n_steps + n_rejected >= max_steps:
             break
-        h = min(h, tau_end - t)
+        h = min(h, tau_stop - t)
         if method != RK4:
             if method == DOPRI5:
                 err = step_dopri5(
@@ -637,7 +764,8 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
                 crossed = i
         if crossed >= 0:
             i = crossed
-            theta = hermite_crossing(y[i], ynew[i], f[i], fnew[i], h, lnv_cap)
+            r5 = dense_r5(i, h, f, k3, k4, k5, k6, fnew) if method == DOPRI5 else 0.0
+            theta = dense_crossing(y[i], ynew[i], f[i], fnew[i], h, r5, lnv_cap)
             if y[i] > lnv_cap:
                 theta = 0.0
             tau_runaway = t + theta * h
@@ -657,8 +785,9 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             rising = f[i] > 0.0
             falling_now = fnew[i] <= 0.0
             if rising == falling_now:  # slope changed sign: one extremum in the step
-                theta = hermite_extremum(y[i], ynew[i], f[i], fnew[i], h)
-                val = hermite_value(y[i], ynew[i], f[i], fnew[i], h, theta)
+                r5 = dense_r5(i, h, f, k3, k4, k5, k6, fnew) if method == DOPRI5 else 0.0
+                theta = dense_extremum(y[i], ynew[i], f[i], fnew[i], h, r5)
+                val = dense_value(y[i], ynew[i], f[i], fnew[i], h, r5, theta)
                 win_lmax[i] = max(win_lmax[i], val)
                 win_lmin[i] = min(win_lmin[i], val)
                 lnv_max_run = max(lnv_max_run, val)
@@ -688,8 +817,12 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
                 dm0 += f[i] / nb
                 dm1 += fnew[i] / nb
             if (dm0 > 0.0) == (dm1 <= 0.0):
-                theta = hermite_extremum(m0, m1, dm0, dm1, h)
-                val = hermite_value(m0, m1, dm0, dm1, h, theta)
+                r5 = 0.0
+                if method == DOPRI5:
+                    for i in range(nb):
+                        r5 += dense_r5(i, h, f, k3, k4, k5, k6, fnew) / nb
+                theta = dense_extremum(m0, m1, dm0, dm1, h, r5)
+                val = dense_value(m0, m1, dm0, dm1, h, r5, theta)
                 win_mbar_max = max(win_mbar_max, val)
                 win_mbar_min = min(win_mbar_min, val)
             win_mbar_max = max(win_mbar_max, m1)
@@ -699,7 +832,8 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             theta = (n_rec * rec_dt - t) / h
             rec_t[n_rec] = n_rec * rec_dt
             for j in range(n):
-                rec_y[n_rec, j] = hermite_value(y[j], ynew[j], f[j], fnew[j], h, theta)
+                r5 = dense_r5(j, h, f, k3, k4, k5, k6, fnew) if method == DOPRI5 else 0.0
+                rec_y[n_rec, j] = dense_value(y[j], ynew[j], f[j], fnew[j], h, r5, theta)
             n_rec += 1
 
         t_new_peak = t + theta_peak * h
@@ -713,18 +847,26 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             n_peaks += 1
             if n_peaks >= 2:
                 period = t_new_peak - t_peak
+                # growth of the peak-to-trough amplitude of ℓ_0, where it is above
+                # round-off (a decayed run would report noise, not a rate)
                 amp = peak_value - win_lmin[0]
-                if amp_prev == amp_prev and amp > 0.0 and amp_prev > 0.0:
-                    r = math.log(amp / amp_prev)
-                    ratios[n_ratios % ratios.size] = r
-                    n_ratios += 1
-                    growth = r / period
+                growth = np.nan
+                if amp_prev >= steady_amp and amp >= steady_amp:
+                    growth = math.log(amp / amp_prev) / period
                 amp_prev = amp
-                mamp = win_mbar_max - win_mbar_min
-                if mamp_prev == mamp_prev and mamp > 0.0 and mamp_prev > 0.0:
-                    mratios[n_mratios % mratios.size] = math.log(mamp / mamp_prev)
-                    n_mratios += 1
-                mamp_prev = mamp
+                slot = n_cycles % HISTORY
+                for i in range(nb):
+                    hist[i, slot] = win_lmax[i]
+                    hist[nb + i, slot] = win_lmin[i]
+                hist[0, slot] = peak_value
+                hist[2 * nb, slot] = period
+                hist[2 * nb + 1, slot] = win_mbar_max - win_mbar_min
+                n_cycles += 1
+                verdict, conv = cycle_verdict(
+                    hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, atol
+                )
+                n_agree = n_agree + 1 if verdict >= 0 and verdict == last_verdict else 1
+                last_verdict = verdict
                 for i in range(nb):
                     last_lmax[i] = win_lmax[i]
                     last_lmin[i] = win_lmin[i]
@@ -741,18 +883,12 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             win_t_peak_last_block = np.nan
             win_mbar_max = mbar
             win_mbar_min = mbar
-            if early_exit:
-                settled = trend_settled(ratios, n_ratios, n_trend, env_tol)
-                if settled == STEADY and not decay_confirmed(
-                    nb, last_lmax, last_lmin, mratios, n_mratios, n_trend, env_tol
-                ):
-                    settled = -1
-                if settled >= 0:
-                    regime = settled
-                    break
+            if early_exit and last_verdict >= 0 and n_agree >= n_confirm:
+                regime = last_verdict
+                break
 
-        # decayed onto steady sliding
-        if early_exit:
+        # decayed onto a linearly stable steady state
+        if early_exit and lin_growth < 0.0:
             big = 0.0
             for j in range(n):
                 big = max(big, abs(y[j]))
@@ -777,22 +913,19 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             fdrop = max(fdrop, win_mumax[i] - win_mumin[i])
     sync = last_sync if use_last else win_sync
     if regime < 0:
-        amp_last = 0.0
+        big = 0.0
         for j in range(n):
-            amp_last = max(amp_last, abs(y[j]))
-        if use_last:
-            amp_last = max(amp_last, lmax - lmin)
-        ratio_last = ratios[(n_ratios - 1) % ratios.size] if n_ratios > 0 else np.nan
-        if t < tau_end:  # step budget exhausted
+            big = max(big, abs(y[j]))
+        if t < tau_stop:  # step budget exhausted
             regime = UNDECIDED
+        elif last_verdict >= 0:
+            regime = last_verdict
+        elif big < steady_amp and lin_growth < 0.0:
+            regime = STEADY
         else:
-            regime = classify_end(n_ratios, ratio_last, amp_last, steady_amp, env_tol)
-            if (
-                regime == STEADY
-                and amp_last >= steady_amp
-                and not decay_confirmed(nb, last_lmax, last_lmin, mratios, n_mratios, 1, env_tol)
-            ):
-                regime = UNDECIDED
+            regime = UNDECIDED
+    if regime == STEADY or regime == RUNAWAY:
+        conv = np.nan
 
     result[R_REGIME] = regime
     result[R_TAU_FINAL] = t
@@ -816,6 +949,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             rec_y[n_rec, j] = y[j]
         n_rec += 1
     result[R_N_RECORDED] = n_rec
+    result[R_CONVERGENCE] = conv
 
 
 @jit

@@ -39,8 +39,9 @@ VARIABLES = (
     Variable("period", "float64", "s", "oscillation period",
              "time between the last two maxima of ln v of block 0; NaN without two maxima"),
     Variable("growth_rate", "float64", "s-1", "envelope growth rate",
-             "ln(ratio of the last two peak-to-trough amplitudes of ln v) / period; "
-             "negative: decaying, about 0: limit cycle, positive: growing"),
+             "ln(ratio of the last two peak-to-trough amplitudes of ln v of block 0) / period; "
+             "negative: decaying, about 0: limit cycle, positive: growing; NaN where either "
+             "amplitude is below classification_steady_amplitude (round-off)"),
     Variable("friction_drop", "float64", "1", "friction drop per event",
              "max - min of the friction coefficient over the final window (largest over blocks)"),
     Variable("slip_per_event", "float64", "um", "slip per event",
@@ -49,7 +50,14 @@ VARIABLES = (
              "time at which v first exceeded the velocity cap or the state became non-finite; "
              "NaN if the run did not run away"),
     Variable("t_final", "float64", "s", "time the run stopped",
-             "end time, or earlier when the regime was settled (early exit)"),
+             "end time, earlier when the regime was settled (early exit), or later (up to "
+             "classification_max_t_end) when it was not settled at the end time"),
+    Variable("convergence", "float64", "1", "distance of the last cycle to the limit cycle",
+             "estimated relative distance of the final cycle's features (extremes of ln v, "
+             "peak-to-peak, period) to those of the limit cycle, from the Aitken extrapolation "
+             "of the cycle-to-cycle sequence; stick_slip runs have at most "
+             "classification_accuracy; inf where the cycles do not contract yet; NaN for "
+             "steady and runaway runs"),
     Variable("n_steps", "int64", "1", "accepted integration steps", ""),
     Variable("n_rejected", "int64", "1", "rejected integration steps", "adaptive method only"),
     Variable("n_peaks", "int64", "1", "maxima of ln v of block 0", ""),

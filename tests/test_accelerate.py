@@ -13,8 +13,8 @@ import pytest
 from sweep import accelerate, kernels
 
 JITTED = [
-    "rhs", "step_rk4", "step_dopri5", "hermite_value", "hermite_extremum",
-    "hermite_crossing", "classify_end", "trend_settled", "integrate_system",
+    "rhs", "step_rk4", "step_dopri5", "dense_value", "dense_extremum",
+    "dense_crossing", "aitken_limit", "cycle_verdict", "integrate_system",
     "integrate_grid_serial", "integrate_grid_parallel",
 ]  # fmt: skip
 

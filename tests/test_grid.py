@@ -120,10 +120,14 @@ def test_two_block_sweep_finds_kc_for_every_coupling():
 #: Every regime and plenty of NaN in 22 short runs: one block from 0.3 Kc (fast
 #: runaway) to 1.3 Kc (steady); K = Kc exactly (D0 = 1 µm) keeps its closed orbit
 #: (stick-slip) and K/Kc = 0.99 (D0 = 0.99 µm) has not run away by t_end (undecided).
+#: Every regime on one small grid: radiation damping η/W = 0.1 s/µm gives stick-slip
+#: below its Kc, η = 0 is the quasi-static model (runaway), runs near Kc stay
+#: undecided within the short end time (no continuation: max_t_end = t_end).
 MIXED = {
-    "parameters": {"D0": None},
-    "sweep": {"K_W": (KC_W * np.linspace(0.3, 1.3, 11)).tolist(), "D0": [1.0, 0.99]},
+    "model": "quasi-dynamic",
+    "sweep": {"K_W": (KC_W * np.linspace(0.3, 1.3, 11)).tolist(), "eta_W": [0.0, 0.1]},
     "integrator": {"t_end": 300.0},
+    "classification": {"max_t_end": 300.0},
 }
 
 
