@@ -477,21 +477,20 @@ def _parse_classification(c, raw, t_end):
         spec.get("accuracy", d.accuracy), key + "accuracy", 0.0, True, high=0.5, high_open=False
     )
     cycles = c.integer(spec.get("confirm_cycles", d.confirm_cycles), key + "confirm_cycles", 1)
-    max_t_end = spec.get("max_t_end")
-    if max_t_end is None:
-        max_t_end = None if t_end is None else 10.0 * t_end
-    else:
+    max_t_end, max_ok = spec.get("max_t_end"), True  # None: ten times t_end
+    if max_t_end is not None:
         max_t_end = c.number(max_t_end, key + "max_t_end", 0.0, True)
-        if max_t_end is not None and t_end is not None and max_t_end < t_end:
+        max_ok = max_t_end is not None
+        if max_ok and t_end is not None and max_t_end < t_end:
             c.add(
                 f"{key}max_t_end must be at least integrator.t_end ({t_end:g}), got {max_t_end:g}"
             )
-            max_t_end = None
+            max_ok = False
     early = spec.get("early_exit", d.early_exit)
     if not isinstance(early, bool):
         c.add(f"{key}early_exit must be true or false, got {early!r}")
         early = None
-    if None in (cap, amp, accuracy, cycles, max_t_end, early):
+    if None in (cap, amp, accuracy, cycles, early) or not max_ok:
         return d
     return Classification(cap, amp, accuracy, cycles, max_t_end, early)
 

@@ -99,6 +99,7 @@ def pin_config(config, at, t_end=None):
     raw["classification"]["early_exit"] = False
     if t_end is not None:
         raw["integrator"]["t_end"] = float(t_end)
+        raw["classification"]["max_t_end"] = None  # no continuation without early exit
     # errors name the --at values; the result's provenance names the config file
     return dataclasses.replace(config_from_mapping(raw, source), source=config.source)
 
