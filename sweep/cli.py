@@ -74,8 +74,38 @@ def build_parser():
     merge = sub.add_parser("merge", help="assemble a NetCDF result from the parts of shards")
     merge.add_argument("parts", nargs="+", metavar="PARTS", help="part files or folders of parts")
     merge.add_argument("--out", required=True, help="output NetCDF path")
+    add_check_commands(sub)
     add_figure_commands(sub)
     return parser
+
+
+def _positive_float(text):
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+    if not 0 < x < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be in (0, inf), got {text}")
+    return x
+
+
+def add_check_commands(sub):
+    """Subcommands extend and audit (``sweep/extend.py``, ``sweep/audit.py``)."""
+    ext = sub.add_parser(
+        "extend",
+        help="continue the undecided runs of a result to a later end time",
+        description="Continue each undecided run of RESULT from its final state up to the "
+        "end time T and replace its statistics; other runs are left as they are. Exit "
+        "status 0 (also when no run is undecided), 2 for bad input, 1 if the file cannot "
+        "be written.",
+    )
+    ext.add_argument("result", help="result NetCDF file of python -m sweep run")
+    ext.add_argument(
+        "--t-end", type=_positive_float, metavar="T",
+        help="new end time, in the config's t_unit (default: 4x the file's end time)",
+    )  # fmt: skip
+    ext.add_argument("--out", help="output NetCDF (default: replace RESULT)")
+    ext.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
 
 
 def _assignment(text):
@@ -173,6 +203,20 @@ def cmd_run(args):
     return 0
 
 
+def cmd_extend(args):
+    from .extend import extend_file
+
+    ds, n_continued = extend_file(args.result, args.t_end, args.out, args.threads)
+    if not n_continued:
+        print(f"no undecided runs in {args.result}; nothing to do, the file is unchanged")
+        return 0
+    for line in summary_lines(ds):
+        print(line)
+    end = f"{ds.attrs['integrator_t_end']:g} {ds.attrs['integrator_t_unit']}"
+    print(f"wrote {args.out or args.result} ({n_continued} undecided runs continued to {end})")
+    return 0
+
+
 def cmd_merge(args):
     from .runner import merge_parts
 
@@ -181,20 +225,6 @@ def cmd_merge(args):
         print(line)
     print(f"wrote {args.out} ({ds['regime'].size} runs)")
     return 0
-
-
-def _open_result(path):
-    """A result Dataset from ``path``; a missing or foreign file is bad input (ConfigError)."""
-    import xarray as xr
-
-    try:
-        ds = xr.open_dataset(path)
-    except (OSError, ValueError) as exc:
-        raise ConfigError(path, [f"cannot read result file: {exc}"]) from None
-    missing = [v for v in ("regime", "K_over_Kc", "lnv_amplitude") if v not in ds]
-    if missing:
-        raise ConfigError(path, [f"not a sweep result (no {', '.join(missing)})"])
-    return ds.load()
 
 
 def _plotted(source, draw, out):
@@ -211,9 +241,10 @@ def _plotted(source, draw, out):
 def cmd_plot(args):
     from pathlib import Path
 
+    from .dataset import read_result
     from .plots import plot_result
 
-    ds = _open_result(args.result)
+    ds = read_result(args.result)
     out = args.out or Path(args.result).with_suffix(".png")
     print(f"wrote {_plotted(args.result, lambda o: plot_result(ds, o), out)}")
     return 0
@@ -238,11 +269,12 @@ def cmd_trace(args):
 def cmd_bifurcation(args):
     from pathlib import Path
 
+    from .dataset import read_result
     from .plots import plot_bifurcation
 
     first = Path(args.results[0])
     out = args.out or first.with_name(first.stem + "_bifurcation.png")
-    datasets = [_open_result(p) for p in args.results]
+    datasets = [read_result(p) for p in args.results]
     source = ", ".join(args.results)
     print(f"wrote {_plotted(source, lambda o: plot_bifurcation(datasets, o), out)}")
     return 0
@@ -259,6 +291,7 @@ def cmd_figures(args):
 COMMANDS = {
     "run": cmd_run,
     "merge": cmd_merge,
+    "extend": cmd_extend,
     "plot": cmd_plot,
     "trace": cmd_trace,
     "bifurcation": cmd_bifurcation,
