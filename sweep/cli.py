@@ -1,7 +1,8 @@
 """Command-line interface: argument parsing and printing only.
 
 Every command calls a function that a notebook can call too. Exit status: 0 on
-success, 2 for bad input (config, arguments, output path), 1 for other failures.
+success, 2 for bad input (config, result file, arguments, output path), 1 for other
+failures and for an audit that found a disagreement.
 """
 
 import argparse
