@@ -1,7 +1,8 @@
 """Command-line interface: argument parsing and printing only.
 
 Every command calls a function that a notebook can call too. Exit status: 0 on
-success, 2 for bad input (config, arguments, output path), 1 for other failures.
+success, 2 for bad input (config, result file, arguments, output path), 1 for other
+failures and for an audit that found a disagreement.
 """
 
 import argparse
@@ -74,8 +75,81 @@ def build_parser():
     merge = sub.add_parser("merge", help="assemble a NetCDF result from the parts of shards")
     merge.add_argument("parts", nargs="+", metavar="PARTS", help="part files or folders of parts")
     merge.add_argument("--out", required=True, help="output NetCDF path")
+    add_check_commands(sub)
     add_figure_commands(sub)
     return parser
+
+
+def _count(text):
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {n}")
+    return n
+
+
+def _fraction(text):
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+    if not 0 <= x < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be in [0, inf), got {text}")
+    return x
+
+
+def _positive_float(text):
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+    if not 0 < x < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be in (0, inf), got {text}")
+    return x
+
+
+def add_check_commands(sub):
+    """Subcommands extend and audit (``sweep/extend.py``, ``sweep/audit.py``)."""
+    ext = sub.add_parser(
+        "extend",
+        help="continue the undecided runs of a result to a later end time",
+        description="Continue each undecided run of RESULT from its final state up to the "
+        "end time T and replace its statistics; other runs are left as they are. Exit "
+        "status 0 (also when no run is undecided), 2 for bad input, 1 if the file cannot "
+        "be written.",
+    )
+    ext.add_argument("result", help="result NetCDF file of python -m sweep run")
+    ext.add_argument(
+        "--t-end", type=_positive_float, metavar="T",
+        help="new end time, in the config's t_unit (default: 4x the file's end time)",
+    )  # fmt: skip
+    ext.add_argument("--out", help="output NetCDF (default: replace RESULT)")
+    ext.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
+    aud = sub.add_parser(
+        "audit",
+        help="rerun a sample of a result's points for longer and compare the regimes",
+        description="Rerun a seeded random sample of RESULT's grid points, plus every point "
+        "near Kc, from the initial state with early exit off and a later end time, and "
+        "compare the regimes. Exit status 0 when all agree, 1 when some disagree, 2 for "
+        "bad input.",
+    )
+    aud.add_argument("result", help="result NetCDF file of python -m sweep run")
+    aud.add_argument(
+        "--sample", type=_count, default=20, metavar="N",
+        help="grid points drawn at random (default 20)",
+    )  # fmt: skip
+    aud.add_argument(
+        "--near-kc", type=_fraction, default=0.01, metavar="FRACTION",
+        help="also audit every point with |K/Kc - 1| <= FRACTION (default 0.01)",
+    )  # fmt: skip
+    aud.add_argument(
+        "--t-end", type=_positive_float, metavar="T",
+        help="end time of the reruns, in the config's t_unit (default: 10x the file's)",
+    )  # fmt: skip
+    aud.add_argument("--seed", type=int, default=0, help="seed of the random sample (default 0)")
+    aud.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
 
 
 def _assignment(text):
@@ -173,6 +247,78 @@ def cmd_run(args):
     return 0
 
 
+def cmd_extend(args):
+    from .extend import extend_file
+
+    ds, n_continued = extend_file(args.result, args.t_end, args.out, args.threads)
+    if not n_continued:
+        print(f"no undecided runs in {args.result}; nothing to do, the file is unchanged")
+        return 0
+    for line in summary_lines(ds):
+        print(line)
+    end = f"{ds.attrs['integrator_t_end']:g} {ds.attrs['integrator_t_unit']}"
+    print(f"wrote {args.out or args.result} ({n_continued} undecided runs continued to {end})")
+    return 0
+
+
+def agreement_lines(audit):
+    """The agreement table of an audit Dataset: regime in the file (rows) against the
+    regime of the long run (columns), then the share of points that agree."""
+    import numpy as np
+
+    names = audit["regime_file"].attrs["flag_meanings"].split()
+    in_file, in_long = audit["regime_file"].values, audit["regime_audit"].values
+    width = max(len(n) for n in names) + 2
+    corner = "file \\ long run"
+    lines = [f"{corner:<{width + 4}}" + "".join(f"{n:>{width}}" for n in names)]
+    for code, name in enumerate(names):
+        counts = [np.count_nonzero((in_file == code) & (in_long == c)) for c in range(len(names))]
+        lines.append(f"{name:<{width + 4}}" + "".join(f"{c:>{width}d}" for c in counts))
+    n, agree = in_file.size, int(audit["agree"].sum())
+    share = 100.0 * agree / n if n else 100.0
+    lines.append(f"agreement: {agree} of {n} points ({share:.1f} %)")
+    return lines
+
+
+def disagreement_lines(audit):
+    """One line per audited point whose regimes differ: axes, K/Kc and both labels."""
+    names = audit["regime_file"].attrs["flag_meanings"].split()
+    axes = audit.attrs["sweep_axes"].split()
+    lines = []
+    for i in (audit["agree"].values == 0).nonzero()[0]:
+        point = audit.isel(point=i)
+        at = " ".join(f"{a}={point[a].item():g}" for a in axes)
+        lines.append(
+            f"  {at}  K/Kc={point['K_over_Kc'].item():.4g}  "
+            f"file: {names[int(point['regime_file'])]}  "
+            f"long run: {names[int(point['regime_audit'])]}"
+        )
+    return lines
+
+
+def cmd_audit(args):
+    from .audit import audit_result
+
+    audit = audit_result(
+        args.result, args.sample, args.near_kc, args.t_end, args.seed, args.threads
+    )
+    near = int(audit["near_kc"].sum())
+    print(
+        f"audited {audit.sizes['point']} points of {args.result} ({near} within "
+        f"{audit.attrs['audit_near_kc']:g} of Kc): runs to {audit.attrs['audit_t_end']:g} "
+        f"{audit.attrs['audit_t_unit']} without early exit"
+    )
+    for line in agreement_lines(audit):
+        print(line)
+    wrong = disagreement_lines(audit)
+    if wrong:
+        print("points where the long run disagrees:")
+        for line in wrong:
+            print(line)
+        return 1
+    return 0
+
+
 def cmd_merge(args):
     from .runner import merge_parts
 
@@ -181,20 +327,6 @@ def cmd_merge(args):
         print(line)
     print(f"wrote {args.out} ({ds['regime'].size} runs)")
     return 0
-
-
-def _open_result(path):
-    """A result Dataset from ``path``; a missing or foreign file is bad input (ConfigError)."""
-    import xarray as xr
-
-    try:
-        ds = xr.open_dataset(path)
-    except (OSError, ValueError) as exc:
-        raise ConfigError(path, [f"cannot read result file: {exc}"]) from None
-    missing = [v for v in ("regime", "K_over_Kc", "lnv_amplitude") if v not in ds]
-    if missing:
-        raise ConfigError(path, [f"not a sweep result (no {', '.join(missing)})"])
-    return ds.load()
 
 
 def _plotted(source, draw, out):
@@ -211,9 +343,10 @@ def _plotted(source, draw, out):
 def cmd_plot(args):
     from pathlib import Path
 
+    from .dataset import read_result
     from .plots import plot_result
 
-    ds = _open_result(args.result)
+    ds = read_result(args.result)
     out = args.out or Path(args.result).with_suffix(".png")
     print(f"wrote {_plotted(args.result, lambda o: plot_result(ds, o), out)}")
     return 0
@@ -238,11 +371,12 @@ def cmd_trace(args):
 def cmd_bifurcation(args):
     from pathlib import Path
 
+    from .dataset import read_result
     from .plots import plot_bifurcation
 
     first = Path(args.results[0])
     out = args.out or first.with_name(first.stem + "_bifurcation.png")
-    datasets = [_open_result(p) for p in args.results]
+    datasets = [read_result(p) for p in args.results]
     source = ", ".join(args.results)
     print(f"wrote {_plotted(source, lambda o: plot_bifurcation(datasets, o), out)}")
     return 0
@@ -259,6 +393,8 @@ def cmd_figures(args):
 COMMANDS = {
     "run": cmd_run,
     "merge": cmd_merge,
+    "extend": cmd_extend,
+    "audit": cmd_audit,
     "plot": cmd_plot,
     "trace": cmd_trace,
     "bifurcation": cmd_bifurcation,

@@ -7,6 +7,7 @@ written to a temporary name beside the target and renamed, so a failed write
 never replaces an earlier result.
 """
 
+import dataclasses
 import datetime
 from pathlib import Path
 
@@ -15,6 +16,7 @@ import xarray as xr
 
 from . import __version__, kernels, model
 from .atomic import replaced_atomically
+from .config import ConfigError, parse_config
 from .grid import REGIMES
 from .model import PARAMETERS
 from .variables import variables_for
@@ -66,6 +68,8 @@ def derived_fields(config, phys, results, y_final, time_unit):
             "K_over_Kc": phys["K_W"] * phys["D0"] / kc,
             "onset_period": 2 * np.pi / omega * time_unit,
         }
+    if config.model == "inertial":
+        fields["inertial_force_final"] = y_final[:, 2 * nb : 3 * nb]
     return fields
 
 
@@ -84,7 +88,7 @@ def build_dataset(config, phys, results, y_final, time_unit, command="run"):
     coords["block"] = ("block", np.arange(config.blocks), {"long_name": "block index in the chain"})
     fields = derived_fields(config, phys, results, y_final, time_unit)
     data_vars = {}
-    for var in variables_for(config.blocks):
+    for var in variables_for(config.blocks, config.model):
         attrs = {"units": var.units, "long_name": var.long_name}
         if var.description:
             attrs["description"] = var.description
@@ -111,8 +115,8 @@ def provenance(config, command="run"):
         "title": f"Rice-Ruina spring-block sweep: {config.name}",
         "institution": "rsf-sweep",
         "source": f"rsf-sweep {__version__} (sweep package), numba {numba.__version__}",
-        "history": f"{_now()} created by python -m sweep {command} {config.source}",
-        "created": _now(),
+        "history": f"{utc_now()} created by python -m sweep {command} {config.source}",
+        "created": utc_now(),
         "sweep_name": config.name,
         "description": config.description,
         "model": config.model,
@@ -152,7 +156,7 @@ def provenance(config, command="run"):
     return attrs
 
 
-def _now():
+def utc_now():
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 
 
@@ -164,3 +168,45 @@ def write_netcdf(ds, path):
     with replaced_atomically(path) as tmp:
         ds.to_netcdf(tmp, engine="netcdf4", encoding=encoding)
     return path
+
+
+def read_result(path, needs_config=False):
+    """Load the result file ``path`` into memory (the file is closed again).
+
+    With ``needs_config``, the file must also hold the config that made it
+    (``config_text``). Raises :class:`~sweep.config.ConfigError` naming ``path``
+    for a missing or unreadable file, or one that is not a sweep result.
+    """
+    try:
+        with xr.open_dataset(path) as ds:
+            ds.load()
+    except (OSError, ValueError) as exc:
+        raise ConfigError(path, [f"cannot read result file: {exc}"]) from None
+    missing = [v for v in ("regime", "K_over_Kc", "lnv_amplitude") if v not in ds]
+    if needs_config and "config_text" not in ds.attrs:
+        missing.append("config_text attribute")
+    if missing:
+        raise ConfigError(path, [f"not a sweep result (no {', '.join(missing)})"])
+    return ds
+
+
+def stored_config(ds, source):
+    """The :class:`~sweep.config.Config` stored in a result (``config_text``).
+
+    ``source`` names the result file in errors; the Config keeps the original
+    config path (``config_path``) as its source. Raises
+    :class:`~sweep.config.ConfigError` if the text is no longer a valid config
+    or its grid is not the file's.
+    """
+    try:
+        config = parse_config(ds.attrs["config_text"], f"{source} (config_text)")
+    except ConfigError as exc:
+        raise ConfigError(source, [f"stored config_text: {p}" for p in exc.problems]) from None
+    dims = tuple(a.name for a in config.axes)
+    if ds["regime"].dims != dims or ds["regime"].shape != config.shape:
+        raise ConfigError(
+            source,
+            [f"regime has dims {dict(ds['regime'].sizes)}, but the stored config sweeps "
+             f"{dict(zip(dims, config.shape, strict=True))}"],
+        )  # fmt: skip
+    return dataclasses.replace(config, source=ds.attrs.get("config_path", str(source)))

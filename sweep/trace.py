@@ -198,7 +198,7 @@ def trace_attributes(config, phys, params, result, y_final, time_unit):
         attrs[axis.name] = axis.values[0]
         attrs[f"{axis.name}_units"] = PARAMETERS[axis.name].units
     fields = derived_fields(config, phys, result, y_final, time_unit)
-    for var in variables_for(config.blocks):
+    for var in variables_for(config.blocks, config.model):
         if var.per_block:
             continue
         value = fields[var.name][0]

@@ -3,7 +3,8 @@
 This table feeds the Dataset constructor (``sweep/dataset.py``) and the tests;
 the README's reference table is checked against it. ``per_block``: the
 variable has a trailing ``block`` dimension; ``min_blocks``: written only for
-sweeps of at least that many blocks.
+sweeps of at least that many blocks; ``models``: written only for these
+models (empty: every model).
 """
 
 from dataclasses import dataclass
@@ -20,6 +21,7 @@ class Variable:
     description: str
     per_block: bool = False
     min_blocks: int = 1
+    models: tuple = ()
 
 
 VARIABLES = (
@@ -70,6 +72,10 @@ VARIABLES = (
              "state at t_final", per_block=True),
     Variable("ln_state_final", "float64", "1", "final ln(Phi/Phi_ss) per block",
              "state at t_final", per_block=True),
+    Variable("inertial_force_final", "float64", "1", "final inertial force per block",
+             "z_i = (m/W) dv_i/dt per unit normal load at t_final (the inertial model's third "
+             "state variable, as in the kernels' state); with lnv_final and ln_state_final it "
+             "restarts the run", per_block=True, models=("inertial",)),
     Variable("linear_growth_rate", "float64", "s-1", "linear growth rate",
              "max Re(lambda) of the system linearised about steady sliding"),
     Variable("critical_K_W", "float64", "um-1", "critical stiffness Kc/W",
@@ -82,6 +88,6 @@ VARIABLES = (
 BY_NAME = {v.name: v for v in VARIABLES}
 
 
-def variables_for(blocks):
-    """The variables a sweep of ``blocks`` blocks writes."""
-    return [v for v in VARIABLES if blocks >= v.min_blocks]
+def variables_for(blocks, model="quasi-static"):
+    """The variables a sweep of ``blocks`` blocks of ``model`` writes."""
+    return [v for v in VARIABLES if blocks >= v.min_blocks and (not v.models or model in v.models)]

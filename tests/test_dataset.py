@@ -33,7 +33,7 @@ def result(request):
 def test_variables_follow_the_table(result):
     config, ds = result
     dims = tuple(a.name for a in config.axes)
-    expected = {v.name for v in variables_for(config.blocks)}
+    expected = {v.name for v in variables_for(config.blocks, config.model)}
     assert set(ds.data_vars) == expected
     assert ("sync_error" in ds) == (config.blocks >= 2)
     for name in expected:
@@ -43,6 +43,22 @@ def test_variables_follow_the_table(result):
         assert da.attrs["long_name"] == var.long_name
         if name != "regime":  # a flag variable has flag_values instead of units
             assert da.attrs["units"] == var.units, name
+
+
+def test_inertial_results_store_the_inertial_force():
+    """The inertial model's state has a third variable per block, z = (m/W) dv/dt; the
+    file stores it beside lnv_final and ln_state_final, so a run can be restarted."""
+    config = make_config(
+        model="inertial", parameters={"m_W": 1.0}, sweep={"K_W": [0.06, 0.08]},
+        integrator={"method": "rosenbrock", "t_end": 100.0},
+    )  # fmt: skip
+    ds = runner.compute(config, show_progress=False)
+    _, y_final = run_grid(config)
+    assert set(ds.data_vars) == {v.name for v in variables_for(1, "inertial")}
+    assert ds["inertial_force_final"].dims == ("K_W", "block")
+    assert ds["inertial_force_final"].attrs["units"] == "1"
+    np.testing.assert_array_equal(ds["inertial_force_final"].values, y_final[:, 2:3])
+    assert "inertial_force_final" not in {v.name for v in variables_for(1, "quasi-dynamic")}
 
 
 def test_table_is_complete():

@@ -1,0 +1,138 @@
+"""Self-audit: rerun points of a result for much longer and compare the regimes.
+
+A sweep stops each run as soon as its regime looks settled (early exit) and
+classifies the rest at the end time. The audit checks those calls: it reruns a
+seeded random sample of grid points plus every point near the critical
+stiffness (|K/Kc − 1| ≤ ``near_kc``) from the config's initial state, with
+early exit off and a much later end time, and compares the two regimes point
+by point.
+"""
+
+import dataclasses
+
+import numpy as np
+import xarray as xr
+
+from . import kernels
+from .config import ConfigError
+from .dataset import stored_config
+from .extend import load_result
+from .grid import REGIMES, system_arrays
+from .model import PARAMETERS
+from .runner import integrate_chunks
+
+
+def audit_points(ds, sample=20, near_kc=0.01, seed=0):
+    """Flat grid indices to audit: ``sample`` random ones (seeded) and all near Kc.
+
+    Returns ``(rows, near)``: sorted unique indices (C order over the sweep
+    axes) and a mask of those within ``near_kc`` of K/Kc = 1.
+    """
+    k_over_kc = ds["K_over_Kc"].values.ravel()
+    n = k_over_kc.size
+    drawn = np.random.default_rng(seed).choice(n, size=min(sample, n), replace=False)
+    close = np.flatnonzero(np.abs(k_over_kc - 1.0) <= near_kc)
+    rows = np.union1d(drawn, close)
+    return rows, np.isin(rows, close)
+
+
+def audit_config(config, t_end):
+    """``config`` with end time ``t_end`` (its ``t_unit``) and early exit off."""
+    return dataclasses.replace(
+        config,
+        integrator=dataclasses.replace(config.integrator, t_end=float(t_end)),
+        classification=dataclasses.replace(config.classification, early_exit=False),
+    )
+
+
+def audit_result(result, sample=20, near_kc=0.01, t_end=None, seed=0, threads=None,
+                 source=None):  # fmt: skip
+    """Rerun a sample of a result's grid points for longer and compare regimes.
+
+    Parameters
+    ----------
+    result : path or xarray.Dataset
+        A result of ``python -m sweep run`` (it holds its config).
+    sample : int
+        Number of grid points drawn at random (all of them if the grid is
+        smaller).
+    near_kc : float
+        Every point with |K/Kc − 1| ≤ ``near_kc`` is audited too (1).
+    t_end : float, optional
+        End time of the audit runs, in the config's ``t_unit``. Default: 10 ×
+        the file's end time.
+    seed : int
+        Seed of the random draw.
+    threads : int, optional
+        numba threads (default: all cores).
+    source : str, optional
+        Name of the result in error messages (default: its path).
+
+    Returns
+    -------
+    xarray.Dataset
+        One row per audited point (dimension ``point``): the sweep axes'
+        values (physical units), ``index`` (flat grid index), ``near_kc``
+        (audited for being near Kc), ``K_over_Kc``, ``regime_file``,
+        ``regime_audit`` and ``agree``. Attributes: the audit settings.
+    """
+    ds, source = load_result(result, source)
+    config = stored_config(ds, source)
+    problems = []
+    if sample < 0:
+        problems.append(f"--sample must be >= 0, got {sample}")
+    if not near_kc >= 0:
+        problems.append(f"--near-kc must be in [0, inf), got {near_kc}")
+    t_end = 10.0 * config.integrator.t_end if t_end is None else float(t_end)
+    if not 0 < t_end < np.inf:
+        problems.append(f"--t-end must be in (0, inf), got {t_end}")
+    if problems:
+        raise ConfigError(source, problems)
+    rows, near = audit_points(ds, sample, near_kc, seed)
+    longer = audit_config(config, t_end)
+    params, y0, settings, _ = system_arrays(longer)
+    if rows.size:
+        results, _ = integrate_chunks(
+            np.ascontiguousarray(params[rows]), np.ascontiguousarray(y0[rows]), settings, threads
+        )
+    else:
+        results = np.empty((0, kernels.N_RESULTS))
+    regime_file = ds["regime"].values.ravel()[rows]
+    regime_audit = results[:, kernels.R_REGIME].astype(np.int8)
+    flags = {
+        "flag_values": np.arange(len(REGIMES), dtype=np.int8),
+        "flag_meanings": " ".join(REGIMES),
+    }
+    index = np.unravel_index(rows, config.shape)
+    coords = {
+        axis.name: (
+            "point",
+            np.asarray(axis.values)[i],
+            {"units": PARAMETERS[axis.name].units, "long_name": PARAMETERS[axis.name].long_name},
+        )
+        for axis, i in zip(config.axes, index, strict=True)
+    }
+    coords["index"] = ("point", rows, {"long_name": "flat grid index (C order over the axes)"})
+    data_vars = {
+        "near_kc": ("point", near, {"long_name": f"|K/Kc - 1| <= {near_kc:g}"}),
+        "K_over_Kc": ("point", ds["K_over_Kc"].values.ravel()[rows], {"units": "1"}),
+        "regime_file": ("point", regime_file, {"long_name": "regime in the file", **flags}),
+        "regime_audit": (
+            "point",
+            regime_audit,
+            {"long_name": "regime of the long run without early exit", **flags},
+        ),
+        "agree": ("point", regime_file == regime_audit, {"long_name": "same regime"}),
+    }
+    attrs = {
+        "title": f"Audit of the rsf-sweep result {source}",
+        "audit_source": source,
+        "audit_t_end": t_end,
+        "audit_t_unit": config.integrator.t_unit,
+        "file_t_end": config.integrator.t_end,
+        "audit_sample": np.int64(sample),
+        "audit_near_kc": float(near_kc),
+        "audit_seed": np.int64(seed),
+        "sweep_axes": " ".join(a.name for a in config.axes),
+    }
+    return xr.Dataset(data_vars, coords=coords, attrs=attrs)

@@ -1,0 +1,186 @@
+"""Continue the undecided runs of a result to a later end time.
+
+A run is undecided when its oscillation had not settled by the end time. The
+log-form equations are autonomous (the load point's position does not enter
+them), so the stored final state (``lnv_final``, ``ln_state_final`` and, for
+the inertial model, ``inertial_force_final``) is all a run needs to go on:
+each undecided run is integrated again from that state for the time left up
+to the new end, with the config's settings otherwise, and its statistics
+replace the old ones. Times are shifted by the old ``t_final`` and the step
+and peak counts are added, so the file reads as if each run had gone straight
+on; the cycle statistics (envelope, period) start afresh at the restart.
+Every other run is left as it was, bit for bit.
+"""
+
+import dataclasses
+
+import numpy as np
+
+from . import kernels
+from .config import ConfigError, check_writable
+from .dataset import derived_fields, read_result, stored_config, utc_now, write_netcdf
+from .grid import physical_parameters, system_arrays
+from .runner import RunError, integrate_chunks
+from .trace import config_from_mapping, config_mapping
+from .variables import variables_for
+
+#: Variables from linear theory, not from the run: never recomputed.
+LINEAR_THEORY = ("linear_growth_rate", "critical_K_W", "K_over_Kc", "onset_period")
+#: Times (s) of the continued run, shifted by the old t_final.
+SHIFTED = ("t_final", "t_runaway")
+#: Counts of the continued run, added to the old ones.
+SUMMED = ("n_steps", "n_rejected", "n_peaks")
+#: The stored final state, block-major columns of the kernels' state y.
+FINAL_STATE = ("lnv_final", "ln_state_final", "inertial_force_final")
+
+
+def load_result(result, source=None):
+    """``(dataset, source)`` of a result given as a path or as a Dataset.
+
+    ``source`` names the result in errors (default: the path, or ``<dataset>``).
+    """
+    if isinstance(result, (str, bytes)) or hasattr(result, "__fspath__"):
+        return read_result(result, needs_config=True), str(source or result)
+    return result, str(source or "<dataset>")
+
+
+def undecided_rows(ds):
+    """Flat grid indices (C order over the sweep axes) of the undecided runs."""
+    return np.flatnonzero(ds["regime"].values.ravel() == kernels.UNDECIDED)
+
+
+def final_state(ds, config):
+    """The stored final state of every run as kernel rows ``(n, n_vars)``.
+
+    Raises :class:`~sweep.config.ConfigError` if the file lacks a part of it
+    (inertial results written before ``inertial_force_final`` existed).
+    """
+    names = FINAL_STATE if config.model == "inertial" else FINAL_STATE[:2]
+    missing = [name for name in names if name not in ds]
+    if missing:
+        raise ConfigError(
+            config.source,
+            [f"no {', '.join(missing)} in the file: the final state cannot be restarted; "
+             "run the config again with this version of rsf-sweep"],
+        )  # fmt: skip
+    n = ds["regime"].size
+    return np.concatenate([ds[name].values.reshape(n, config.blocks) for name in names], axis=1)
+
+
+def with_end_time(config, t_end, early_exit=None, source=None):
+    """``config`` with end time ``t_end`` (its ``t_unit``) and, if given, ``early_exit``.
+
+    The config text is rewritten to match (``sweep.trace.config_mapping``), so a
+    file's ``config_text`` stays the config that made it.
+    """
+    raw = config_mapping(config)
+    raw["integrator"]["t_end"] = float(t_end)
+    if early_exit is not None:
+        raw["classification"]["early_exit"] = bool(early_exit)
+    changed = config_from_mapping(raw, source or config.source)
+    return dataclasses.replace(changed, source=config.source)
+
+
+def extend_result(result, t_end=None, threads=None, source=None):
+    """Continue the undecided runs of a result up to the end time ``t_end``.
+
+    Parameters
+    ----------
+    result : path or xarray.Dataset
+        A result of ``python -m sweep run`` (it holds its config).
+    t_end : float, optional
+        New end time, in the config's ``t_unit`` (D0/V or s); must exceed the
+        old one. Default: 4 × the old end time.
+    threads : int, optional
+        numba threads (default: all cores).
+    source : str, optional
+        Name of the result in error messages (default: its path).
+
+    Returns
+    -------
+    xarray.Dataset
+        The result with the undecided runs continued (regime and every run
+        statistic from the continued run; ``t_final``, ``t_runaway`` in s
+        counted from the original start; ``n_steps``, ``n_rejected``,
+        ``n_peaks`` summed over both parts), the new end time in ``config_text``
+        and ``integrator_t_end`` and an entry in ``history``. Other runs are
+        unchanged. A result without undecided runs is returned as it is.
+
+    Raises ``ConfigError`` for a file that cannot be continued or an end time
+    that is not later than the old one.
+    """
+    ds, source = load_result(result, source)
+    config = stored_config(ds, source)
+    old_end, unit = config.integrator.t_end, config.integrator.t_unit
+    t_end = 4.0 * old_end if t_end is None else float(t_end)
+    if not t_end > old_end:
+        raise ConfigError(
+            source,
+            [f"--t-end must be later than the file's end time {old_end:g} {unit}, got {t_end:g}"],
+        )
+    rows = undecided_rows(ds)
+    if rows.size == 0:
+        return ds
+    y_stored = final_state(ds, config)
+    longer = with_end_time(config, t_end, source=source)
+    phys = physical_parameters(longer)
+    params, _, settings, time_unit = system_arrays(longer, phys)
+    n = params.shape[0]
+    t_final = ds["t_final"].values.reshape(n)[rows]
+    params = np.ascontiguousarray(params[rows])
+    params[:, kernels.P_TAU_END] -= t_final / time_unit[rows]
+    y0 = np.ascontiguousarray(y_stored[rows])
+    results, y_final = integrate_chunks(params, y0, settings, threads)
+    phys_rows = {name: values[rows] for name, values in phys.items()}
+    fields = derived_fields(longer, phys_rows, results, y_final, time_unit[rows])
+    out = ds.copy(deep=True)
+    for var in variables_for(config.blocks, config.model):
+        if var.name in LINEAR_THEORY:
+            continue
+        da = out[var.name]
+        flat = da.values.reshape((n, -1) if var.per_block else n).copy()
+        new = fields[var.name]
+        if var.name in SHIFTED:
+            new = new + t_final
+        elif var.name in SUMMED:
+            new = new + flat[rows]
+        flat[rows] = new
+        out[var.name] = da.copy(data=flat.reshape(da.shape))
+    out.attrs.update(
+        integrator_t_end=longer.integrator.t_end,
+        config_text=longer.text,
+        history=f"{ds.attrs.get('history', '')}\n{utc_now()} extended by python -m sweep extend: "
+        f"{rows.size} undecided runs continued from t_end = {old_end:g} to {t_end:g} {unit}",
+    )
+    return out
+
+
+def write_extended(ds, path, source):
+    """Write an extended result atomically; ``source`` (the input file) is named on failure.
+
+    Raises ``RunError`` if the file cannot be written; the earlier file at
+    ``path`` is then left as it was.
+    """
+    try:
+        write_netcdf(ds, path)
+    except (OSError, RuntimeError) as exc:
+        raise RunError(
+            f"cannot write {path}: {getattr(exc, 'strerror', None) or exc}; {source} is unchanged"
+        ) from None
+    return path
+
+
+def extend_file(path, t_end=None, out=None, threads=None):
+    """Extend the result file ``path`` and write it to ``out`` (default: in place).
+
+    Returns ``(dataset, n_continued)``; with no undecided run nothing is written
+    and ``n_continued`` is 0.
+    """
+    ds = read_result(path, needs_config=True)
+    out = path if out is None else out
+    check_writable(out, path, "--out")
+    extended = extend_result(ds, t_end, threads, source=path)
+    n_continued = undecided_rows(ds).size
+    if n_continued:
+        write_extended(extended, out, path)
+    return extended, n_continued

@@ -1,0 +1,115 @@
+"""Self-audit (``sweep/audit.py``, ``python -m sweep audit``): long reruns without early
+exit agree with clearly classified points and catch a regime that is wrong in the file."""
+
+import dataclasses
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import xarray as xr
+from conftest import make_config
+
+from sweep import cli, kernels, runner
+from sweep.audit import audit_config, audit_points, audit_result
+from sweep.dataset import write_netcdf
+
+#: Quasi-dynamic, one block, two axes. Kc/W = (B − A − η̂)/D0 = 0.05 (η = 0) and 0.045 µm⁻¹
+#: (η/W = 0.05 s/µm): K/Kc from 0.6 to 1.56, none within 10 % of Kc, so every point is
+#: clearly runaway (η = 0, below Kc), stick-slip (η > 0, below Kc) or steady (above).
+CLEAR = {"model": "quasi-dynamic", "sweep": {"K_W": [0.03, 0.04, 0.07], "eta_W": [0.0, 0.05]},
+         "integrator": {"t_end": 300.0}}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def clear():
+    return runner.compute(make_config(CLEAR), show_progress=False)
+
+
+def test_clear_points_agree(clear):
+    regimes = clear["regime"].values
+    assert regimes.tolist() == [[kernels.RUNAWAY, kernels.STICK_SLIP]] * 2 + [[kernels.STEADY] * 2]
+    audit = audit_result(clear)
+    assert audit.sizes["point"] == 6  # a sample of 20 takes the whole grid of 6
+    assert audit["agree"].all()
+    np.testing.assert_array_equal(audit["regime_audit"], regimes.ravel())
+    np.testing.assert_array_equal(audit["K_W"], [0.03, 0.03, 0.04, 0.04, 0.07, 0.07])
+    np.testing.assert_array_equal(audit["eta_W"], [0.0, 0.05] * 3)
+    np.testing.assert_array_equal(audit["K_over_Kc"], clear["K_over_Kc"].values.ravel())
+    assert audit.attrs["audit_t_end"] == 3000.0  # 10 × the file's 300 D0/V
+    assert not audit["near_kc"].any()
+
+
+def test_audit_config_turns_early_exit_off():
+    config = make_config(CLEAR)
+    longer = audit_config(config, 3000.0)
+    assert config.classification.early_exit and not longer.classification.early_exit
+    assert longer.integrator.t_end == 3000.0
+    assert longer.integrator == dataclasses.replace(config.integrator, t_end=3000.0)
+    assert (longer.axes, longer.parameters, longer.initial) == (
+        config.axes, config.parameters, config.initial,
+    )  # fmt: skip
+
+
+def test_points_sample_and_near_kc():
+    """Seeded draw: the same seed draws the same points; every point near Kc is added."""
+    k_over_kc = np.linspace(0.5, 1.5, 101)  # 0.01 apart: 0.99, 1.0 and 1.01 within 1.5 %
+    ds = xr.Dataset({"K_over_Kc": ("K_W", k_over_kc)})
+    rows, near = audit_points(ds, sample=10, near_kc=0.015, seed=0)
+    again, _ = audit_points(ds, sample=10, near_kc=0.015, seed=0)
+    other, _ = audit_points(ds, sample=10, near_kc=0.015, seed=1)
+    np.testing.assert_array_equal(rows, again)
+    assert not np.array_equal(rows, other)
+    assert {49, 50, 51} <= set(rows) and np.all(np.diff(rows) > 0)
+    assert 10 <= rows.size <= 13
+    np.testing.assert_array_equal(rows[near], [49, 50, 51])
+    only_near, _ = audit_points(ds, sample=0, near_kc=0.015, seed=0)
+    np.testing.assert_array_equal(only_near, [49, 50, 51])
+
+
+@pytest.fixture
+def planted(clear, tmp_path):
+    """The clear sweep as a file, with the steady point K/W = 0.07, η/W = 0.05 relabelled
+    stick-slip."""
+    wrong = clear.copy(deep=True)
+    wrong["regime"].loc[{"K_W": 0.07, "eta_W": 0.05}] = kernels.STICK_SLIP
+    write_netcdf(wrong, tmp_path / "r.nc")
+    return tmp_path
+
+
+def test_planted_disagreement_is_found(planted):
+    """``python -m sweep audit r.nc`` in a fresh folder: exit 1, the table, the point."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "sweep", "audit", "r.nc"],
+        cwd=planted, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert proc.returncode == 1, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("audited 6 points of r.nc (0 within 0.01 of Kc): runs to 3000 D0/V")
+    assert lines[1].split() == ["file", "\\", "long", "run", "steady", "stick_slip", "runaway",
+                                "undecided"]  # fmt: skip
+    table = {line.split()[0]: [int(c) for c in line.split()[1:]] for line in lines[2:6]}
+    assert table == {"steady": [1, 0, 0, 0], "stick_slip": [1, 2, 0, 0],
+                     "runaway": [0, 0, 2, 0], "undecided": [0, 0, 0, 0]}  # fmt: skip
+    assert lines[6] == "agreement: 5 of 6 points (83.3 %)"
+    assert lines[7:] == [
+        "points where the long run disagrees:",
+        "  K_W=0.07 eta_W=0.05  K/Kc=1.556  file: stick_slip  long run: steady",
+    ]
+
+
+def test_all_agree_exits_0(clear, tmp_path, capsys):
+    write_netcdf(clear, tmp_path / "r.nc")
+    assert cli.main(["audit", str(tmp_path / "r.nc"), "--sample", "3", "--seed", "5"]) == 0
+    out = capsys.readouterr().out
+    assert "agreement: 3 of 3 points (100.0 %)" in out
+    assert "disagrees" not in out
+
+
+def test_bad_input_exits_2(tmp_path, capsys):
+    assert cli.main(["audit", str(tmp_path / "missing.nc")]) == 2
+    assert "missing.nc: cannot read result file" in capsys.readouterr().err
+    for option in (["--t-end", "0"], ["--near-kc", "-0.1"], ["--sample", "-1"], ["--seed", "x"]):
+        with pytest.raises(SystemExit) as info:
+            cli.main(["audit", "r.nc", *option])
+        assert info.value.code == 2, option
