@@ -123,7 +123,7 @@ def add_check_commands(sub):
     ext.add_argument("result", help="result NetCDF file of python -m sweep run")
     ext.add_argument(
         "--t-end", type=_positive_float, metavar="T",
-        help="new end time, in the config's t_unit (default: 4x the file's end time)",
+        help="new end time, in the config's t_unit (default: 4x the time undecided runs reached)",
     )  # fmt: skip
     ext.add_argument("--out", help="output NetCDF (default: replace RESULT)")
     ext.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")

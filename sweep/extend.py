@@ -67,14 +67,25 @@ def final_state(ds, config):
     return np.concatenate([ds[name].values.reshape(n, config.blocks) for name in names], axis=1)
 
 
+def horizon(config):
+    """The latest time a run of ``config`` can have reached (its ``t_unit``): the end
+    time, or with early exit the ``max_t_end`` up to which unsettled runs continue."""
+    cls, t_end = config.classification, config.integrator.t_end
+    if not cls.early_exit:
+        return t_end
+    return 10.0 * t_end if cls.max_t_end is None else cls.max_t_end
+
+
 def with_end_time(config, t_end, early_exit=None, source=None):
-    """``config`` with end time ``t_end`` (its ``t_unit``) and, if given, ``early_exit``.
+    """``config`` with end time ``t_end`` (its ``t_unit``), no continuation past it,
+    and, if given, ``early_exit``.
 
     The config text is rewritten to match (``sweep.trace.config_mapping``), so a
     file's ``config_text`` stays the config that made it.
     """
     raw = config_mapping(config)
     raw["integrator"]["t_end"] = float(t_end)
+    raw["classification"]["max_t_end"] = float(t_end)
     if early_exit is not None:
         raw["classification"]["early_exit"] = bool(early_exit)
     changed = config_from_mapping(raw, source or config.source)
@@ -90,7 +101,8 @@ def extend_result(result, t_end=None, threads=None, source=None):
         A result of ``python -m sweep run`` (it holds its config).
     t_end : float, optional
         New end time, in the config's ``t_unit`` (D0/V or s); must exceed the
-        old one. Default: 4 × the old end time.
+        old horizon (``max_t_end``, up to which unsettled runs already went on;
+        the end time without early exit). Default: 4 × that horizon.
     threads : int, optional
         numba threads (default: all cores).
     source : str, optional
@@ -111,13 +123,14 @@ def extend_result(result, t_end=None, threads=None, source=None):
     """
     ds, source = load_result(result, source)
     config = stored_config(ds, source)
-    old_end, unit = config.integrator.t_end, config.integrator.t_unit
+    old_end, unit = horizon(config), config.integrator.t_unit
     t_end = 4.0 * old_end if t_end is None else float(t_end)
     if not t_end > old_end:
         raise ConfigError(
             source,
-            [f"--t-end must be later than the file's end time {old_end:g} {unit}, got {t_end:g}"],
-        )
+            [f"--t-end must be later than the time its undecided runs already reached "
+             f"({old_end:g} {unit}: max_t_end, or t_end without early exit), got {t_end:g}"],
+        )  # fmt: skip
     rows = undecided_rows(ds)
     if rows.size == 0:
         return ds
@@ -129,6 +142,7 @@ def extend_result(result, t_end=None, threads=None, source=None):
     t_final = ds["t_final"].values.reshape(n)[rows]
     params = np.ascontiguousarray(params[rows])
     params[:, kernels.P_TAU_END] -= t_final / time_unit[rows]
+    params[:, kernels.P_TAU_MAX] = params[:, kernels.P_TAU_END]
     y0 = np.ascontiguousarray(y_stored[rows])
     results, y_final = integrate_chunks(params, y0, settings, threads)
     phys_rows = {name: values[rows] for name, values in phys.items()}

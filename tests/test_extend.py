@@ -38,7 +38,7 @@ def config(case, t_end, early_exit=True):
     c = CASES[case]
     return make_config(
         c, integrator={**c.get("integrator", {}), "t_end": t_end},
-        classification={"early_exit": early_exit},
+        classification={"early_exit": early_exit, "max_t_end": t_end},  # no continuation
     )  # fmt: skip
 
 
@@ -77,8 +77,9 @@ def test_same_as_a_run_straight_to_the_later_end(continued):
     runs follow one trajectory and differ only by the integration error of their
     different step sequences after the restart (rtol 1e-8). Cycle amplitudes and
     periods (an attracting cycle, located at interpolated extrema) and runaway times
-    agreed to 3e-9 relative; tested at 2e-8. The early-exit time is the time of a
-    peak, found by interpolation where ln v is flat, so it is looser (seen: 6e-8).
+    agreed to 3e-9 relative; tested at 2e-8. The early-exit time is the end of the
+    step that holds the settling cycle's last peak, so the two differ by less than
+    one step (max_step = 0.5 D0/V = 5 s here; seen: 4.5e-3 s).
     """
     case, _, extended, straight = continued
     np.testing.assert_array_equal(extended["regime"], straight["regime"])
@@ -88,7 +89,7 @@ def test_same_as_a_run_straight_to_the_later_end(continued):
         np.testing.assert_allclose(
             extended[name][row], straight[name][row], rtol=2e-8, err_msg=name
         )
-    np.testing.assert_allclose(extended["t_final"][row], straight["t_final"][row], rtol=1e-6)
+    assert abs(float(extended["t_final"][row]) - float(straight["t_final"][row])) < 5.0
     assert extended["n_peaks"][row] == straight["n_peaks"][row]
 
 
@@ -188,7 +189,10 @@ def test_bad_input_exits_2(short_file, capsys):
         (["missing.nc"], "missing.nc: cannot read result file"),
         (["notes.nc"], "notes.nc: cannot read result file"),
         (["other.nc"], "other.nc: not a sweep result (no regime"),
-        (["r.nc", "--t-end", "50"], "must be later than the file's end time 50 D0/V, got 50"),
+        (
+            ["r.nc", "--t-end", "50"],
+            "must be later than the time its undecided runs already reached (50 D0/V",
+        ),
         (["r.nc", "--t-end", "20"], "got 20"),
         (["old_inertial.nc"], "no inertial_force_final in the file"),
     ]
