@@ -277,11 +277,20 @@ def assert_cycle_matches(row, ref, sync=False):
     lmax, lmin = row[kernels.R_LNV_MAX], row[kernels.R_LNV_MIN]
     # 0.1 %, the issue's tolerance; measured agreement of a converged engine run is
     # ~1e-5 (its rtol 1e-8 over a cycle, extrema located by Hermite interpolation)
-    np.testing.assert_allclose(lmax - lmin, ref["lnv_max"] - ref["lnv_min"], rtol=1e-3)
-    np.testing.assert_allclose(row[kernels.R_PERIOD], ref["period"], rtol=1e-3)
-    np.testing.assert_allclose(row[kernels.R_FRICTION_DROP], ref["friction_drop"], rtol=1e-3)
+    np.testing.assert_allclose(
+        lmax - lmin, ref["lnv_max"] - ref["lnv_min"], rtol=1e-3, err_msg="ptp ln v"
+    )
+    np.testing.assert_allclose(row[kernels.R_PERIOD], ref["period"], rtol=1e-3, err_msg="period")
     # ln v extremes 1e-3 absolute = v_max, v_min within 0.1 % relative
-    np.testing.assert_allclose([lmax, lmin], [ref["lnv_max"], ref["lnv_min"]], rtol=0, atol=1e-3)
+    np.testing.assert_allclose(
+        [lmax, lmin], [ref["lnv_max"], ref["lnv_min"]], rtol=0, atol=1e-3, err_msg="ln v extremes"
+    )
+    # The kernel takes the friction extremes at step ends only (ℓ's are Hermite-located):
+    # on the slow η̂ = 0.04 cycle (period 16.6, steps up to 0.5 D0/V) a fully converged
+    # run is 0.05-0.10 % low, right at the issue's 0.1 %.
+    np.testing.assert_allclose(
+        row[kernels.R_FRICTION_DROP], ref["friction_drop"], rtol=1e-3, err_msg="friction drop"
+    )
     if sync:
         # the kernel samples |ℓ_i − ℓ_0| at step ends only (steps ≤ 0.5 D0/V), as in
         # test_regularised: 2 %
