@@ -536,7 +536,7 @@ def cycle_convergence(hist, n_cycles, nb, rtol, atol):
 
     The largest, over the cycle's observables, of the distance to the extrapolated
     limit plus that limit's error (:func:`aitken_limit`), relative to the
-    observable's scale: for the extremes of every block's ℓ, min(1, peak-to-peak ℓ)
+    observable's scale: for the extremes of every block's ℓ, min(1, peak-to-peak ℓ / 2)
     (so v_max and v_min are known to that relative accuracy, and the peak-to-peak
     too); for the period, the period; for the in-phase amplitude, the peak-to-peak
     ℓ. inf with fewer than four cycles or where an observable does not contract.
@@ -558,7 +558,7 @@ def cycle_convergence(hist, n_cycles, nb, rtol, atol):
         limit, error = aitken_limit(x0, x1, x2, x3, noise)
         error += abs(limit - x3)
         if k < 2 * nb:
-            scale = min(1.0, ptp)
+            scale = min(1.0, 0.5 * ptp)
         elif k == 2 * nb:
             scale = abs(x3)
         else:
@@ -801,7 +801,21 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             win_lmax[i] = max(win_lmax[i], ynew[i])
             win_lmin[i] = min(win_lmin[i], ynew[i])
             lnv_max_run = max(lnv_max_run, ynew[i])
+            # friction A ℓ_i + B ψ_i (relative to steady sliding), extremes interpolated
+            mu0 = A * y[i] + B * y[nb + i]
             mu = A * ynew[i] + B * ynew[nb + i]
+            dmu0 = A * f[i] + B * f[nb + i]
+            dmu1 = A * fnew[i] + B * fnew[nb + i]
+            if (dmu0 > 0.0) == (dmu1 <= 0.0):
+                r5 = 0.0
+                if method == DOPRI5:
+                    r5 = A * dense_r5(i, h, f, k3, k4, k5, k6, fnew) + B * dense_r5(
+                        nb + i, h, f, k3, k4, k5, k6, fnew
+                    )
+                theta = dense_extremum(mu0, mu, dmu0, dmu1, h, r5)
+                val = dense_value(mu0, mu, dmu0, dmu1, h, r5, theta)
+                win_mumax[i] = max(win_mumax[i], val)
+                win_mumin[i] = min(win_mumin[i], val)
             win_mumax[i] = max(win_mumax[i], mu)
             win_mumin[i] = min(win_mumin[i], mu)
             if i > 0:

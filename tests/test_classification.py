@@ -248,10 +248,13 @@ def peak_section(nb, kappa1, kappa2=0.0, law="aging", inertial=False):
 
 def engine(k_w, t_end, initial, blocks=1, classification=None, **sections):
     """Engine rows (``kernels.R_*`` columns) for K/W values ``k_w`` (µm⁻¹), default
-    classification settings unless given."""
+    classification settings unless given, except ``max_t_end`` = ``t_end``: the SciPy
+    truths are judged at ``t_end`` (the continuation past it is tested in
+    test_kernels.py::test_unsettled_runs_continue_to_max_t_end)."""
     config = make_config(
         sweep={"K_W": [float(k) for k in k_w]}, blocks=blocks, initial=initial,
-        integrator={"t_end": float(t_end)}, classification=classification or {}, **sections,
+        integrator={"t_end": float(t_end)},
+        classification={"max_t_end": float(t_end), **(classification or {})}, **sections,
     )  # fmt: skip
     results, _ = run_grid(config)
     return results
@@ -624,12 +627,16 @@ def test_decaying_anti_phase_mode_is_not_steady(ratio):
     1e-10 to τ = 3000, 12–16 s, run once): no cap by 3000; peaks of ℓ_0 at 3000 0.90 and
     growing, desynchronised (0.995), 0.347 and growing, in phase (0.997), 0.0024 and
     growing, in phase (0.999). So undecided is required; checked here from τ =
-    300 to 900 with SciPy: the in-phase envelope grows."""
+    300 to 900 with SciPy: the in-phase envelope grows. At 0.995 the anti-phase
+    difference first decays to round-off, as in case c at 0.995, so whether the blocks
+    fall out of step (SciPy) or stay in step and run away (the engine, at τ ≈ 2660) is
+    decided by rounding: runaway is allowed there too. Never steady."""
     kappa = ratio * KC_QS
     y0 = np.log(E_START["v_over_V"] + E_START["phi_over_phi_ss"])
     assert_in_phase_mode_grows(kappa, K2_C, y0)
     row = engine([kappa], 3000.0, E_START, blocks=2, parameters={"k2_W": K2_C})[0]
-    assert_label(row, {UNDECIDED}, "in-phase mode growing, no cap by t_end")
+    allowed = {UNDECIDED, RUNAWAY} if ratio == 0.995 else {UNDECIDED}
+    assert_label(row, allowed, "in-phase mode growing, no cap by t_end")
 
 
 # --- the long references, rerun by hand ----------------------------------------------------
