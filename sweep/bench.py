@@ -130,10 +130,17 @@ def bench_scipy(n_points, t_end):
     k_values = np.linspace(0.5 * KC_W, 1.5 * KC_W, n_points)
     config = one_block_config(k_values, t_end)
     results, engine_s = engine_run(config, threads=1, repeats=3)
+    full, _ = engine_run(one_block_config(k_values, t_end, early=False))
     engine_regimes = [REGIMES[int(r)] for r in results[:, kernels.R_REGIME]]
     outside = np.abs(k_values / KC_W - 1.0) > 0.01
     cap = math.log(config.classification.v_cap_over_V)
-    out = {"grid_points": n_points, "t_end_D0_over_V": t_end, "engine_seconds": engine_s}
+    out = {
+        "grid_points": n_points,
+        "t_end_D0_over_V": t_end,
+        "engine_seconds": engine_s,
+        "mean_steps_per_run": float(results[:, kernels.R_N_STEPS].mean()),
+        "mean_steps_per_run_without_early_exit": float(full[:, kernels.R_N_STEPS].mean()),
+    }
     for method in ("LSODA", "DOP853"):
         start = time.perf_counter()
         ref = [scipy_classify(k, t_end, method, cap) for k in k_values]
@@ -383,6 +390,11 @@ def _print_targets(f):
 
 
 def _print_scipy(s):
+    print(
+        f"one block, {s['grid_points']} runs to {s['t_end_D0_over_V']:g} D0/V: "
+        f"{s['mean_steps_per_run']:.0f} steps per run with early exit, "
+        f"{s['mean_steps_per_run_without_early_exit']:.0f} without"
+    )
     for method in ("LSODA", "DOP853"):
         m = s[method]
         print(
