@@ -17,6 +17,7 @@ after that. ``shard=(i, n_shards)`` computes only the chunks ``k`` with
 import logging
 import math
 import signal
+import threading
 import time
 from contextlib import closing, contextmanager, nullcontext
 from dataclasses import dataclass
@@ -27,16 +28,11 @@ import numpy as np
 from . import accelerate, parts
 from .config import ConfigError, check_writable, parse_config
 from .dataset import build_dataset, write_netcdf
-from .grid import physical_parameters, system_arrays
-from .kernels import N_RESULTS
+from .grid import kernel_codes, physical_parameters, settings_array, system_arrays
+from .kernels import N_PARAMS, N_RESULTS, S_NBLOCKS
 from .progress import Progress
 
 log = logging.getLogger(__name__)
-
-#: Numba signature of the grid kernels as the runner calls them (C-contiguous float64).
-GRID_SIGNATURE = (
-    "(float64[:, ::1], float64[:, ::1], float64[::1], float64[:, ::1], float64[:, ::1])"
-)
 
 
 class RunError(RuntimeError):
@@ -138,13 +134,25 @@ def missing_ranges(ranges, have):
     return out
 
 
-def compile_grid_kernel(kernel):
-    """Compile (or load from the numba cache) a grid kernel for the runner's signature.
+def compile_grid_kernel(kernel, settings):
+    """Compile (or load from the numba cache) a grid kernel for the model, state law
+    and method of ``settings``, by running it on an empty grid.
 
-    Nothing to do under ``NUMBA_DISABLE_JIT=1``, where kernels are plain Python.
+    Says "compiling kernels (first run only)" when that takes longer than a second
+    (a cold cache; loading a warm one takes well under a second). Nothing to do
+    under ``NUMBA_DISABLE_JIT=1``, where kernels are plain Python.
     """
-    if hasattr(kernel, "compile"):
-        kernel.compile(GRID_SIGNATURE)
+    if not hasattr(kernel, "compile"):
+        return
+    n_vars = 3 * int(settings[S_NBLOCKS])
+    empty = (np.empty((0, N_PARAMS)), np.empty((0, n_vars)))
+    out = (np.empty((0, N_RESULTS)), np.empty((0, n_vars)))
+    notice = threading.Timer(1.0, log.info, ("compiling kernels (first run only) ...",))
+    notice.start()
+    try:
+        kernel(*empty, np.ascontiguousarray(settings), *kernel_codes(settings), *out)
+    finally:
+        notice.cancel()
 
 
 def threaded_chunks(params, y0, settings, ranges, threads=None):
@@ -157,10 +165,12 @@ def threaded_chunks(params, y0, settings, ranges, threads=None):
     from .kernels import integrate_grid_parallel
 
     accelerate.set_threads(threads)
+    compile_grid_kernel(integrate_grid_parallel, settings)
+    codes = kernel_codes(settings)
     for a, b in ranges:
         order = balanced_order(b - a)  # row a + order[j] is computed in place j
         shuffled = np.empty((b - a, N_RESULTS)), np.empty((b - a, y0.shape[1]))
-        integrate_grid_parallel(params[a + order], y0[a + order], settings, *shuffled)
+        integrate_grid_parallel(params[a + order], y0[a + order], settings, *codes, *shuffled)
         results, y_final = np.empty_like(shuffled[0]), np.empty_like(shuffled[1])
         results[order], y_final[order] = shuffled
         yield a, b, results, y_final
@@ -239,9 +249,8 @@ def time_compute(config, threads=None, chunk_size=None, client=None):
     """
     from . import kernels
 
-    compile_grid_kernel(
-        kernels.integrate_grid_serial if client else kernels.integrate_grid_parallel
-    )
+    kernel = kernels.integrate_grid_serial if client else kernels.integrate_grid_parallel
+    compile_grid_kernel(kernel, settings_array(config))
     start = time.perf_counter()
     compute(config, threads, chunk_size, show_progress=False, client=client)
     return time.perf_counter() - start
