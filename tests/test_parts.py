@@ -46,7 +46,7 @@ def _truncate_half(path):
 
 def _flip_a_data_byte(path):
     data = bytearray(path.read_bytes())
-    data[len(data) // 3] ^= 0xFF  # inside the results array (stored first)
+    data[len(data) // 3] ^= 0xFF  # inside meta.npy (the config text): zipfile's CRC catches it
     path.write_bytes(bytes(data))
 
 
@@ -63,6 +63,23 @@ def test_damaged_part_is_rejected(one_part, damage):
     (damaged,) = path.parent.iterdir()
     with pytest.raises(parts.PartError, match=damaged.name):
         parts.read_part(damaged)
+
+
+def test_changed_numbers_with_intact_zip_fail_the_checksum(one_part):
+    """A part rewritten as a well-formed archive (valid zip CRCs, right name, shapes and
+    metadata) whose numbers differ in one bit: only the SHA-256 in the metadata can
+    catch it, so the message must be the checksum's, not zipfile's."""
+    path, results, y_final = one_part
+    with np.load(path) as data:
+        meta = data["meta"]
+    changed = results.copy()
+    changed.view(np.uint64)[1, 7] ^= 1  # the last bit of one number
+    with open(path, "wb") as f:
+        np.savez(f, results=changed, y_final=y_final, meta=meta)
+    with np.load(path) as data:  # the archive itself is sound
+        np.testing.assert_array_equal(data["results"], changed)
+    with pytest.raises(parts.PartError, match=rf"{path.name}: checksum mismatch"):
+        parts.read_part(path)
 
 
 def test_hash_follows_the_numbers_not_the_wording():
