@@ -4,6 +4,9 @@ independent SciPy reference written from the physics brief (not from the kernels
 
 import copy
 import math
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -152,3 +155,49 @@ def without_provenance(ds):
 def quick():
     """The validated ``configs/quick.yaml``."""
     return load_config(QUICK)
+
+
+#: A process that starts writing one part (rows 0:2 of configs/quick.yaml) into a
+#: folder and never finishes: with mode "killed" it SIGKILLs itself in the middle of
+#: the write, with "stuck" it waits there until the test kills it, and "elsewhere" is
+#: "killed" on a machine that calls itself elsewhere.example.org (a shard on another
+#: node of a shared file system).
+PART_WRITER = r"""
+import os, signal, socket, sys, time
+import numpy as np
+mode, directory, config_path = sys.argv[1:]
+if mode == "elsewhere":
+    socket.gethostname = lambda: "elsewhere.example.org"
+from sweep import parts
+from sweep.config import load_config
+
+def savez(f, **arrays):
+    f.write(b"PK\x03\x04 the first bytes of a part")
+    f.flush()
+    print("writing", flush=True)
+    if mode == "stuck":
+        time.sleep(600)
+    os.kill(os.getpid(), signal.SIGKILL)
+
+np.savez = savez
+config = load_config(config_path)
+parts.write_part(directory, config, parts.config_hash(config), 0, 2, 9, np.zeros((2, 15)),
+                 np.zeros((2, 2)))
+"""
+
+
+def interrupted_part_writer(directory, mode):
+    """Run :data:`PART_WRITER` on ``directory`` until it is inside the write.
+
+    ``mode`` "killed" / "elsewhere": returns once the writer is dead; "stuck":
+    returns the live process (the caller kills it).
+    """
+    proc = subprocess.Popen(
+        [sys.executable, "-c", PART_WRITER, mode, str(directory), str(QUICK)],
+        stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    assert proc.stdout.readline() == "writing\n"
+    if mode == "stuck":
+        return proc
+    assert proc.wait(timeout=60) == -signal.SIGKILL
+    return proc

@@ -5,7 +5,7 @@ import logging
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import QUICK, without_provenance
+from conftest import QUICK, interrupted_part_writer, without_provenance
 
 from sweep import parts, runner
 from sweep.config import parse_config
@@ -154,3 +154,48 @@ def test_merge_never_uses_a_corrupt_part(quick, tmp_path):
         runner.merge_parts([parts.parts_dir_for(out)], merged)
     assert victim.name in str(info.value)
     assert not merged.exists()
+
+
+def test_temp_files_of_killed_writers_are_removed_live_ones_kept(quick, tmp_path):
+    """Writers stopped inside a part write leave their temporary file. Once the sweep's
+    output is written, remove_parts deletes the parts and the temporary files of dead
+    writers on this host, and keeps those of a writer still running (a shard) and of
+    writers on other hosts (their pids mean nothing here)."""
+    folder = tmp_path / "r.parts"
+    folder.mkdir()
+    before = set()
+    for mode in ("killed", "elsewhere", "stuck"):
+        result = interrupted_part_writer(folder, mode)
+        (temp,) = set(folder.iterdir()) - before  # the writer's temporary file
+        before.add(temp)
+        if mode == "killed":
+            dead = temp
+        elif mode == "elsewhere":
+            elsewhere = temp
+        else:
+            live, writer = temp, result
+    try:
+        done = parts.write_part(folder, quick, parts.config_hash(quick), 0, 9, 9,
+                                np.zeros((9, 15)), np.zeros((9, 2)))  # fmt: skip
+        (folder / "notes.txt").write_text("not ours")
+        assert parts.remove_parts(folder) == 2  # the part and the dead writer's file
+        assert set(folder.iterdir()) == {live, elsewhere, folder / "notes.txt"}
+        assert not dead.exists() and not done.exists()
+    finally:
+        writer.kill()
+        writer.wait(timeout=60)
+    (folder / "notes.txt").unlink()
+    parts.remove_parts(folder)  # the stuck writer is gone now: only elsewhere's file stays
+    assert set(folder.iterdir()) == {elsewhere}
+
+
+def test_merge_removes_temp_files_of_killed_writers(quick, quick_reference, tmp_path):
+    out = tmp_path / "r.nc"
+    runner.run_sweep(quick, out=out, chunk_size=4, shard=(0, 1), show_progress=False)
+    folder = parts.parts_dir_for(out)
+    interrupted_part_writer(folder, "killed")
+    assert len(list(folder.iterdir())) == 4  # 3 parts and the killed writer's file
+    merged = tmp_path / "merged.nc"
+    xr.testing.assert_identical(without_provenance(runner.merge_parts([folder], merged)),
+                                quick_reference)  # fmt: skip
+    assert not folder.exists()

@@ -17,7 +17,7 @@ import time
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import QUICK, without_provenance
+from conftest import QUICK, interrupted_part_writer, without_provenance
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -213,6 +213,55 @@ def test_sigkill_then_resume_recomputes_only_unfinished_chunks(slow_config, tmp_
     reference = runner.compute(parse_config(SLOW), show_progress=False)
     assert_same_result(xr.load_dataset(out), reference)
     assert not parts_dir.exists()
+
+
+#: ``python -m sweep ARGS`` that SIGKILLs itself in the middle of writing its third part.
+KILLED_WRITING_THIRD_PART = r"""
+import os, signal, sys
+import numpy as np
+from sweep import cli
+
+calls, savez = [], np.savez
+
+def savez_then_die(f, **arrays):
+    calls.append(1)
+    if len(calls) == 3:
+        f.write(b"PK\x03\x04 a part cut short")
+        f.flush()
+        os.kill(os.getpid(), signal.SIGKILL)
+    savez(f, **arrays)
+
+np.savez = savez_then_die
+sys.exit(cli.main(sys.argv[1:]))
+"""
+
+
+def test_kill_during_a_part_write_then_resume_leaves_no_trace(quick, quick_reference, tmp_path):
+    """kill -9 inside a part write leaves a temporary file, never a part. --resume reuses
+    the two finished parts, and once the result is written the dead writer's file goes
+    with the parts, while the file of a writer still running (another shard) stays."""
+    out = tmp_path / "r.nc"
+    folder = parts.parts_dir_for(out)
+    args = ["run", QUICK, "--out", out, "--chunk-size", "3", "--threads", "1", "--quiet"]
+    proc = subprocess.run([sys.executable, "-c", KILLED_WRITING_THIRD_PART, *map(str, args)],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    finished = sorted(folder.glob("*.npz"))
+    rows = [(part.start, part.stop) for part in map(parts.read_part, finished)]
+    assert rows == [(0, 3), (3, 6)]
+    (dead,) = set(folder.iterdir()) - set(finished)  # the third part, cut short
+    shard = interrupted_part_writer(folder, "stuck")
+    try:
+        (live,) = set(folder.iterdir()) - set(finished) - {dead}
+        result = runner.run_sweep(quick, out=out, chunk_size=3, resume=True, show_progress=False)
+        assert (result.reused, result.computed) == (6, 3)
+        assert_same_result(xr.load_dataset(out), quick_reference)
+        assert list(folder.iterdir()) == [live]
+    finally:
+        shard.kill()
+        shard.wait(timeout=60)
+    parts.remove_parts(folder)  # as the next finished sweep or merge would
+    assert not folder.exists()
 
 
 # --- faults --------------------------------------------------------------------------
