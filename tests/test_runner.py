@@ -271,13 +271,33 @@ def disk_full(*args, **kwargs):
     raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
 
-def test_disk_full_while_saving_a_chunk(quick, tmp_path, monkeypatch):
+def test_disk_full_while_saving_a_later_chunk_keeps_the_earlier_parts(
+    quick, quick_reference, tmp_path, monkeypatch
+):
+    """The disk fills up at the third part of five: the sweep stops with the cause, the
+    earlier result is untouched, the two parts written so far stay (valid), and
+    --resume reuses them once there is room again."""
     out = tmp_path / "r.nc"
     out.write_bytes(b"earlier result")
-    monkeypatch.setattr(parts, "write_part", disk_full)
+    write_part, calls = parts.write_part, []
+
+    def fill_up_at_the_third(*args, **kwargs):
+        calls.append(args[3:5])  # (start, stop)
+        if len(calls) == 3:
+            disk_full()
+        return write_part(*args, **kwargs)
+
+    monkeypatch.setattr(parts, "write_part", fill_up_at_the_third)
     with pytest.raises(runner.RunError, match="cannot write a part .* No space left on device"):
-        runner.run_sweep(quick, out=out, show_progress=False)
+        runner.run_sweep(quick, out=out, chunk_size=2, threads=1, show_progress=False)
+    assert calls == [(0, 2), (2, 4), (4, 6)]  # the sweep stopped at the failing write
     assert out.read_bytes() == b"earlier result"
+    kept = sorted(parts.parts_dir_for(out).iterdir())
+    assert [(p.start, p.stop) for p in map(parts.read_part, kept)] == [(0, 2), (2, 4)]
+    monkeypatch.undo()
+    result = runner.run_sweep(quick, out=out, chunk_size=2, resume=True, show_progress=False)
+    assert (result.reused, result.computed) == (4, 5)
+    assert_same_result(xr.load_dataset(out), quick_reference)
 
 
 def test_disk_full_while_writing_the_result_keeps_the_parts(
