@@ -172,6 +172,30 @@ def test_stop_request_keeps_finished_chunks_and_resume_completes(quick, quick_re
     assert_same_result(xr.load_dataset(out), quick_reference)
 
 
+@pytest.mark.parametrize("signals, saved", [(1, 2), (2, 0)])
+def test_a_second_ctrl_c_stops_at_once(quick, tmp_path, monkeypatch, signals, saved):
+    """Ctrl-C (real SIGINTs, through the CLI's handler) while the first chunk's part is
+    being written: once, the sweep finishes that part and stops after it (2 of 9 runs
+    saved); twice, it stops at once, inside the write, and that part is not saved."""
+    write_part = parts.write_part
+
+    def interrupted_write(*args, **kwargs):
+        for _ in range(signals):
+            signal.raise_signal(signal.SIGINT)
+        return write_part(*args, **kwargs)
+
+    monkeypatch.setattr(parts, "write_part", interrupted_write)
+    out = tmp_path / "r.nc"
+    with (
+        runner.stop_on_signals() as stop,
+        pytest.raises(runner.Interrupted, match=f"SIGINT: {saved} of 9 runs are saved") as info,
+    ):
+        runner.run_sweep(quick, out=out, chunk_size=2, threads=1, show_progress=False, stop=stop)
+    assert info.value.signum == signal.SIGINT
+    assert len(list(parts.parts_dir_for(out).glob("*.npz"))) == saved // 2
+    assert not out.exists()
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_signal_keeps_parts_and_says_how_to_resume(slow_config, tmp_path, signum):
