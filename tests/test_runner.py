@@ -147,6 +147,23 @@ def test_without_resume_everything_is_computed_again(quick, tmp_path):
     assert (result.reused, result.computed) == (0, 9)
 
 
+def test_default_shard_chunks_do_not_depend_on_the_thread_count(tmp_path):
+    """Without --chunk-size, shards run with different thread counts (as on nodes with
+    other core counts) still cut the grid alike: their parts merge into the whole
+    sweep, no row missing or computed twice. 40 systems, so that a chunk size set by
+    the thread count would differ between the shards."""
+    config = tmp_path / "wide.yaml"
+    config.write_text(QUICK.read_text().replace("num: 9}", "num: 40}"))
+    out = tmp_path / "r.nc"
+    for shard, threads in (("0/2", "1"), ("1/2", "2")):
+        args = ["run", config, "--out", out, "--shard", shard, "--threads", threads, "--quiet"]
+        assert main(list(map(str, args))) == 0
+    assert main(["merge", str(parts.parts_dir_for(out)), "--out", str(out)]) == 0
+    reference = runner.compute(parse_config(config.read_text()), show_progress=False)
+    assert reference.sizes["K_W"] == 40
+    assert_same_result(xr.load_dataset(out), reference)
+
+
 # --- interruption -------------------------------------------------------------------
 
 
