@@ -11,11 +11,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import xarray as xr
 import yaml
 from scipy.integrate import solve_ivp
 
 from sweep import grid, kernels, runner
 from sweep.config import load_config, parse_config
+from sweep.dataset import write_netcdf
 
 #: The seed paper's friction coefficients (physics brief, section 1).
 PAPER_A, PAPER_B = 0.03, 0.08
@@ -144,17 +146,53 @@ ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "configs" / "quick.yaml"
 
 
+#: File attributes that say when and by which command (run, merge) a result was made:
+#: the only difference between results of one config made in different ways.
+PROVENANCE_ATTRS = ("created", "history")
+
+
 def without_provenance(ds):
-    """``ds`` without its file attributes (creation time, command line, paths)."""
+    """``ds`` without the file attributes :data:`PROVENANCE_ATTRS`."""
     out = ds.copy()
-    out.attrs = {}
+    out.attrs = {k: v for k, v in ds.attrs.items() if k not in PROVENANCE_ATTRS}
     return out
+
+
+def assert_same_file(path, reference):
+    """Two NetCDF result files hold the same data: every variable and coordinate bit for
+    bit as stored (no CF decoding), each with the same attributes, dtype, shape and
+    storage (compression, chunks), and the same file attributes except
+    :data:`PROVENANCE_ATTRS`."""
+    with (
+        xr.open_dataset(path, decode_cf=False) as got,
+        xr.open_dataset(reference, decode_cf=False) as want,
+    ):
+        xr.testing.assert_identical(without_provenance(got.load()), without_provenance(want))
+        assert set(want.attrs) - set(PROVENANCE_ATTRS) == set(got.attrs) - set(PROVENANCE_ATTRS)
+        for name, var in want.variables.items():
+            a, b = got[name].values, var.values
+            assert (a.dtype, a.shape, a.tobytes()) == (b.dtype, b.shape, b.tobytes()), name
+            storage = [{k: v for k, v in x.encoding.items() if k != "source"}
+                       for x in (got[name].variable, var)]  # fmt: skip
+            assert storage[0] == storage[1], name
+
+
+def reference_file(config, path):
+    """The plainest run of ``config`` (one thread, one system per chunk) written to ``path``."""
+    ds = runner.compute(config, threads=1, chunk_size=1, show_progress=False)
+    return write_netcdf(ds, path)
 
 
 @pytest.fixture(scope="module")
 def quick():
     """The validated ``configs/quick.yaml``."""
     return load_config(QUICK)
+
+
+@pytest.fixture(scope="module")
+def quick_reference_file(quick, tmp_path_factory):
+    """:func:`reference_file` of ``configs/quick.yaml``."""
+    return reference_file(quick, tmp_path_factory.mktemp("reference") / "quick.nc")
 
 
 #: A process that starts writing one part (rows 0:2 of configs/quick.yaml) into a

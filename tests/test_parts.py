@@ -5,7 +5,13 @@ import logging
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import QUICK, interrupted_part_writer, without_provenance
+from conftest import (
+    QUICK,
+    assert_same_file,
+    interrupted_part_writer,
+    reference_file,
+    without_provenance,
+)
 
 from sweep import parts, runner
 from sweep.config import parse_config
@@ -104,7 +110,7 @@ def test_hash_follows_the_numbers_not_the_wording():
         assert variant != text and parts.config_hash(parse_config(variant)) != base
 
 
-def test_truncated_part_is_reported_and_recomputed(quick, quick_reference, tmp_path, caplog):
+def test_truncated_part_is_reported_and_recomputed(quick, quick_reference_file, tmp_path, caplog):
     out = tmp_path / "r.nc"
     runner.run_sweep(quick, out=out, chunk_size=3, shard=(0, 1), show_progress=False)
     victim = sorted(parts.parts_dir_for(out).glob("*.npz"))[1]  # rows 3:6
@@ -113,7 +119,7 @@ def test_truncated_part_is_reported_and_recomputed(quick, quick_reference, tmp_p
         result = runner.run_sweep(quick, out=out, chunk_size=3, resume=True, show_progress=False)
     assert f"unusable part, its runs will be recomputed: {victim}" in caplog.text
     assert (result.reused, result.computed) == (6, 3)
-    xr.testing.assert_identical(without_provenance(xr.load_dataset(out)), quick_reference)
+    assert_same_file(out, quick_reference_file)
 
 
 def test_changed_config_never_uses_old_parts(quick, tmp_path, caplog):
@@ -124,14 +130,13 @@ def test_changed_config_never_uses_old_parts(quick, tmp_path, caplog):
         result = runner.run_sweep(changed, out=out, chunk_size=3, resume=True, show_progress=False)
     assert "ignoring 3 parts of another config" in caplog.text
     assert (result.reused, result.computed) == (0, 9)
-    reference = runner.compute(changed, show_progress=False)
-    xr.testing.assert_identical(
-        without_provenance(xr.load_dataset(out)), without_provenance(reference)
-    )
+    assert_same_file(out, reference_file(changed, tmp_path / "reference.nc"))
     assert not parts.parts_dir_for(out).exists()  # old and new parts cleaned up
 
 
-def test_merge_uses_the_complete_config_and_ignores_others(quick, quick_reference, tmp_path):
+def test_merge_uses_the_complete_config_and_ignores_others(
+    quick, quick_reference, quick_reference_file, tmp_path
+):
     out = tmp_path / "r.nc"
     runner.run_sweep(quick, out=out, chunk_size=4, shard=(0, 1), show_progress=False)
     other = parse_config(QUICK.read_text().replace("t_end: 2000.0", "t_end: 1500.0"))
@@ -139,7 +144,7 @@ def test_merge_uses_the_complete_config_and_ignores_others(quick, quick_referenc
     merged = tmp_path / "merged.nc"
     ds = runner.merge_parts([parts.parts_dir_for(out)], merged)
     xr.testing.assert_identical(without_provenance(ds), quick_reference)
-    xr.testing.assert_identical(without_provenance(xr.load_dataset(merged)), quick_reference)
+    assert_same_file(merged, quick_reference_file)
     left = list(parts.parts_dir_for(out).glob("*.npz"))
     assert len(left) == 2 and all(parts.config_hash(other) in f.name for f in left)
 
