@@ -4,6 +4,7 @@ independent SciPy reference written from the physics brief (not from the kernels
 
 import copy
 import math
+import re
 import signal
 import subprocess
 import sys
@@ -239,3 +240,20 @@ def interrupted_part_writer(directory, mode):
         return proc
     assert proc.wait(timeout=60) == -signal.SIGKILL
     return proc
+
+
+def readme_numbers(pattern):
+    """The numbers the README states where ``pattern`` (a regex whose groups capture
+    them) matches, as the printed strings; whitespace in the README counts as one space.
+    Fails if the pattern is not found once exactly."""
+    text = " ".join((ROOT / "README.md").read_text().split())
+    found = re.findall(pattern, text)
+    assert len(found) == 1, f"README: {pattern!r} matched {len(found)} times"
+    return found[0] if isinstance(found[0], tuple) else (found[0],)
+
+
+def assert_as_printed(value, printed):
+    """``value`` agrees with the README's ``printed`` number to its last printed digit
+    (within half a unit of it): the README may round, but not be wrong."""
+    decimals = len(printed.split(".")[1]) if "." in printed else 0
+    assert abs(value - float(printed)) <= 0.5 * 10.0**-decimals, (value, printed)
