@@ -136,6 +136,16 @@ def scipy_runaway_time(kappa_over_kc, lnv0, psi0, v_cap_over_V=1e6, t_max=3000.0
     return float(sol.t_events[0][0])
 
 
+def assert_transition_at(k_w, regime, kc):
+    """Steady exactly above Kc, not steady below: the sweep's transition lies in
+    the grid step that contains Kc (so within one grid step of it)."""
+    k_w, regime = np.asarray(k_w), np.asarray(regime)
+    below = k_w < kc
+    assert np.all(regime[~below] == kernels.STEADY), (kc, regime)
+    assert np.all(regime[below] != kernels.STEADY), (kc, regime)
+    assert below.any() and (~below).any()
+
+
 @pytest.fixture
 def in_tmp(tmp_path, monkeypatch):
     """Run the test inside a fresh temporary directory."""
