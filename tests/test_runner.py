@@ -12,6 +12,7 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -21,9 +22,10 @@ from conftest import QUICK, assert_same_file, interrupted_part_writer, reference
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sweep import parts, runner
+from sweep import kernels, parts, runner
 from sweep.cli import main
-from sweep.config import load_config
+from sweep.config import load_config, parse_config
+from sweep.grid import system_arrays
 
 #: Slow enough per run to kill a sweep part-way: fixed-step RK4 with 1e6 steps per run
 #: (about 0.2 s each on one thread), runs kept going to t_end (early_exit false, and a
@@ -203,6 +205,38 @@ def test_a_second_ctrl_c_stops_at_once(quick, tmp_path, monkeypatch, signals, sa
     assert info.value.signum == signal.SIGINT
     assert len(list(parts.parts_dir_for(out).glob("*.npz"))) == saved // 2
     assert not out.exists()
+
+
+@pytest.mark.slow
+def test_signals_during_a_kernel_are_seen_when_it_returns():
+    """The README's caveat: compiled code cannot be interrupted. Two SIGINTs sent 0.2 s
+    and 0.3 s into a chunk that computes for about 2 s (8 slow runs on one thread)
+    reach the Python handler once, when the kernel has returned (CPython runs handlers
+    between bytecodes and keeps one pending flag per signal)."""
+    params, y0, settings, _ = system_arrays(parse_config(SLOW))
+    seen = []
+    previous = signal.signal(signal.SIGINT, lambda *_: seen.append(time.perf_counter()))
+
+    def send_two():
+        for delay in (0.2, 0.1):
+            time.sleep(delay)
+            os.kill(os.getpid(), signal.SIGINT)
+
+    try:
+        runner.compile_grid_kernel(kernels.integrate_grid_parallel)
+        sender = threading.Thread(target=send_two)
+        start = time.perf_counter()
+        sender.start()
+        (chunk,) = runner.threaded_chunks(params, y0, settings, [(0, 8)], threads=1)
+        returned = time.perf_counter()
+        sender.join()
+        time.sleep(0.05)  # a pending signal would be handled here
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    # both were sent by 0.3 s, while the kernel ran (it took > 0.5 s); the one handler
+    # call came later, when the kernel returned
+    assert returned - start > 0.5
+    assert len(seen) == 1 and seen[0] - start > 0.5
 
 
 @pytest.mark.slow
