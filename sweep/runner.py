@@ -425,8 +425,9 @@ def merge_parts(paths, out):
 
     Uses the one config whose valid parts cover its whole grid (parts of
     other configs are ignored; corrupt parts are reported and never used).
-    That config's parts are removed once ``out`` is written, and folders left
-    empty with them. Raises ``ConfigError`` for paths that are not parts and
+    That config's parts are removed once ``out`` is written, and so are
+    temporary files of writers that were killed (:func:`parts.stale_temp_files`),
+    then folders left empty. Raises ``ConfigError`` for paths that are not parts and
     ``RunError`` naming the missing rows when no config is complete. Returns
     the Dataset.
     """
@@ -471,6 +472,8 @@ def merge_parts(paths, out):
         for f in used:
             f.unlink()
         for folder in {Path(p) for p in paths if Path(p).is_dir()}:
+            for f in parts.stale_temp_files(folder):
+                f.unlink(missing_ok=True)
             if not any(folder.iterdir()):
                 folder.rmdir()
         return ds

@@ -108,6 +108,39 @@ def test_bad_config_exits_2_and_names_file_and_key(in_tmp, sentinel_output, caps
     assert any(key in problem for problem in info.value.problems)
 
 
+REFERENCE = "parameters must give exactly one of V0 (um/s) or Phi0 (s), the reference point"
+
+
+@pytest.mark.parametrize(
+    "overrides, message",
+    [
+        (
+            {"parameters": {"K_W": 0.05}},  # K_W is swept by the base config
+            "parameters.K_W is also a sweep axis; give it in one place only",
+        ),
+        (
+            {"parameters": {"V0": 1.0}},  # beside the base config's Phi0
+            f"{REFERENCE} of the friction law; got ['V0', 'Phi0']",
+        ),
+        ({"parameters": {"Phi0": None}}, f"{REFERENCE} of the friction law; got neither"),
+        (
+            {"parameters": {"Phi0": None}, "sweep": {"Phi0": [1.0, 2.0], "V0": [1.0]}},
+            f"{REFERENCE} of the friction law; got ['V0', 'Phi0']",
+        ),
+    ],
+    ids=["fixed and swept", "V0 and Phi0", "neither V0 nor Phi0", "V0 and Phi0 swept"],
+)
+def test_fixed_or_swept_and_one_reference_point(in_tmp, sentinel_output, capsys, overrides,
+                                                message):  # fmt: skip
+    """The README's "a parameter is either fixed or swept, not both" and "exactly one of
+    Phi0 / V0", through the CLI: exit status 2, the file and the message."""
+    path = write_config(in_tmp / "bad.yaml", overrides)
+    status, captured = run_cli(["run", str(path), "--quiet"], capsys)
+    assert status == 2
+    assert f"{path}: {message}" in captured.err, captured.err
+    assert sentinel_output.read_bytes() == SENTINEL
+
+
 def test_all_problems_are_reported_together():
     overrides = {"parameters": {"A": -1.0, "D0": 0.0}, "integrator": {"method": "euler"}}
     with pytest.raises(ConfigError) as info:

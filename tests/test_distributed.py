@@ -1,14 +1,13 @@
 """Scaling out: Dask workers and job-array shards give the same numbers as threads.
 
 Results must be identical (no tolerance): each system is integrated by the same
-code whichever process, thread or shard runs it. Dataset-level attributes are
-dropped before comparing: they hold creation times.
+code whichever process, thread or shard runs it: ``assert_same_file`` compares
+every variable and attribute of the files, all but the creation time and command.
 """
 
 import numpy as np
 import pytest
-import xarray as xr
-from conftest import QUICK, without_provenance
+from conftest import QUICK, assert_same_file
 
 from sweep import accelerate, parts, runner
 from sweep.cli import main
@@ -21,13 +20,6 @@ from sweep import distributed as sweep_distributed  # noqa: E402 (needs dask)
 
 
 @pytest.fixture(scope="module")
-def quick_reference(quick):
-    """numba threads, one system per chunk on one thread."""
-    ds = runner.compute(quick, threads=1, chunk_size=1, show_progress=False)
-    return without_provenance(ds)
-
-
-@pytest.fixture(scope="module")
 def local_client():
     """A LocalCluster of 2 single-threaded worker processes, as ``--dask-local 2`` starts."""
     with sweep_distributed.connect(local_workers=2) as client:
@@ -35,7 +27,7 @@ def local_client():
         yield client
 
 
-def test_serial_task_kernel_matches_threads_on_read_only_input(quick, quick_reference):
+def test_serial_task_kernel_matches_threads_on_read_only_input(quick):
     """Arrays unpickled on a worker may be read-only; the task copes and agrees."""
     params, y0, settings, _ = system_arrays(quick)
     for a in (params, y0, settings):
@@ -47,12 +39,12 @@ def test_serial_task_kernel_matches_threads_on_read_only_input(quick, quick_refe
 
 
 @pytest.mark.slow
-def test_local_cluster_gives_identical_results(quick, quick_reference, local_client, tmp_path):
+def test_local_cluster_gives_identical_results(quick, quick_reference_file, local_client, tmp_path):
     """Through ``run_sweep(scheduler=...)``, i.e. ``--scheduler ADDRESS``, in chunks of 2."""
     out = tmp_path / "r.nc"
     address = local_client.scheduler.address
     runner.run_sweep(quick, out=out, scheduler=address, chunk_size=2, show_progress=False)
-    xr.testing.assert_identical(without_provenance(xr.load_dataset(out)), quick_reference)
+    assert_same_file(out, quick_reference_file)
 
 
 @pytest.mark.slow
@@ -82,7 +74,7 @@ def test_workers_load_the_kernel_from_the_cache(local_client):
         assert (hits, misses) == (1, 0)
 
 
-def test_three_shards_and_merge_give_identical_results(quick_reference, tmp_path, capsys):
+def test_three_shards_and_merge_give_identical_results(quick_reference_file, tmp_path, capsys):
     out = tmp_path / "r.nc"
     for i in range(3):
         args = ["run", str(QUICK), "--out", str(out), "--shard", f"{i}/3", "--chunk-size", "2"]
@@ -91,7 +83,7 @@ def test_three_shards_and_merge_give_identical_results(quick_reference, tmp_path
     parts_dir = parts.parts_dir_for(out)
     assert "python -m sweep merge" in capsys.readouterr().out
     assert main(["merge", str(parts_dir), "--out", str(out)]) == 0
-    xr.testing.assert_identical(without_provenance(xr.load_dataset(out)), quick_reference)
+    assert_same_file(out, quick_reference_file)
     assert not parts_dir.exists()
 
 
