@@ -221,3 +221,22 @@ def test_config_is_frozen_and_keeps_its_text():
     assert "K_W" in config.text
     assert config.shape == (2,)
     assert config.fixed["D0"] == 1.0
+
+
+def test_classification_settings_and_retired_keys():
+    """max_t_end left out follows t_end (None: ten times it); below t_end it is refused;
+    retired keys name their replacement; max_step .inf means no cap."""
+    config = make_config(integrator={"max_step": math.inf})
+    assert config.classification.max_t_end is None and config.integrator.max_step == math.inf
+    assert make_config(classification={"max_t_end": 5000.0}).classification.max_t_end == 5000.0
+    with pytest.raises(ConfigError) as err:
+        make_config(
+            integrator={"t_end": 100.0},
+            classification={"max_t_end": 50.0, "envelope_tolerance": 1e-4, "trend_cycles": 3},
+        )
+    text = str(err.value)
+    assert "classification.max_t_end must be at least integrator.t_end (100), got 50" in text
+    assert "classification.envelope_tolerance is no longer used; use classification.accuracy" in text
+    assert "classification.trend_cycles is no longer used; use classification.confirm_cycles" in text
+    with pytest.raises(ConfigError, match=r"classification.accuracy must be in \(0, 0.5\]"):
+        make_config(classification={"accuracy": 0.0})
