@@ -35,13 +35,12 @@ def integrate_chunk(params, y0, settings):
     writable so the kernel's compiled signature (and cache entry) is reused.
     Returns ``(results, y_final)``.
     """
-    from .grid import kernel_codes
     from .kernels import N_RESULTS, integrate_grid_serial
 
     params, y0, settings = (np.require(a, np.float64, ["C", "W"]) for a in (params, y0, settings))
     results = np.empty((params.shape[0], N_RESULTS))
     y_final = np.empty_like(y0)
-    integrate_grid_serial(params, y0, settings, *kernel_codes(settings), results, y_final)
+    compile_grid_kernel(integrate_grid_serial, settings)(params, y0, settings, results, y_final)
     return results, y_final
 
 

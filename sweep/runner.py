@@ -14,6 +14,7 @@ after that. ``shard=(i, n_shards)`` computes only the chunks ``k`` with
 ``k % n_shards == i`` and leaves them as parts, for job arrays.
 """
 
+import functools
 import logging
 import math
 import signal
@@ -29,7 +30,7 @@ from . import accelerate, parts
 from .config import ConfigError, check_writable, parse_config
 from .dataset import build_dataset, write_netcdf
 from .grid import kernel_codes, physical_parameters, settings_array, system_arrays
-from .kernels import N_PARAMS, N_RESULTS, S_NBLOCKS
+from .kernels import N_PARAMS, N_RESULTS, N_SETTINGS
 from .progress import Progress
 
 log = logging.getLogger(__name__)
@@ -135,24 +136,42 @@ def missing_ranges(ranges, have):
 
 
 def compile_grid_kernel(kernel, settings):
-    """Compile (or load from the numba cache) a grid kernel for the model, state law
-    and method of ``settings``, by running it on an empty grid.
+    """The grid kernel specialised for the model, state law and method of ``settings``,
+    as ``run(params, y0, settings, results, y_final)``; compiled, or loaded from the
+    numba cache, on first use in this process.
 
-    Says "compiling kernels (first run only)" when that takes longer than a second
-    (a cold cache; loading a warm one takes well under a second). Nothing to do
-    under ``NUMBA_DISABLE_JIT=1``, where kernels are plain Python.
+    Calls go straight to the compiled version: through the dispatcher, each call
+    would first try the codes as plain integers and be told to retry them as
+    literals (14 ms per call, per chunk or Dask task). Under ``NUMBA_DISABLE_JIT=1``
+    the kernels are plain Python and are called as they are.
     """
-    if not hasattr(kernel, "compile"):
-        return
-    n_vars = 3 * int(settings[S_NBLOCKS])
-    empty = (np.empty((0, N_PARAMS)), np.empty((0, n_vars)))
-    out = (np.empty((0, N_RESULTS)), np.empty((0, n_vars)))
+    codes = kernel_codes(settings)
+    compiled = _specialised(kernel, codes) if hasattr(kernel, "overloads") else kernel
+
+    def run(params, y0, settings, results, y_final):
+        compiled(params, y0, settings, *codes, results, y_final)
+
+    return run
+
+
+@functools.cache
+def _specialised(kernel, codes):
+    """Entry point of ``kernel``'s version for ``codes``, compiled by running it on an
+    empty grid. Says "compiling kernels (first run only)" when that takes longer than
+    a second (a cold cache; loading a warm one takes well under a second)."""
+    empty = (np.empty((0, N_PARAMS)), np.empty((0, 2)), np.zeros(N_SETTINGS))
+    out = (np.empty((0, N_RESULTS)), np.empty((0, 2)))
     notice = threading.Timer(1.0, log.info, ("compiling kernels (first run only) ...",))
     notice.start()
     try:
-        kernel(*empty, np.ascontiguousarray(settings), *kernel_codes(settings), *out)
+        kernel(*empty, *codes, *out)
     finally:
         notice.cancel()
+    for signature, compiled in kernel.overloads.items():
+        literal = [getattr(t, "literal_value", None) for t in signature[3:6]]
+        if literal == list(codes):
+            return compiled.entry_point
+    raise RuntimeError(f"no compiled version of {kernel} for codes {codes}")
 
 
 def threaded_chunks(params, y0, settings, ranges, threads=None):
@@ -165,12 +184,11 @@ def threaded_chunks(params, y0, settings, ranges, threads=None):
     from .kernels import integrate_grid_parallel
 
     accelerate.set_threads(threads)
-    compile_grid_kernel(integrate_grid_parallel, settings)
-    codes = kernel_codes(settings)
+    kernel = compile_grid_kernel(integrate_grid_parallel, settings)
     for a, b in ranges:
         order = balanced_order(b - a)  # row a + order[j] is computed in place j
         shuffled = np.empty((b - a, N_RESULTS)), np.empty((b - a, y0.shape[1]))
-        integrate_grid_parallel(params[a + order], y0[a + order], settings, *codes, *shuffled)
+        kernel(params[a + order], y0[a + order], settings, *shuffled)
         results, y_final = np.empty_like(shuffled[0]), np.empty_like(shuffled[1])
         results[order], y_final[order] = shuffled
         yield a, b, results, y_final

@@ -236,7 +236,7 @@ def test_classification_settings_and_retired_keys():
         )
     text = str(err.value)
     assert "classification.max_t_end must be at least integrator.t_end (100), got 50" in text
-    assert "classification.envelope_tolerance is no longer used; use classification.accuracy" in text
-    assert "classification.trend_cycles is no longer used; use classification.confirm_cycles" in text
+    for old, new in (("envelope_tolerance", "accuracy"), ("trend_cycles", "confirm_cycles")):
+        assert f"classification.{old} is no longer used; use classification.{new}" in text
     with pytest.raises(ConfigError, match=r"classification.accuracy must be in \(0, 0.5\]"):
         make_config(classification={"accuracy": 0.0})
