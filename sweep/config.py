@@ -315,7 +315,13 @@ def _parse_sweep(c, raw):
         values = _axis_values(c, spec, key)
         if values is None:
             continue
-        bad = [v for v in values if c.parameter(name, v, key) is None]
+        # check what the user wrote (a range's ends, or each listed value): an interval
+        # holds every point between its ends, and the error names the written value
+        if isinstance(spec, dict) and "values" not in spec:
+            written = [(f"{key}.start", spec["start"]), (f"{key}.stop", spec["stop"])]
+        else:
+            written = [(f"{key}[{i}]", v) for i, v in enumerate(values)]
+        bad = [k for k, v in written if c.parameter(name, v, k) is None]
         if not bad:
             axes.append(Axis(name, tuple(float(v) for v in values)))
     return axes

@@ -25,11 +25,14 @@ never mixes with old parts. Parts store their row range, so parts written with
 another chunk size (or by other shards) can still be used row by row.
 """
 
+import fcntl
 import hashlib
 import json
 import os
 import re
 import socket
+import sys
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -40,8 +43,9 @@ from .atomic import replaced_atomically
 
 #: Bumped when the layout of a part file changes.
 PART_FORMAT = 1
-#: Modules whose code decides the numbers stored in a part.
-NUMERIC_MODULES = ("kernels.py", "grid.py", "model.py")
+#: Modules whose code decides the numbers stored in a part (accelerate.py: fastmath,
+#: error model).
+NUMERIC_MODULES = ("kernels.py", "grid.py", "model.py", "accelerate.py")
 PART_NAME = re.compile(r"^(?P<hash>[0-9a-f]{16})_(?P<start>\d+)-(?P<stop>\d+)_of_(?P<n>\d+)\.npz$")
 TEMP_PREFIX = ".part-"
 #: A temporary part file: ``.part-<host>-<pid>-<random>.tmp`` (see ``replaced_atomically``).
@@ -77,6 +81,53 @@ def config_hash(config):
     for name in NUMERIC_MODULES:
         digest.update((here / name).read_bytes())
     return digest.hexdigest()[:16]
+
+
+class OutputBusy(RuntimeError):
+    """Another process holds the lock of the output; the message names it."""
+
+
+@contextmanager
+def output_lock(output, shared=False):
+    """Hold the lock of ``output`` (a hidden ``.<name>.lock`` file beside it) while a
+    run or merge works on it and its parts.
+
+    Full runs and merges take it exclusively; shards (``shared=True``) share it, so
+    several shards fill one parts folder side by side while nothing assembles or
+    removes it. Taken without waiting: if another process holds it, raise
+    :class:`OutputBusy` naming the process that last took it (pid, host, command,
+    start time, as each holder writes into the lock file). The operating system releases the
+    lock when the holder exits, even after ``kill -9``.
+    """
+    output = Path(output)
+    lock_path = output.with_name(f".{output.name}.lock")
+    handle = open(lock_path, "a+")
+    try:
+        try:
+            fcntl.flock(handle, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.seek(0)
+            holder = handle.read().strip() or "an unknown process"
+            raise OutputBusy(
+                f"{output} is in use by another run (the lock was last taken by {holder}); "
+                "wait for it to finish, or write to another --out"
+            ) from None
+        handle.seek(0)
+        handle.truncate()  # the newest holder names itself (with shards: one of them)
+        handle.write(
+            f"pid {os.getpid()} on {socket.gethostname()} "
+            f"({' '.join(sys.argv) or 'python'}, started {_now()})\n"
+        )
+        handle.flush()
+        yield
+    finally:
+        handle.close()
+
+
+def _now():
+    import datetime
+
+    return datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
 
 
 def parts_dir_for(output):

@@ -323,57 +323,71 @@ def run_sweep(config, out=None, threads=None, chunk_size=None, show_progress=Tru
     start_time = time.perf_counter()
     path = Path(out or config.output)
     check_writable(path, config.source, "output" if out is None else "--out")
-    phys = physical_parameters(config)
-    params, y0, settings, time_unit = system_arrays(config, phys)
-    n = params.shape[0]
-    chash = parts.config_hash(config)
-    parts_dir = parts.parts_dir_for(path)
-    results = np.empty((n, N_RESULTS))
-    y_final = np.empty_like(y0)
-    stop = stop if stop is not None else StopRequest()
-    saved = 0
+    with _output_lock(path, shared=bool(shard)):
+        phys = physical_parameters(config)
+        params, y0, settings, time_unit = system_arrays(config, phys)
+        n = params.shape[0]
+        chash = parts.config_hash(config)
+        parts_dir = parts.parts_dir_for(path)
+        results = np.empty((n, N_RESULTS))
+        y_final = np.empty_like(y0)
+        stop = stop if stop is not None else StopRequest()
+        saved = 0
 
-    def save(a, b):
-        nonlocal saved
-        try:
-            parts.write_part(parts_dir, config, chash, a, b, n, results[a:b], y_final[a:b])
-        except OSError as exc:
-            raise RunError(
-                f"cannot write a part to {parts_dir}: {exc.strerror or exc}; the parts "
-                "written so far are kept, rerun with --resume once this is fixed"
-            ) from None
-        saved += b - a
+        def save(a, b):
+            nonlocal saved
+            try:
+                parts.write_part(parts_dir, config, chash, a, b, n, results[a:b], y_final[a:b])
+            except OSError as exc:
+                raise RunError(
+                    f"cannot write a part to {parts_dir}: {exc.strerror or exc}; the parts "
+                    "written so far are kept, rerun with --resume once this is fixed"
+                ) from None
+            saved += b - a
 
-    with _backend(scheduler, dask_local) as client:
-        _make_folder(parts_dir)
-        chunk_size = chunk_size or _default_chunk_size(n, threads, client, shard)
-        owned = chunk_ranges(n, chunk_size, shard or (0, 1))
-        have = _reuse_parts(parts_dir, chash, owned, results, y_final, resume)
-        todo = missing_ranges(owned, have)
-        total, left = _rows(owned), _rows(todo)
-        where = "numba threads" if client is None else f"Dask ({_dask_threads(client)} threads)"
-        log.info("%s: computing %d runs in %d chunks on %s", config.name, left, len(todo), where)
-        progress = Progress(total, config.name, enabled=show_progress, initial=total - left)
-        try:
-            integrate_ranges(params, y0, settings, todo, results, y_final, threads, client,
-                             progress, save, stop)  # fmt: skip
-        except KeyboardInterrupt:
-            stop.signum = stop.signum or signal.SIGINT
-        finally:
-            progress.close()
-    if saved < left:
-        raise Interrupted(
-            stop.signum,
-            f"interrupted by {signal.Signals(stop.signum).name}: {total - left + saved} of "
-            f"{total} runs are saved in {parts_dir}; rerun with --resume to continue",
-        )
-    elapsed = time.perf_counter() - start_time
-    if shard:
-        return SweepResult(None, parts_dir, elapsed, saved, total - left)
-    ds = build_dataset(config, phys, results, y_final, time_unit)
-    _write_result(ds, path, f"{parts_dir} (use --resume)")
-    parts.remove_parts(parts_dir)
-    return SweepResult(ds, path, time.perf_counter() - start_time, saved, total - left)
+        with _backend(scheduler, dask_local) as client:
+            _make_folder(parts_dir)
+            chunk_size = chunk_size or _default_chunk_size(n, threads, client, shard)
+            owned = chunk_ranges(n, chunk_size, shard or (0, 1))
+            have = _reuse_parts(parts_dir, chash, owned, results, y_final, resume)
+            todo = missing_ranges(owned, have)
+            total, left = _rows(owned), _rows(todo)
+            where = "numba threads" if client is None else f"Dask ({_dask_threads(client)} threads)"
+            log.info(
+                "%s: computing %d runs in %d chunks on %s", config.name, left, len(todo), where
+            )
+            progress = Progress(total, config.name, enabled=show_progress, initial=total - left)
+            try:
+                integrate_ranges(params, y0, settings, todo, results, y_final, threads, client,
+                                 progress, save, stop)  # fmt: skip
+            except KeyboardInterrupt:
+                stop.signum = stop.signum or signal.SIGINT
+            finally:
+                progress.close()
+        if saved < left:
+            raise Interrupted(
+                stop.signum,
+                f"interrupted by {signal.Signals(stop.signum).name}: {total - left + saved} of "
+                f"{total} runs are saved in {parts_dir}; rerun with --resume to continue",
+            )
+        elapsed = time.perf_counter() - start_time
+        if shard:
+            return SweepResult(None, parts_dir, elapsed, saved, total - left)
+        ds = build_dataset(config, phys, results, y_final, time_unit)
+        _write_result(ds, path, f"{parts_dir} (use --resume)")
+        parts.remove_parts(parts_dir)
+        return SweepResult(ds, path, time.perf_counter() - start_time, saved, total - left)
+
+
+@contextmanager
+def _output_lock(path, shared=False):
+    """Hold the output's lock (``parts.output_lock``) for a run; another run holding it
+    is a :class:`RunError` naming that process."""
+    try:
+        with parts.output_lock(path, shared):
+            yield
+    except parts.OutputBusy as exc:
+        raise RunError(str(exc)) from None
 
 
 def _rows(ranges):
@@ -450,6 +464,12 @@ def merge_parts(paths, out):
     the Dataset.
     """
     check_writable(out, "merge", "--out")
+    with _output_lock(out):
+        return _merge_locked(paths, out)
+
+
+def _merge_locked(paths, out):
+    """The body of :func:`merge_parts`, holding the output's lock."""
     files = parts.part_files(paths)
     for f in files:
         if not f.exists():

@@ -155,7 +155,15 @@ def test_bad_axis_is_reported_once():
     """A swept parameter with a bad value is not also reported as missing."""
     with pytest.raises(ConfigError) as info:
         make_config(sweep={"K_W": [0.04, math.nan]})
-    assert info.value.problems == ["sweep.K_W must be a finite number in (0, inf), got nan"]
+    assert info.value.problems == ["sweep.K_W[1] must be a finite number in (0, inf), got nan"]
+
+
+def test_bad_axis_range_names_what_was_written():
+    """A range with a bad end is reported with that end, not with a value inside the grid
+    (it used to say ``sweep.K_W must be in (0, inf), got -0.00875``)."""
+    with pytest.raises(ConfigError) as info:
+        make_config(sweep={"K_W": {"start": -0.05, "stop": 0.06, "num": 9}})
+    assert info.value.problems == ["sweep.K_W.start must be in (0, inf), got -0.05"]
 
 
 def test_b_zero_is_allowed():

@@ -204,3 +204,63 @@ def test_merge_removes_temp_files_of_killed_writers(quick, quick_reference, tmp_
     xr.testing.assert_identical(without_provenance(runner.merge_parts([folder], merged)),
                                 quick_reference)  # fmt: skip
     assert not folder.exists()
+
+
+# A process that takes an output's lock, says so, and holds it until killed.
+LOCK_HOLDER = """
+import sys, time
+from sweep import parts
+with parts.output_lock(sys.argv[1], shared=sys.argv[2] == "shared"):
+    print("locked", flush=True)
+    time.sleep(60)
+"""
+
+
+@pytest.fixture
+def lock_holder(tmp_path):
+    """Start a process holding the lock of ``out`` (exclusive or shared); kill it after."""
+    import subprocess
+    import sys
+
+    procs = []
+
+    def start(out, mode="exclusive"):
+        proc = subprocess.Popen([sys.executable, "-c", LOCK_HOLDER, str(out), mode],
+                                stdout=subprocess.PIPE, text=True)  # fmt: skip
+        assert proc.stdout.readline().strip() == "locked"
+        procs.append(proc)
+        return proc
+
+    yield start
+    for proc in procs:
+        proc.kill()
+        proc.wait()
+
+
+def test_concurrent_runs_on_one_output_refuse_naming_the_other(quick, tmp_path, lock_holder):
+    """A run or merge on an output another process is running refuses at once with a
+    message naming that process (exit 1 from the CLI), and leaves the earlier result and
+    the parts alone; shards share the lock with each other but not with a full run."""
+    from sweep.cli import main
+
+    out = tmp_path / "r.nc"
+    out.write_bytes(b"earlier result")
+    holder = lock_holder(out)
+    busy = rf"r.nc is in use by another run \(the lock was last taken by pid {holder.pid} on "
+    with pytest.raises(runner.RunError, match=busy):
+        runner.run_sweep(quick, out=out, show_progress=False)
+    with pytest.raises(runner.RunError, match=f"pid {holder.pid}"):
+        runner.run_sweep(quick, out=out, show_progress=False, shard=(0, 2))
+    assert main(["run", str(QUICK), "--out", str(out), "--quiet"]) == 1
+    assert out.read_bytes() == b"earlier result"
+    assert not parts.parts_dir_for(out).exists()
+
+    shared = tmp_path / "s.nc"
+    other = lock_holder(shared, "shared")
+    result = runner.run_sweep(quick, out=shared, show_progress=False, shard=(0, 2))
+    assert result.dataset is None and result.computed > 0  # two shards side by side
+    with pytest.raises(runner.RunError, match="s.nc is in use by another run"):
+        runner.run_sweep(quick, out=shared, show_progress=False)
+    other.kill()
+    other.wait()
+    assert runner.run_sweep(quick, out=shared, show_progress=False, resume=True).dataset is not None
