@@ -437,7 +437,7 @@ def main(argv=None):
         n_points=21 if quick else 401, t_end=300 if quick else 2000
     )
     _print_single_purpose(sp)
-    figures["scipy_hard"] = h = bench_scipy_hard(n_points=5 if quick else 41, t_end=2000)
+    figures["scipy_hard"] = h = bench_scipy_hard(n_points=5 if quick else 101, t_end=2000)
     print(
         f"K/Kc 0.8-1.2, {h['grid_points']} runs: engine with early exit "
         f"{h['speedup_per_core']:.0f}x faster per core than a SciPy LSODA loop"
