@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import check_writable, load_config
+from .config import check_writable, config_mapping, load_config, parse_config
 from .plots import (
     BLOCK_STYLES,
     draw_trace,
@@ -27,7 +27,7 @@ from .plots import (
     pyplot,
     save_figure,
 )
-from .trace import compute_trace, config_from_mapping, config_mapping, pin_config
+from .trace import compute_trace, pin_config
 
 #: Radiation damping per normal load of the quasi-dynamic comparison (s/µm): η̂ = η V/W = 0.001.
 ETA_W = 0.01
@@ -79,7 +79,7 @@ def variant(config, name, model=None, eta_W=None, k2_W=None, phi=None):
     if phi is not None:
         raw["blocks"] = len(phi)
         raw["initial"] = {"v_over_V": [1.0] * len(phi), "phi_over_phi_ss": list(phi)}
-    return config_from_mapping(raw, f"{config.source} ({name})")
+    return parse_config(raw, f"{config.source} ({name})")
 
 
 def stiffnesses(config):

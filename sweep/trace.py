@@ -18,10 +18,9 @@ import math
 
 import numpy as np
 import xarray as xr
-import yaml
 
 from . import kernels, model
-from .config import ConfigError, parse_config
+from .config import ConfigError, config_mapping, parse_config
 from .dataset import derived_fields, provenance
 from .grid import REGIMES, physical_parameters, system_arrays
 from .model import PARAMETERS
@@ -37,35 +36,6 @@ TRACE_VARIABLES = {
     "ln_state": ("1", "ln(Phi/Phi_ss)"),
     "friction": ("1", "friction coefficient mu0 + A ln(v/V0) + B ln(Phi/Phi0)"),
 }
-
-
-def config_mapping(config):
-    """A :class:`~sweep.config.Config` as the YAML mapping it could be read from."""
-    return {
-        "name": config.name,
-        "description": config.description,
-        "blocks": config.blocks,
-        "model": config.model,
-        "state_law": config.state_law,
-        "parameters": dict(config.parameters),
-        "sweep": {a.name: list(a.values) for a in config.axes},
-        "initial": {
-            "v_over_V": list(config.initial.v_over_V),
-            "phi_over_phi_ss": list(config.initial.phi_over_phi_ss),
-        },
-        "integrator": dataclasses.asdict(config.integrator),
-        "classification": dataclasses.asdict(config.classification),
-        "output": config.output,
-    }
-
-
-def config_from_mapping(raw, source):
-    """Validate a config mapping (as from :func:`config_mapping`, then edited).
-
-    The config text becomes the mapping's YAML, so provenance stays true.
-    Raises :class:`~sweep.config.ConfigError` naming ``source``.
-    """
-    return parse_config(yaml.safe_dump(raw, sort_keys=False, allow_unicode=True), source)
 
 
 def pin_config(config, at, t_end=None):
@@ -101,7 +71,7 @@ def pin_config(config, at, t_end=None):
         raw["integrator"]["t_end"] = float(t_end)
         raw["classification"]["max_t_end"] = None  # no continuation without early exit
     # errors name the --at values; the result's provenance names the config file
-    return dataclasses.replace(config_from_mapping(raw, source), source=config.source)
+    return dataclasses.replace(parse_config(raw, source), source=config.source)
 
 
 def decimate(lnv, points):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sweep.cli import main
-from sweep.config import load_config
+from sweep.config import config_mapping, load_config, parse_config
 from sweep.dataset import write_netcdf
 from sweep.grid import REGIMES
 from sweep.plots import (
@@ -19,7 +19,6 @@ from sweep.plots import (
     unit_text,
 )
 from sweep.runner import compute
-from sweep.trace import config_from_mapping, config_mapping
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
@@ -35,7 +34,7 @@ def small(path, name, **changes):
     for key, value in changes.items():
         merge = key != "sweep" and isinstance(raw.get(key), dict)
         raw[key] = {**raw[key], **value} if merge else value
-    return config_from_mapping(raw, f"{path} ({name})")
+    return parse_config(raw, f"{path} ({name})")
 
 
 def assert_png(path, min_bytes=10_000):

@@ -9,13 +9,11 @@ from scipy.integrate import solve_ivp
 
 from sweep import kernels
 from sweep.cli import main
-from sweep.config import ConfigError, load_config
+from sweep.config import ConfigError, config_mapping, load_config, parse_config
 from sweep.grid import system_arrays
 from sweep.runner import compute
 from sweep.trace import (
     compute_trace,
-    config_from_mapping,
-    config_mapping,
     decimate,
     pin_config,
 )
@@ -42,12 +40,12 @@ def quasi_dynamic_two_blocks():
     raw["parameters"]["eta_W"] = 0.01
     raw["initial"]["phi_over_phi_ss"] = [1.01, 0.99]
     raw["integrator"]["t_end"] = 800.0
-    return config_from_mapping(raw, "twoblock, quasi-dynamic")
+    return parse_config(raw, "twoblock, quasi-dynamic")
 
 
 def test_config_mapping_round_trip():
     config = load_config(TWOBLOCK)
-    again = config_from_mapping(config_mapping(config), "round trip")
+    again = parse_config(config_mapping(config), "round trip")
     for field in ("blocks", "model", "state_law", "parameters", "axes", "initial", "output"):
         assert getattr(again, field) == getattr(config, field)
     assert again.integrator == config.integrator
@@ -154,7 +152,7 @@ def test_quasi_static_trace_ends_at_the_sweeps_runaway_time():
 def test_runaway_time_of_a_trace_matches_the_reference(v0, psi0, k_over_kc, tau_runaway, tol):
     raw = config_mapping(load_config(QUICK))  # paper A, B; D0 = 1 um, V = 0.1 um/s
     raw["initial"] = {"v_over_V": [v0], "phi_over_phi_ss": [float(np.exp(psi0))]}
-    config = config_from_mapping(raw, "quick, brief's start")
+    config = parse_config(raw, "quick, brief's start")
     ds = compute_trace(pin_config(config, {"K_W": k_over_kc * 0.05}), points=200)
     assert ds.attrs["regime"] == "runaway"
     time_unit = 1.0 / 0.1  # D0/V in s
