@@ -162,6 +162,15 @@ class Config:
         return tuple(len(a.values) for a in self.axes)
 
 
+def _numeric(text):
+    """Whether ``text`` is a string holding a number."""
+    try:
+        float(text)
+    except (TypeError, ValueError):
+        return False
+    return isinstance(text, str)
+
+
 def required_parameters(blocks, model):
     """Parameter names a config must set (fixed or swept) for this model."""
     names = ["A", "B", "mu0", "V", "D0", "K_W"]
@@ -188,7 +197,8 @@ class _Checker:
         close = ")" if high_open or high == math.inf else "]"
         interval = f"{'(' if low_open else '['}{low:g}, {high:g}{close}"
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.add(f"{key} must be a number in {interval}, got {value!r}")
+            hint = " (text, not a number: PyYAML's safe_load reads 1.0e6 as text)"
+            self.add(f"{key} must be a number in {interval}, got {value!r}{hint * _numeric(value)}")
             return None
         value = float(value)
         if not math.isfinite(value):
@@ -650,18 +660,21 @@ def _parse_classification(c, raw, t_end):
 
 
 def check_writable(path, source="<config>", key="output", suffix=".nc"):
-    """Raise :class:`ConfigError` unless a ``suffix`` file can be created at ``path``.
+    """Raise :class:`ConfigError` unless a file can be created at ``path``.
 
-    Creates missing parent directories and a probe file (removed at once), so
-    the answer is the file system's, not a guess from permission bits (which
-    root ignores).
+    ``suffix``: the file type, or a tuple of those allowed (e.g. ``(".png",
+    ".pdf", ".svg")``). Creates missing parent directories and a probe file
+    (removed at once), so the answer is the file system's, not a guess from
+    permission bits (which root ignores).
     """
     path = Path(path)
-    if path.suffix != suffix:
-        raise ConfigError(source, [f"{key} {path} must be a file name ending in {suffix}"])
+    suffixes = (suffix,) if isinstance(suffix, str) else tuple(suffix)
+    allowed = " or ".join(suffixes)
+    if path.suffix not in suffixes:
+        raise ConfigError(source, [f"{key} {path} must be a file name ending in {allowed}"])
     if path.is_dir():
         raise ConfigError(
-            source, [f"{key} {path} is a directory; give a file path ending in {suffix}"]
+            source, [f"{key} {path} is a directory; give a file path ending in {allowed}"]
         )
     blocking = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
     if blocking is not None:

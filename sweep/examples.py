@@ -38,10 +38,11 @@ def path(name):
     return folder() / f"{Path(name).stem}.yaml"
 
 
-def describe(name):
-    """First line of an example's ``description`` (or ``""``)."""
+def describe(name, width=70):
+    """First sentence of an example's ``description``, cut to ``width`` characters."""
     import yaml
 
     raw = yaml.safe_load(path(name).read_text())
-    text = raw.get("description", "") if isinstance(raw, dict) else ""
-    return text.strip().splitlines()[0] if text.strip() else ""
+    text = " ".join(str(raw.get("description", "")).split()) if isinstance(raw, dict) else ""
+    first = text.split(". ")[0].rstrip(".")
+    return first if len(first) <= width else first[: width - 1].rstrip() + "…"

@@ -103,3 +103,27 @@ def test_threads_and_dask_do_not_mix(tmp_path, capsys):
     out = tmp_path / "r.nc"
     assert main(["run", str(QUICK), "--out", str(out), "--threads", "1", "--dask-local", "2"]) == 2
     assert "--threads" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_api_runs_on_a_client_a_cluster_or_not_a_client(quick, quick_reference, local_client):
+    """``sweep.run(client=...)`` and ``run_sweep(scheduler=...)`` take a Client (left
+    open) or a Cluster; anything else is the tool's ConfigError, not a TypeError."""
+    import sweep
+
+    for client in (local_client, local_client.cluster):
+        ds = sweep.run(quick, client=client, progress=False)
+        xr.testing.assert_identical(without_provenance(ds), quick_reference)
+    assert local_client.status == "running"
+    with pytest.raises(sweep.ConfigError, match="must be a dask distributed Client"):
+        sweep.run(quick, client=3, progress=False)
+    with pytest.raises(sweep.ConfigError, match="threads is for numba threads"):
+        sweep.run(quick, client=local_client, threads=1, progress=False)
+
+
+@pytest.mark.slow
+def test_run_sweep_takes_a_client(quick, quick_reference, local_client, tmp_path):
+    result = runner.run_sweep(quick, out=tmp_path / "c.nc", show_progress=False,
+                              scheduler=local_client)  # fmt: skip
+    xr.testing.assert_identical(without_provenance(result.dataset), quick_reference)
+    assert sweep_distributed.dashboard_link(local_client) is None  # started without one

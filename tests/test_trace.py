@@ -108,10 +108,16 @@ def test_trace_ends_at_the_kernels_final_state(make_config, at):
     V = pinned.fixed["V"]
     _, _, _, time_unit = system_arrays(pinned)
     # Same kernel, same arithmetic (recording only interpolates): agreement to rounding.
-    np.testing.assert_allclose(ds["lnv"].values[-1], y_final[:nb], rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(ds["ln_state"].values[-1], y_final[nb:], rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(ds["v"].values[-1], V * np.exp(y_final[:nb]), rtol=1e-12)
-    np.testing.assert_allclose(ds["time"].values[-1], result[kernels.R_TAU_FINAL] * time_unit[0])
+    np.testing.assert_allclose(ds["lnv"].isel(time=-1).values, y_final[:nb], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(
+        ds["ln_state"].isel(time=-1).values, y_final[nb:], rtol=1e-12, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        ds["velocity"].isel(time=-1).values, V * np.exp(y_final[:nb]), rtol=1e-12
+    )
+    np.testing.assert_allclose(
+        ds["time"].isel(time=-1).values, result[kernels.R_TAU_FINAL] * time_unit[0]
+    )
     assert (
         ds.attrs["regime"]
         == ("steady", "stick_slip", "runaway", "undecided")[int(result[kernels.R_REGIME])]
@@ -130,7 +136,7 @@ def test_quasi_static_trace_ends_at_the_sweeps_runaway_time():
         t_runaway = float(sweep["t_runaway"].sel(K_W=k_w))
         step = ds.attrs["t_end"] / points  # one output step (time bin) of the trace
         assert ds.attrs["regime"] == "runaway"
-        assert abs(ds["time"].values[-1] - t_runaway) <= step
+        assert abs(ds["time"].isel(time=-1).values - t_runaway) <= step
         # Same system, same path: the sweep's early exit never triggers on a growing envelope.
         assert ds.attrs["t_runaway"] == pytest.approx(t_runaway, rel=1e-12)
 
@@ -158,7 +164,7 @@ def test_runaway_time_of_a_trace_matches_the_reference(v0, psi0, k_over_kc, tau_
     time_unit = 1.0 / 0.1  # D0/V in s
     assert ds.attrs["t_runaway"] / time_unit == pytest.approx(tau_runaway, abs=tol)
     # the series ends with the step that crossed the cap, within one output step
-    assert ds["time"].values[-1] - ds.attrs["t_runaway"] <= ds.attrs["t_end"] / 200
+    assert ds["time"].isel(time=-1).values - ds.attrs["t_runaway"] <= ds.attrs["t_end"] / 200
 
 
 def test_recorded_samples_lie_on_the_scipy_trajectory():
@@ -185,11 +191,11 @@ def test_recorded_samples_lie_on_the_scipy_trajectory():
     # Tolerance 1e-5: the kernel's DOPRI5 (rtol 1e-8) plus cubic Hermite recording
     # errs by < 1e-6 here; a sample stamped one fine step (0.004 D0/V) off would err
     # by ~5e-3 (slope of ln v up to ~1.3 per D0/V).
-    np.testing.assert_allclose(ds["lnv"].values[:, 0], ref[0], atol=1e-5)
-    np.testing.assert_allclose(ds["ln_state"].values[:, 0], ref[1], atol=1e-5)
+    np.testing.assert_allclose(ds["lnv"].isel(block=0).values, ref[0], atol=1e-5)
+    np.testing.assert_allclose(ds["ln_state"].isel(block=0).values, ref[1], atol=1e-5)
     mu_ss = 0.4 + (0.03 - 0.08) * np.log(0.1 / 1.0)  # V0 = D0/Phi0 = 1 um/s
     np.testing.assert_allclose(
-        ds["friction"].values[:, 0], mu_ss + A * ref[0] + B * ref[1], atol=1e-6
+        ds["friction"].isel(block=0).values, mu_ss + A * ref[0] + B * ref[1], atol=1e-6
     )
 
 
@@ -200,8 +206,8 @@ def test_trace_command_writes_netcdf_and_png(tmp_path):
     png = nc.with_suffix(".png")
     assert png.read_bytes()[:8] == PNG_MAGIC and png.stat().st_size > 10_000
     with xr.open_dataset(nc) as ds:
-        assert ds["v"].dims == ("time", "block")
-        assert ds["time"].attrs["units"] == "s" and ds["v"].attrs["units"] == "um s-1"
+        assert ds["velocity"].dims == ("block", "time")
+        assert ds["time"].attrs["units"] == "s" and ds["velocity"].attrs["units"] == "um s-1"
         assert {"lnv", "ln_state", "friction"} <= set(ds.data_vars)
         assert ds.attrs["regime"] == "runaway"
         assert ds.attrs["t_runaway_units"] == "s"
