@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import QUICK, without_provenance
+from conftest import QUICK, ROOT, without_provenance
 
 import sweep
 from sweep import examples, runner
@@ -126,3 +126,15 @@ def test_cli_runs_a_packaged_example_from_any_folder(tmp_path, monkeypatch, caps
 def test_a_result_written_by_the_api_is_what_the_runner_writes(quick_result):
     computed = runner.compute(sweep.load_config(QUICK), threads=1, show_progress=False)
     xr.testing.assert_identical(without_provenance(quick_result), without_provenance(computed))
+
+
+def test_license_and_citation_are_shipped():
+    import yaml
+
+    assert "MIT License" in (ROOT / "LICENSE").read_text()
+    assert "2026 rsf-sweep contributors" in (ROOT / "LICENSE").read_text()
+    cff = yaml.safe_load((ROOT / "CITATION.cff").read_text())
+    assert cff["cff-version"] == "1.2.0" and cff["version"] == sweep.__version__
+    (paper,) = cff["references"]
+    assert paper["title"].startswith("Transition from Uniform Motion to Stick-Slip")
+    assert [a["family-names"] for a in paper["authors"]] == ["Szkutnik", "Kułakowski"]
