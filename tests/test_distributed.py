@@ -122,8 +122,14 @@ def test_api_runs_on_a_client_a_cluster_or_not_a_client(quick, quick_reference, 
 
 
 @pytest.mark.slow
-def test_run_sweep_takes_a_client(quick, quick_reference, local_client, tmp_path):
+def test_run_sweep_takes_a_client_and_logs_its_dashboard(quick, quick_reference, local_client,
+                                                         tmp_path, caplog):  # fmt: skip
+    """``run_sweep(scheduler=client)`` used to raise TypeError; the dashboard link (which
+    the CLI prints) is logged whenever the scheduler serves one."""
+    caplog.set_level("INFO", logger="sweep")
     result = runner.run_sweep(quick, out=tmp_path / "c.nc", show_progress=False,
                               scheduler=local_client)  # fmt: skip
     xr.testing.assert_identical(without_provenance(result.dataset), quick_reference)
-    assert sweep_distributed.dashboard_link(local_client) is None  # started without one
+    link = sweep_distributed.dashboard_link(local_client)
+    if link is not None:  # None without bokeh, which serves the dashboard
+        assert f"Dask dashboard: {link}" in caplog.text
