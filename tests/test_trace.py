@@ -219,3 +219,18 @@ def test_trace_command_missing_axis_exits_2(tmp_path, capsys):
     assert code == 2
     assert "k2_W" in capsys.readouterr().err
     assert not (tmp_path / "t.nc").exists()
+
+
+def test_trace_figure_ends_where_the_run_ended_and_takes_an_axes():
+    """A runaway at ~970 s of a 20000 s end time: the time axis stops at the last sample,
+    not at the end time. CF attributes of the time coordinate are set."""
+    from matplotlib.figure import Figure
+
+    from sweep.plots import plot_trace
+
+    ds = compute_trace(pin_config(load_config(QUICK), {"K_W": 0.046}, 2000.0), points=300)
+    assert ds.attrs["regime"] == "runaway" and ds.attrs["t_end"] == 20000.0
+    ax = Figure().subplots()
+    assert plot_trace(ds, ax=ax) is ax.figure
+    assert ax.get_xlim()[1] == ds["time"].values[-1] < 1000.0
+    assert ds["time"].attrs["standard_name"] == "time" and ds["time"].attrs["axis"] == "T"
