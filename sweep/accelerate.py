@@ -12,12 +12,17 @@ Decisions (each tested in ``tests/test_accelerate.py``):
   would let LLVM assume they never occur).
 * ``error_model="numpy"``: a division by zero gives inf/NaN (a classified
   outcome), not a Python exception raised from inside a parallel loop.
-* The right-hand side and the explicit steps are inlined into the integration
-  loop at numba-IR level (``inline="always"``): left to LLVM's heuristics, they
-  stayed calls passing a dozen arrays each, and the RK4 loop took 2.9x the time
-  per step of the same arithmetic written plainly (``make bench``); inlined,
-  1.46x, and DOPRI5 runs 45 % more steps/s. The cost is a longer first compile
-  (about 12 → 20 s), which the cache pays once.
+* Kernels are specialised at compile time for the model, state law and method a
+  sweep uses: the grid kernels and ``integrate_system`` take their codes as
+  ``numba.literally`` arguments, so each combination compiles (and is cached) as
+  its own version with the other models' and methods' branches pruned. A sweep
+  compiles only its own combination (about 14 s cold, once), and the per-step
+  branching on the codes is gone.
+* No forced inlining: with the codes constant, LLVM inlines the right-hand side
+  and the steps by itself. Forcing it at numba-IR level (``inline="always"``), which
+  had made the unspecialised kernel 45 % faster, now changes nothing at run time
+  (273–302 vs 279–286 ns per DOPRI5 step, ``make bench``) and costs 10 s of compile
+  (24.5 vs 14.3 s for ``integrate_system``).
 * Threads have one owner: on one machine ``prange`` in the parallel grid kernel;
   under Dask each task calls the serial grid kernel and Dask owns the threads.
 """
@@ -32,16 +37,12 @@ CACHE = os.environ.get("SWEEP_NUMBA_CACHE", "1") != "0"
 _COMMON = {"nogil": True, "cache": CACHE, "fastmath": False, "error_model": "numpy"}
 
 prange = numba.prange
+literally = numba.literally
 
 
 def jit(func):
     """Compile a serial kernel with the project's numba policy."""
     return numba.njit(**_COMMON)(func)
-
-
-def jit_inline(func):
-    """Compile a small hot function that numba inlines into every caller."""
-    return numba.njit(inline="always", **_COMMON)(func)
 
 
 def parallel_jit(func):

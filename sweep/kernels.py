@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from .accelerate import jit, jit_inline, parallel_jit, prange
+from .accelerate import jit, literally, parallel_jit, prange
 
 # --- codes shared with the Python side --------------------------------------
 QUASI_STATIC, QUASI_DYNAMIC, INERTIAL = 0, 1, 2
@@ -135,7 +135,7 @@ _RODAS_C = np.array(
 )  # fmt: skip
 
 
-@jit_inline
+@jit
 def rhs(y, p, model, law, nb, ev, dydt):
     """Time derivative (per D0/V) of the log-form state ``y`` into ``dydt``.
 
@@ -270,7 +270,7 @@ def lu_solve(a, perm, b, x):
         x[i] = acc / a[i, i]
 
 
-@jit_inline
+@jit
 def step_rk4(y, f, h, p, model, law, nb, ev, k2, k3, k4, ytmp, ynew):
     """One classical RK4 step of size h from (y, f = rhs(y)) into ``ynew``."""
     n = y.size
@@ -287,7 +287,7 @@ def step_rk4(y, f, h, p, model, law, nb, ev, k2, k3, k4, ytmp, ynew):
         ynew[j] = y[j] + h / 6.0 * (f[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
 
 
-@jit_inline
+@jit
 def step_dopri5(y, f, h, p, model, law, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, fnew, rtol, atol):
     """One Dormand–Prince 5(4) step; returns the scaled RMS error estimate.
 
@@ -375,7 +375,7 @@ _D1, _D3, _D4 = -12715105075 / 11282082432, 87487479700 / 32700410799, -10690763
 _D5, _D6, _D7 = 701980252875 / 199316789632, -1453857185 / 822651844, 69997945 / 29380423
 
 
-@jit_inline
+@jit
 def dense_r5(j, h, f, k3, k4, k5, k6, fnew):
     """Fifth coefficient of the DOPRI5 interpolant of component ``j`` over a step of
     size h (stages k1 = ``f``, k3 … k6, k7 = ``fnew``)."""
@@ -602,18 +602,20 @@ def start_window(y, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin):
 
 
 @jit
-def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
+def integrate_system(p, y0, settings, model, law, method, result, y_final, rec_dt, rec_t, rec_y):
     """Integrate one system from ``y0`` and write its statistics into ``result``.
 
     ``p``: dimensionless parameters (``P_*`` columns); ``settings``: the ``S_*``
-    entries; ``result``: the ``R_*`` columns; ``y_final``: the state at the end.
+    entries; ``model``, ``law``, ``method``: the codes (``settings[S_MODEL]`` …),
+    compile-time constants (one specialised version per combination);
+    ``result``: the ``R_*`` columns; ``y_final``: the state at the end.
     Recording (for traces): the state every ``rec_dt`` (D0/V, interpolated) and
     at the end goes into ``rec_t``/``rec_y`` while they have room; sweeps pass
     empty buffers. The count is ``result[R_N_RECORDED]``.
     """
-    model = int(settings[S_MODEL])
-    law = int(settings[S_LAW])
-    method = int(settings[S_METHOD])
+    literally(model)
+    literally(law)
+    literally(method)
     nb = int(settings[S_NBLOCKS])
     rtol = settings[S_RTOL]
     atol = settings[S_ATOL]
@@ -967,18 +969,31 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
 
 
 @jit
-def integrate_grid_serial(params, y0, settings, results, y_final):
-    """Integrate every system (rows of ``params``/``y0``) one after another."""
+def integrate_grid_serial(params, y0, settings, model, law, method, results, y_final):
+    """Integrate every system (rows of ``params``/``y0``) one after another; the codes
+    as for :func:`integrate_system`."""
+    literally(model)
+    literally(law)
+    literally(method)
     no_t = np.empty(0)
     no_y = np.empty((0, y0.shape[1]))
     for s in range(params.shape[0]):
-        integrate_system(params[s], y0[s], settings, results[s], y_final[s], 0.0, no_t, no_y)
+        integrate_system(
+            params[s], y0[s], settings, model, law, method, results[s], y_final[s], 0.0, no_t,
+            no_y,
+        )  # fmt: skip
 
 
 @parallel_jit
-def integrate_grid_parallel(params, y0, settings, results, y_final):
+def integrate_grid_parallel(params, y0, settings, model, law, method, results, y_final):
     """Integrate every system on numba's thread pool (one system per iteration)."""
+    literally(model)
+    literally(law)
+    literally(method)
     for s in prange(params.shape[0]):
         no_t = np.empty(0)
         no_y = np.empty((0, y0.shape[1]))
-        integrate_system(params[s], y0[s], settings, results[s], y_final[s], 0.0, no_t, no_y)
+        integrate_system(
+            params[s], y0[s], settings, model, law, method, results[s], y_final[s], 0.0, no_t,
+            no_y,
+        )  # fmt: skip

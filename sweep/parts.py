@@ -12,6 +12,12 @@ file, flushed to disk and renamed, so a part either exists complete or not at
 all; reading one checks the zip CRCs, the checksum, the shapes and that the
 name agrees with the content, so a truncated or corrupt part is never used.
 
+A temporary file is named ``.part-<host>-<pid>-<random>.tmp`` after the machine
+and process writing it. A process killed during a write (``kill -9``, a node
+crash) leaves it behind; it is removed once that process is known to be gone
+(same host, no process with that pid), and never while its writer may still be
+running, e.g. a shard on another node sharing the folder.
+
 The config hash covers everything that changes the numbers: the validated
 config fields (not its whitespace, name, description or output path) and the
 source of the code that turns them into numbers. A changed config therefore
@@ -23,6 +29,7 @@ import hashlib
 import json
 import os
 import re
+import socket
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -37,6 +44,8 @@ PART_FORMAT = 1
 NUMERIC_MODULES = ("kernels.py", "grid.py", "model.py")
 PART_NAME = re.compile(r"^(?P<hash>[0-9a-f]{16})_(?P<start>\d+)-(?P<stop>\d+)_of_(?P<n>\d+)\.npz$")
 TEMP_PREFIX = ".part-"
+#: A temporary part file: ``.part-<host>-<pid>-<random>.tmp`` (see ``replaced_atomically``).
+TEMP_NAME = re.compile(r"^\.part-(?P<host>.+)-(?P<pid>\d+)-[0-9a-f]+\.tmp$")
 
 
 class PartError(ValueError):
@@ -121,7 +130,8 @@ def write_part(directory, config, chash, start, stop, n, results, y_final):
         "config_text": config.text,
         "config_source": config.source,
     }
-    with replaced_atomically(path, prefix=TEMP_PREFIX) as tmp, open(tmp, "wb") as f:
+    prefix = f"{TEMP_PREFIX}{_host()}-"
+    with replaced_atomically(path, prefix=prefix) as tmp, open(tmp, "wb") as f:
         np.savez(f, results=results, y_final=y_final, meta=np.array(json.dumps(meta)))
     return path
 
@@ -185,27 +195,60 @@ def scan(directory):
     return group(sorted(directory.iterdir())) if directory.is_dir() else {}
 
 
+def _host():
+    """This machine's name as it appears in temporary file names (no path separators)."""
+    return re.sub(r"[^A-Za-z0-9._-]", "_", socket.gethostname()) or "localhost"
+
+
+def _process_exists(pid):
+    """Whether a process ``pid`` exists on this machine (a pid of another user's counts)."""
+    if pid <= 0:
+        return True  # 0 and negative pids name process groups: never ours to judge
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def stale_temp_files(directory):
+    """Temporary part files in ``directory`` whose writer is gone.
+
+    That is, written on this host by this process or by a process that no
+    longer exists (killed during a write). Temporary files of live processes and
+    of other hosts (a shard elsewhere may still be writing) are not listed.
+    """
+    directory = Path(directory)
+    host, own = _host(), os.getpid()
+    stale = []
+    for f in sorted(directory.iterdir()) if directory.is_dir() else ():
+        m = TEMP_NAME.match(f.name)
+        if m and m["host"] == host and (int(m["pid"]) == own or not _process_exists(int(m["pid"]))):
+            stale.append(f)
+    return stale
+
+
 def remove_parts(directory):
-    """Remove every part and this process's temporary files from ``directory``, then
-    the folder if it is empty.
+    """Remove every part and the stale temporary files from ``directory``, then the
+    folder if it is empty.
 
     Called once the output those parts were for has been written, which
-    supersedes parts of earlier configs too. Other processes' temporary files
-    (a shard still writing) and other files are left alone. Returns the number
-    of files removed.
+    supersedes parts of earlier configs too. Temporary files of live processes
+    (a shard still writing) or of other hosts, and other files, are left alone
+    (see :func:`stale_temp_files`). Returns the number of files removed.
     """
     directory = Path(directory)
     if not directory.is_dir():
         return 0
-    removed = 0
-    own_temp = f"{TEMP_PREFIX}{os.getpid()}-"
-    for f in directory.iterdir():
-        if PART_NAME.match(f.name) or f.name.startswith(own_temp):
-            f.unlink()
-            removed += 1
+    doomed = [f for f in directory.iterdir() if PART_NAME.match(f.name)]
+    doomed += stale_temp_files(directory)
+    for f in doomed:
+        f.unlink(missing_ok=True)
     if not any(directory.iterdir()):
         directory.rmdir()
-    return removed
+    return len(doomed)
 
 
 def fill_from_parts(entries, results, y_final, have, wanted):

@@ -4,15 +4,21 @@ independent SciPy reference written from the physics brief (not from the kernels
 
 import copy
 import math
+import re
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+import xarray as xr
 import yaml
 from scipy.integrate import solve_ivp
 
 from sweep import grid, kernels, runner
 from sweep.config import load_config, parse_config
+from sweep.dataset import write_netcdf
 
 #: The seed paper's friction coefficients (physics brief, section 1).
 PAPER_A, PAPER_B = 0.03, 0.08
@@ -83,8 +89,9 @@ def run_recorded(config, rec_dt, index=0):
     result = np.zeros(kernels.N_RESULTS)
     y_final = np.zeros(y0.shape[1])
     kernels.integrate_system(
-        params[index], y0[index], settings, result, y_final, rec_dt, rec_t, rec_y
-    )
+        params[index], y0[index], settings, *grid.kernel_codes(settings), result, y_final,
+        rec_dt, rec_t, rec_y,
+    )  # fmt: skip
     n = int(result[kernels.R_N_RECORDED])
     return result, rec_t[:n], rec_y[:n]
 
@@ -130,6 +137,16 @@ def scipy_runaway_time(kappa_over_kc, lnv0, psi0, v_cap_over_V=1e6, t_max=3000.0
     return float(sol.t_events[0][0])
 
 
+def assert_transition_at(k_w, regime, kc):
+    """Steady exactly above Kc, not steady below: the sweep's transition lies in
+    the grid step that contains Kc (so within one grid step of it)."""
+    k_w, regime = np.asarray(k_w), np.asarray(regime)
+    below = k_w < kc
+    assert np.all(regime[~below] == kernels.STEADY), (kc, regime)
+    assert np.all(regime[below] != kernels.STEADY), (kc, regime)
+    assert below.any() and (~below).any()
+
+
 @pytest.fixture
 def in_tmp(tmp_path, monkeypatch):
     """Run the test inside a fresh temporary directory."""
@@ -141,14 +158,113 @@ ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "configs" / "quick.yaml"
 
 
+#: File attributes that say when and by which command (run, merge) a result was made:
+#: the only difference between results of one config made in different ways.
+PROVENANCE_ATTRS = ("created", "history")
+
+
 def without_provenance(ds):
-    """``ds`` without its file attributes (creation time, command line, paths)."""
+    """``ds`` without the file attributes :data:`PROVENANCE_ATTRS`."""
     out = ds.copy()
-    out.attrs = {}
+    out.attrs = {k: v for k, v in ds.attrs.items() if k not in PROVENANCE_ATTRS}
     return out
+
+
+def assert_same_file(path, reference):
+    """Two NetCDF result files hold the same data: every variable and coordinate bit for
+    bit as stored (no CF decoding), each with the same attributes, dtype, shape and
+    storage (compression, chunks), and the same file attributes except
+    :data:`PROVENANCE_ATTRS`."""
+    with (
+        xr.open_dataset(path, decode_cf=False) as got,
+        xr.open_dataset(reference, decode_cf=False) as want,
+    ):
+        xr.testing.assert_identical(without_provenance(got.load()), without_provenance(want))
+        assert set(want.attrs) - set(PROVENANCE_ATTRS) == set(got.attrs) - set(PROVENANCE_ATTRS)
+        for name, var in want.variables.items():
+            a, b = got[name].values, var.values
+            assert (a.dtype, a.shape, a.tobytes()) == (b.dtype, b.shape, b.tobytes()), name
+            storage = [{k: v for k, v in x.encoding.items() if k != "source"}
+                       for x in (got[name].variable, var)]  # fmt: skip
+            assert storage[0] == storage[1], name
+
+
+def reference_file(config, path):
+    """The plainest run of ``config`` (one thread, one system per chunk) written to ``path``."""
+    ds = runner.compute(config, threads=1, chunk_size=1, show_progress=False)
+    return write_netcdf(ds, path)
 
 
 @pytest.fixture(scope="module")
 def quick():
     """The validated ``configs/quick.yaml``."""
     return load_config(QUICK)
+
+
+@pytest.fixture(scope="module")
+def quick_reference_file(quick, tmp_path_factory):
+    """:func:`reference_file` of ``configs/quick.yaml``."""
+    return reference_file(quick, tmp_path_factory.mktemp("reference") / "quick.nc")
+
+
+#: A process that starts writing one part (rows 0:2 of configs/quick.yaml) into a
+#: folder and never finishes: with mode "killed" it SIGKILLs itself in the middle of
+#: the write, with "stuck" it waits there until the test kills it, and "elsewhere" is
+#: "killed" on a machine that calls itself elsewhere.example.org (a shard on another
+#: node of a shared file system).
+PART_WRITER = r"""
+import os, signal, socket, sys, time
+import numpy as np
+mode, directory, config_path = sys.argv[1:]
+if mode == "elsewhere":
+    socket.gethostname = lambda: "elsewhere.example.org"
+from sweep import parts
+from sweep.config import load_config
+
+def savez(f, **arrays):
+    f.write(b"PK\x03\x04 the first bytes of a part")
+    f.flush()
+    print("writing", flush=True)
+    if mode == "stuck":
+        time.sleep(600)
+    os.kill(os.getpid(), signal.SIGKILL)
+
+np.savez = savez
+config = load_config(config_path)
+parts.write_part(directory, config, parts.config_hash(config), 0, 2, 9, np.zeros((2, 15)),
+                 np.zeros((2, 2)))
+"""
+
+
+def interrupted_part_writer(directory, mode):
+    """Run :data:`PART_WRITER` on ``directory`` until it is inside the write.
+
+    ``mode`` "killed" / "elsewhere": returns once the writer is dead; "stuck":
+    returns the live process (the caller kills it).
+    """
+    proc = subprocess.Popen(
+        [sys.executable, "-c", PART_WRITER, mode, str(directory), str(QUICK)],
+        stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    assert proc.stdout.readline() == "writing\n"
+    if mode == "stuck":
+        return proc
+    assert proc.wait(timeout=60) == -signal.SIGKILL
+    return proc
+
+
+def readme_numbers(pattern):
+    """The numbers the README states where ``pattern`` (a regex whose groups capture
+    them) matches, as the printed strings; whitespace in the README counts as one space.
+    Fails if the pattern is not found once exactly."""
+    text = " ".join((ROOT / "README.md").read_text().split())
+    found = re.findall(pattern, text)
+    assert len(found) == 1, f"README: {pattern!r} matched {len(found)} times"
+    return found[0] if isinstance(found[0], tuple) else (found[0],)
+
+
+def assert_as_printed(value, printed):
+    """``value`` agrees with the README's ``printed`` number to its last printed digit
+    (within half a unit of it): the README may round, but not be wrong."""
+    decimals = len(printed.split(".")[1]) if "." in printed else 0
+    assert abs(value - float(printed)) <= 0.5 * 10.0**-decimals, (value, printed)

@@ -12,52 +12,101 @@ import pytest
 
 from sweep import accelerate, kernels
 
-JITTED = [
-    "rhs", "step_rk4", "step_dopri5", "dense_value", "dense_extremum",
-    "dense_crossing", "aitken_limit", "cycle_verdict", "integrate_system",
-    "integrate_grid_serial", "integrate_grid_parallel",
-]  # fmt: skip
+
+def kernel_functions():
+    """Every function defined in ``sweep.kernels``, found by inspecting the module."""
+    return {
+        name: obj
+        for name, obj in vars(kernels).items()
+        if callable(obj) and getattr(obj, "__module__", None) == kernels.__name__
+    }
 
 
-@pytest.mark.skipif(numba.config.DISABLE_JIT, reason="NUMBA_DISABLE_JIT=1: no dispatchers")
-@pytest.mark.parametrize("name", JITTED)
+KERNELS = sorted(kernel_functions())
+#: Entry points the runner and the tests call, one per integrator: the discovery must
+#: find at least these (a guard against discovering nothing).
+ENTRY_POINTS = {"integrate_grid_parallel", "integrate_grid_serial", "integrate_system",
+                "step_rk4", "step_dopri5", "step_rosenbrock"}  # fmt: skip
+NO_JIT = pytest.mark.skipif(numba.config.DISABLE_JIT, reason="NUMBA_DISABLE_JIT=1: no dispatchers")
+
+
+def test_discovery_finds_the_entry_points():
+    assert ENTRY_POINTS <= set(KERNELS)
+
+
+@NO_JIT
+@pytest.mark.parametrize("name", KERNELS)
 def test_kernel_options(name):
+    """Every function in sweep.kernels is compiled with the policy (numba's own record)."""
     dispatcher = getattr(kernels, name)
+    assert isinstance(dispatcher, numba.core.registry.CPUDispatcher)  # compiled, nopython
     options = dispatcher.targetoptions
+    assert options["nopython"] is True
     assert options["nogil"] is True  # Dask threads run kernels side by side
     assert options["fastmath"] is False  # runaway detection must see NaN and inf
     assert options["error_model"] == "numpy"  # x/0 → inf, not an exception
+    # one owner of the threads: only the grid kernel the thread runner calls is parallel
     assert options.get("parallel", False) == (name == "integrate_grid_parallel")
-    # numba keeps the cache choice on the dispatcher, not in targetoptions
-    cached = type(dispatcher._cache).__name__ == "FunctionCache"
-    assert cached == accelerate.CACHE
 
 
-def test_cache_on_by_default():
-    assert accelerate.CACHE == (os.environ.get("SWEEP_NUMBA_CACHE", "1") != "0")
-
-
-# Imports the kernels (compiles nothing) and reports the cache decision.
-CACHE_PROBE = """
+# Runs one sweep in a fresh process and reports the grid kernel's compiled versions.
+SPECIALISED_PROBE = """
 import json
-from sweep import accelerate, kernels
-print(json.dumps({"CACHE": accelerate.CACHE,
-                  "caches": sorted({type(getattr(kernels, n)._cache).__name__
-                                    for n in ("rhs", "integrate_system",
-                                              "integrate_grid_parallel")})}))
+from sweep import kernels, runner
+from sweep.config import load_config
+runner.compute(load_config({config!r}), threads=1, show_progress=False)
+print(json.dumps([str(sig) for sig in kernels.integrate_grid_parallel.signatures]))
 """
 
 
-@pytest.mark.parametrize("value, cached", [("0", False), ("1", True)])
-def test_cache_switch(value, cached):
-    env = {**os.environ, "SWEEP_NUMBA_CACHE": value, "NUMBA_DISABLE_JIT": "0"}
+@NO_JIT
+def test_a_sweep_compiles_only_its_own_model_law_and_method():
+    """A quasi-dynamic sweep with the slip law on DOPRI5 compiles one version of the grid
+    kernel, with those three codes as compile-time constants (numba Literal types)."""
+    from conftest import ROOT
+
+    config = ROOT / "configs" / "slip_law.yaml"
+    out = subprocess.run(
+        [sys.executable, "-c", SPECIALISED_PROBE.format(config=str(config))],
+        capture_output=True, text=True, check=True, cwd=ROOT,
+    )  # fmt: skip
+    (signature,) = json.loads(out.stdout.strip().splitlines()[-1])
+    codes = (kernels.QUASI_DYNAMIC, kernels.SLIP, kernels.DOPRI5)
+    assert signature.count("Literal[int]") == 3
+    for code in codes:
+        assert f"Literal[int]({code})" in signature
+
+
+# Imports the kernels (compiles nothing) and reports each kernel's numba cache.
+CACHE_PROBE = """
+import json
+from sweep import kernels
+print(json.dumps({name: type(obj._cache).__name__ for name, obj in vars(kernels).items()
+                  if getattr(obj, "__module__", None) == "sweep.kernels"}))
+"""
+
+
+@pytest.mark.parametrize("value, cache", [(None, "FunctionCache"), ("0", "NullCache"),
+                                          ("1", "FunctionCache")])  # fmt: skip
+def test_cache_switch(value, cache):
+    """On by default (variable unset), off with SWEEP_NUMBA_CACHE=0, for every kernel."""
+    env = {k: v for k, v in os.environ.items() if k != "SWEEP_NUMBA_CACHE"}
+    env["NUMBA_DISABLE_JIT"] = "0"
+    if value is not None:
+        env["SWEEP_NUMBA_CACHE"] = value
     proc = subprocess.run(
         [sys.executable, "-c", CACHE_PROBE], capture_output=True, text=True, env=env, timeout=120
     )
     assert proc.returncode == 0, proc.stderr
     report = json.loads(proc.stdout)
-    assert report["CACHE"] is cached
-    assert report["caches"] == (["FunctionCache"] if cached else ["NullCache"])
+    assert sorted(report) == KERNELS
+    assert set(report.values()) == {cache}
+
+
+@NO_JIT
+def test_one_cache_decision_in_this_process():
+    """Here too every kernel follows the one decision (whatever the environment says)."""
+    assert len({type(getattr(kernels, name)._cache) for name in KERNELS}) == 1
 
 
 def test_nan_and_inf_survive_compiled_code():

@@ -108,6 +108,39 @@ def test_bad_config_exits_2_and_names_file_and_key(in_tmp, sentinel_output, caps
     assert any(key in problem for problem in info.value.problems)
 
 
+REFERENCE = "parameters must give exactly one of V0 (um/s) or Phi0 (s), the reference point"
+
+
+@pytest.mark.parametrize(
+    "overrides, message",
+    [
+        (
+            {"parameters": {"K_W": 0.05}},  # K_W is swept by the base config
+            "parameters.K_W is also a sweep axis; give it in one place only",
+        ),
+        (
+            {"parameters": {"V0": 1.0}},  # beside the base config's Phi0
+            f"{REFERENCE} of the friction law; got ['V0', 'Phi0']",
+        ),
+        ({"parameters": {"Phi0": None}}, f"{REFERENCE} of the friction law; got neither"),
+        (
+            {"parameters": {"Phi0": None}, "sweep": {"Phi0": [1.0, 2.0], "V0": [1.0]}},
+            f"{REFERENCE} of the friction law; got ['V0', 'Phi0']",
+        ),
+    ],
+    ids=["fixed and swept", "V0 and Phi0", "neither V0 nor Phi0", "V0 and Phi0 swept"],
+)
+def test_fixed_or_swept_and_one_reference_point(in_tmp, sentinel_output, capsys, overrides,
+                                                message):  # fmt: skip
+    """The README's "a parameter is either fixed or swept, not both" and "exactly one of
+    Phi0 / V0", through the CLI: exit status 2, the file and the message."""
+    path = write_config(in_tmp / "bad.yaml", overrides)
+    status, captured = run_cli(["run", str(path), "--quiet"], capsys)
+    assert status == 2
+    assert f"{path}: {message}" in captured.err, captured.err
+    assert sentinel_output.read_bytes() == SENTINEL
+
+
 def test_all_problems_are_reported_together():
     overrides = {"parameters": {"A": -1.0, "D0": 0.0}, "integrator": {"method": "euler"}}
     with pytest.raises(ConfigError) as info:
@@ -188,3 +221,22 @@ def test_config_is_frozen_and_keeps_its_text():
     assert "K_W" in config.text
     assert config.shape == (2,)
     assert config.fixed["D0"] == 1.0
+
+
+def test_classification_settings_and_retired_keys():
+    """max_t_end left out follows t_end (None: ten times it); below t_end it is refused;
+    retired keys name their replacement; max_step .inf means no cap."""
+    config = make_config(integrator={"max_step": math.inf})
+    assert config.classification.max_t_end is None and config.integrator.max_step == math.inf
+    assert make_config(classification={"max_t_end": 5000.0}).classification.max_t_end == 5000.0
+    with pytest.raises(ConfigError) as err:
+        make_config(
+            integrator={"t_end": 100.0},
+            classification={"max_t_end": 50.0, "envelope_tolerance": 1e-4, "trend_cycles": 3},
+        )
+    text = str(err.value)
+    assert "classification.max_t_end must be at least integrator.t_end (100), got 50" in text
+    for old, new in (("envelope_tolerance", "accuracy"), ("trend_cycles", "confirm_cycles")):
+        assert f"classification.{old} is no longer used; use classification.{new}" in text
+    with pytest.raises(ConfigError, match=r"classification.accuracy must be in \(0, 0.5\]"):
+        make_config(classification={"accuracy": 0.0})

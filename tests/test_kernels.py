@@ -53,33 +53,36 @@ def small_perturbation():
 
 @pytest.mark.parametrize("ratio", [0.95, 1.05])
 def test_growth_rate_matches_linear_theory(small_perturbation, ratio):
-    """Envelope growth rate (R_GROWTH) = Re λ within 2 % (the brief's requirement; the
+    """Envelope growth rate (R_GROWTH) = Re λ within 2e-3 (the brief asks for 2 %; the
     amplitude ratio of one linear mode over a cycle is exactly e^(Re λ T), so only the
-    integration and Hermite-extremum errors, ~1e-4 of the per-cycle log ratio ≈ 0.2, remain)."""
+    integration and Hermite-extremum errors remain: measured 9.5e-6 at 0.95 and 6.3e-4
+    at 1.05, where the per-cycle log ratio is small and their share larger)."""
     result = small_perturbation[ratio]
     expected = linear_eigenvalue(ratio * KAPPA_C).real
-    assert result[kernels.R_GROWTH] == pytest.approx(expected, rel=0.02)
+    assert result[kernels.R_GROWTH] == pytest.approx(expected, rel=2e-3)
     assert result[kernels.R_REGIME] in (
         (kernels.STEADY,) if ratio > 1 else (kernels.UNDECIDED, kernels.RUNAWAY)
     )
 
 
 def test_period_matches_linear_theory(small_perturbation):
-    """Peak-to-peak time (R_PERIOD) at K/Kc = 1.02 = 2π/Im λ within 1 % (a linear mode's
-    maxima are exactly one damped period apart; extremum location error ≪ 1 %)."""
+    """Peak-to-peak time (R_PERIOD) at K/Kc = 1.02 = 2π/Im λ within 1e-3 (a linear mode's
+    maxima are exactly one damped period apart; what is left is the error in locating
+    them: measured 3.2e-4)."""
     expected = 2 * np.pi / linear_eigenvalue(1.02 * KAPPA_C).imag
-    assert small_perturbation[1.02][kernels.R_PERIOD] == pytest.approx(expected, rel=0.01)
+    assert small_perturbation[1.02][kernels.R_PERIOD] == pytest.approx(expected, rel=1e-3)
 
 
 @pytest.mark.parametrize(
-    "model_name, extra, kappa_c",
+    "model_name, extra, kappa_c, rtol",
     [
-        ("quasi-dynamic", {"eta_W": 0.1}, B - A - 0.01),  # η̂ = η V/W = 0.01
-        ("inertial", {"m_W": 1.0}, (B - A) * (1 + 0.01 / A)),  # M̂ = m V²/(W D0) = 0.01
+        ("quasi-dynamic", {"eta_W": 0.1}, B - A - 0.01, 5e-4),  # η̂ = η V/W = 0.01
+        ("inertial", {"m_W": 1.0}, (B - A) * (1 + 0.01 / A), 1e-2),  # M̂ = m V²/(W D0) = 0.01
     ],
 )
-def test_regularised_growth_rate_matches_linear_theory(model_name, extra, kappa_c):
-    """Same check for radiation damping and inertia, at their own κc (2 %, as above).
+def test_regularised_growth_rate_matches_linear_theory(model_name, extra, kappa_c, rtol):
+    """Same check for radiation damping and inertia, at their own κc: measured errors
+    ≤ 1.3e-4 (quasi-dynamic) and ≤ 3.0e-3 (inertial, at 1.05 κc), tested at about 4×.
     Re λ from ``model.linear_growth_rate``, itself checked in test_model.py against the
     kernel's finite-difference Jacobian and the brief's closed-form κc."""
     config = make_config(
@@ -95,7 +98,7 @@ def test_regularised_growth_rate_matches_linear_theory(model_name, extra, kappa_
     expected = model.linear_growth_rate(
         model_name, 1, A, B, np.array([0.95, 1.05]) * kappa_c, 0.0, eta_hat, mass_hat
     )
-    np.testing.assert_allclose(results[:, kernels.R_GROWTH], expected, rtol=0.02)
+    np.testing.assert_allclose(results[:, kernels.R_GROWTH], expected, rtol=rtol)
 
 
 # --- past the transition: runaway, never steady ---------------------------------------
@@ -150,14 +153,14 @@ def runaway_runs():
 
 @pytest.mark.parametrize("ratio, v0, psi0, cap, tau_brief, decimals", RUNAWAY_REFERENCES)
 def test_runaway_time_matches_scipy(runaway_runs, ratio, v0, psi0, cap, tau_brief, decimals):
-    """Kernel vs the SciPy reference within 1e-5 relative: the crossing is located with
+    """Kernel vs the SciPy reference within 1e-6 relative: the crossing is located with
     the step's cubic Hermite interpolant (error ≪ 1e-8), and a relative amplitude error
     ε of the integration shifts it by ε/Re λ; ε ≲ 1e-5 at rtol 1e-8 and Re λ ≥ 0.008 at
-    0.99 give ≲ 1e-3 D0/V, i.e. ≲ 2e-6 of τ (observed: ≤ 2e-7). Both also agree with
-    the brief's rounded numbers within its ~0.5 %."""
+    0.99 give ≲ 1e-3 D0/V, i.e. ≲ 2e-6 of τ (measured: ≤ 3.2e-7, at 0.99; 3e-8 or
+    less elsewhere). Both also agree with the brief's rounded numbers within its ~0.5 %."""
     tau_ref = scipy_runaway_time(ratio, math.log(v0), psi0, v_cap_over_V=cap)
     tau = runaway_runs[ratio, v0, psi0, cap]
-    assert tau == pytest.approx(tau_ref, rel=1e-5)
+    assert tau == pytest.approx(tau_ref, rel=1e-6)
     if tau_brief is not None:
         # the recomputed reference reproduces the brief's number to its printed decimals
         assert abs(tau_ref - tau_brief) <= 0.5 * 10.0**-decimals

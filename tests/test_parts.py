@@ -5,7 +5,13 @@ import logging
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import QUICK, without_provenance
+from conftest import (
+    QUICK,
+    assert_same_file,
+    interrupted_part_writer,
+    reference_file,
+    without_provenance,
+)
 
 from sweep import parts, runner
 from sweep.config import parse_config
@@ -46,7 +52,7 @@ def _truncate_half(path):
 
 def _flip_a_data_byte(path):
     data = bytearray(path.read_bytes())
-    data[len(data) // 3] ^= 0xFF  # inside the results array (stored first)
+    data[len(data) // 3] ^= 0xFF  # inside meta.npy (the config text): zipfile's CRC catches it
     path.write_bytes(bytes(data))
 
 
@@ -63,6 +69,23 @@ def test_damaged_part_is_rejected(one_part, damage):
     (damaged,) = path.parent.iterdir()
     with pytest.raises(parts.PartError, match=damaged.name):
         parts.read_part(damaged)
+
+
+def test_changed_numbers_with_intact_zip_fail_the_checksum(one_part):
+    """A part rewritten as a well-formed archive (valid zip CRCs, right name, shapes and
+    metadata) whose numbers differ in one bit: only the SHA-256 in the metadata can
+    catch it, so the message must be the checksum's, not zipfile's."""
+    path, results, y_final = one_part
+    with np.load(path) as data:
+        meta = data["meta"]
+    changed = results.copy()
+    changed.view(np.uint64)[1, 7] ^= 1  # the last bit of one number
+    with open(path, "wb") as f:
+        np.savez(f, results=changed, y_final=y_final, meta=meta)
+    with np.load(path) as data:  # the archive itself is sound
+        np.testing.assert_array_equal(data["results"], changed)
+    with pytest.raises(parts.PartError, match=rf"{path.name}: checksum mismatch"):
+        parts.read_part(path)
 
 
 def test_hash_follows_the_numbers_not_the_wording():
@@ -87,7 +110,7 @@ def test_hash_follows_the_numbers_not_the_wording():
         assert variant != text and parts.config_hash(parse_config(variant)) != base
 
 
-def test_truncated_part_is_reported_and_recomputed(quick, quick_reference, tmp_path, caplog):
+def test_truncated_part_is_reported_and_recomputed(quick, quick_reference_file, tmp_path, caplog):
     out = tmp_path / "r.nc"
     runner.run_sweep(quick, out=out, chunk_size=3, shard=(0, 1), show_progress=False)
     victim = sorted(parts.parts_dir_for(out).glob("*.npz"))[1]  # rows 3:6
@@ -96,7 +119,7 @@ def test_truncated_part_is_reported_and_recomputed(quick, quick_reference, tmp_p
         result = runner.run_sweep(quick, out=out, chunk_size=3, resume=True, show_progress=False)
     assert f"unusable part, its runs will be recomputed: {victim}" in caplog.text
     assert (result.reused, result.computed) == (6, 3)
-    xr.testing.assert_identical(without_provenance(xr.load_dataset(out)), quick_reference)
+    assert_same_file(out, quick_reference_file)
 
 
 def test_changed_config_never_uses_old_parts(quick, tmp_path, caplog):
@@ -107,14 +130,13 @@ def test_changed_config_never_uses_old_parts(quick, tmp_path, caplog):
         result = runner.run_sweep(changed, out=out, chunk_size=3, resume=True, show_progress=False)
     assert "ignoring 3 parts of another config" in caplog.text
     assert (result.reused, result.computed) == (0, 9)
-    reference = runner.compute(changed, show_progress=False)
-    xr.testing.assert_identical(
-        without_provenance(xr.load_dataset(out)), without_provenance(reference)
-    )
+    assert_same_file(out, reference_file(changed, tmp_path / "reference.nc"))
     assert not parts.parts_dir_for(out).exists()  # old and new parts cleaned up
 
 
-def test_merge_uses_the_complete_config_and_ignores_others(quick, quick_reference, tmp_path):
+def test_merge_uses_the_complete_config_and_ignores_others(
+    quick, quick_reference, quick_reference_file, tmp_path
+):
     out = tmp_path / "r.nc"
     runner.run_sweep(quick, out=out, chunk_size=4, shard=(0, 1), show_progress=False)
     other = parse_config(QUICK.read_text().replace("t_end: 2000.0", "t_end: 1500.0"))
@@ -122,7 +144,7 @@ def test_merge_uses_the_complete_config_and_ignores_others(quick, quick_referenc
     merged = tmp_path / "merged.nc"
     ds = runner.merge_parts([parts.parts_dir_for(out)], merged)
     xr.testing.assert_identical(without_provenance(ds), quick_reference)
-    xr.testing.assert_identical(without_provenance(xr.load_dataset(merged)), quick_reference)
+    assert_same_file(merged, quick_reference_file)
     left = list(parts.parts_dir_for(out).glob("*.npz"))
     assert len(left) == 2 and all(parts.config_hash(other) in f.name for f in left)
 
@@ -137,3 +159,48 @@ def test_merge_never_uses_a_corrupt_part(quick, tmp_path):
         runner.merge_parts([parts.parts_dir_for(out)], merged)
     assert victim.name in str(info.value)
     assert not merged.exists()
+
+
+def test_temp_files_of_killed_writers_are_removed_live_ones_kept(quick, tmp_path):
+    """Writers stopped inside a part write leave their temporary file. Once the sweep's
+    output is written, remove_parts deletes the parts and the temporary files of dead
+    writers on this host, and keeps those of a writer still running (a shard) and of
+    writers on other hosts (their pids mean nothing here)."""
+    folder = tmp_path / "r.parts"
+    folder.mkdir()
+    before = set()
+    for mode in ("killed", "elsewhere", "stuck"):
+        result = interrupted_part_writer(folder, mode)
+        (temp,) = set(folder.iterdir()) - before  # the writer's temporary file
+        before.add(temp)
+        if mode == "killed":
+            dead = temp
+        elif mode == "elsewhere":
+            elsewhere = temp
+        else:
+            live, writer = temp, result
+    try:
+        done = parts.write_part(folder, quick, parts.config_hash(quick), 0, 9, 9,
+                                np.zeros((9, 15)), np.zeros((9, 2)))  # fmt: skip
+        (folder / "notes.txt").write_text("not ours")
+        assert parts.remove_parts(folder) == 2  # the part and the dead writer's file
+        assert set(folder.iterdir()) == {live, elsewhere, folder / "notes.txt"}
+        assert not dead.exists() and not done.exists()
+    finally:
+        writer.kill()
+        writer.wait(timeout=60)
+    (folder / "notes.txt").unlink()
+    parts.remove_parts(folder)  # the stuck writer is gone now: only elsewhere's file stays
+    assert set(folder.iterdir()) == {elsewhere}
+
+
+def test_merge_removes_temp_files_of_killed_writers(quick, quick_reference, tmp_path):
+    out = tmp_path / "r.nc"
+    runner.run_sweep(quick, out=out, chunk_size=4, shard=(0, 1), show_progress=False)
+    folder = parts.parts_dir_for(out)
+    interrupted_part_writer(folder, "killed")
+    assert len(list(folder.iterdir())) == 4  # 3 parts and the killed writer's file
+    merged = tmp_path / "merged.nc"
+    xr.testing.assert_identical(without_provenance(runner.merge_parts([folder], merged)),
+                                quick_reference)  # fmt: skip
+    assert not folder.exists()

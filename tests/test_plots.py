@@ -124,9 +124,14 @@ def test_no_critical_line_or_curve_point_where_kc_is_not_positive(tmp_path):
     ds = compute(config, show_progress=False)
     eta = ds["eta_W"].values
     (crossing,) = critical_crossings(eta, stiffness_ratio(ds).values)
-    # exact: K D0/W = B - A - eta V/W at eta/W = 0.05 s/um; K/Kc is convex in eta, so
-    # linear interpolation between the grid points 0.03 and 0.1 lands within 20 %.
-    assert crossing == pytest.approx(0.05, rel=0.2)
+    # K/Kc = (K/W) D0 / (B - A - eta V/W) = 1 at eta/W = 0.05 s/um; the line is drawn by
+    # linear interpolation of K/Kc between the grid points 0.03 and 0.1, whose value
+    # follows from the closed form (to rounding, 1e-12), a little off 0.05 (K/Kc is
+    # convex in eta)
+    ratio = {e: 0.045 / (0.08 - 0.03 - e * 0.1) for e in (0.03, 0.1)}
+    expected = 0.03 + (1 - ratio[0.03]) / (ratio[0.1] - ratio[0.03]) * (0.1 - 0.03)
+    assert crossing == pytest.approx(expected, rel=1e-12)
+    assert abs(expected - 0.05) < 0.005
     ((_, curve),) = bifurcation_curves(ds)
     assert curve.sizes["eta_W"] == np.count_nonzero(eta * 0.1 < 0.05)
     assert np.all(curve["K_over_Kc"].values > 0)

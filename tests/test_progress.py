@@ -10,10 +10,12 @@ import subprocess
 import sys
 import termios
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
 from sweep import progress as progress_module
+from sweep import runner
 from sweep.progress import Progress
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -51,6 +53,34 @@ def test_plain_lines_show_runs_rate_and_eta(clock):
         "demo: 5/10 runs (50%), 1.0 runs/s, elapsed 5.0 s, ETA 5 s",
         "demo: 10/10 runs (100%), 1.7 runs/s, elapsed 6.0 s, ETA 0 s",
     ]
+
+
+def test_default_interval_is_ten_seconds(clock):
+    """The README's "a plain line every 10 s": by default nothing at 9.75 s after the
+    last line, a line at 10 s (times exact in binary)."""
+    stream = io.StringIO()
+    p = Progress(100, desc="demo", stream=stream)
+    for _ in range(2):
+        clock.now += 9.75
+        p.update(1)
+        before = stream.getvalue().count("\n")
+        clock.now += 0.25
+        p.update(1)
+        assert stream.getvalue().count("\n") == before + 1
+    assert stream.getvalue().count("\n") == 2
+
+
+def test_a_sweep_prints_every_ten_seconds(quick, tmp_path, monkeypatch, capsys):
+    """run_sweep's progress (what the CLI shows in a pipe) with a clock that advances
+    4 s each time progress reads it: lines after 12 s and 24 s, and the last one."""
+    ticks = iter(range(0, 1000, 4))
+    monkeypatch.setattr(progress_module, "time", SimpleNamespace(monotonic=lambda: next(ticks)))
+    runner.run_sweep(quick, out=tmp_path / "r.nc", chunk_size=1, threads=1)
+    err = capsys.readouterr().err  # (log lines too, where an earlier test set up logging)
+    lines = re.findall(r"^quick: \d+/9 runs.*$", err, re.M)
+    assert [line.split()[1] for line in lines] == ["3/9", "6/9", "9/9"], err
+    assert [line.split("elapsed ")[1].split(",")[0] for line in lines] == ["12.0 s", "24.0 s",
+                                                                             "36.0 s"]  # fmt: skip
 
 
 def test_resumed_runs_count_as_done_but_not_in_the_rate(clock):

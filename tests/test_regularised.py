@@ -19,6 +19,7 @@ import math
 import numpy as np
 import pytest
 import yaml
+from conftest import assert_as_printed, assert_transition_at, readme_numbers
 from scipy.integrate import solve_ivp
 
 from sweep import kernels, model
@@ -289,12 +290,18 @@ LIMIT_CYCLES = [
 ]
 
 
+#: README, "What happens below Kc": v_max/V of the η̂ = 0.01 aging-law cycles.
+README_V_MAX = r"With η̂ = 0.01, v_max/V = ([\d.]+) / ([\d.]+) / ([\d.]+) at K/Kc = 0.5 / 0.9 / 0.99"
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("model_name, law, value, k_ratio", LIMIT_CYCLES)
 def test_limit_cycle_matches_scipy(model_name, law, value, k_ratio):
-    """A finite stick-slip limit cycle (never runaway) whose v_max/V, period and
-    friction drop agree with SciPy within 1 % (the issue's requirement; the
-    actual agreement is ~1e-6, set by the envelope tolerance 1e-4 per cycle)."""
+    """A finite stick-slip limit cycle (never runaway) whose v_max/V and period agree
+    with SciPy within 5e-6 (measured: ≤ 7.3e-7 and ≤ 4.5e-7; both runs end at the
+    same time and the kernel locates maxima inside steps by Hermite interpolation)
+    and whose friction drop agrees within 2e-3 (measured: ≤ 5.2e-4, always low: the
+    kernel takes friction's extremes at step ends only, steps up to 0.5 D0/V)."""
     name = "eta_W" if model_name == "quasi-dynamic" else "m_W"
     kc = kc_w(model_name, **{name.lower(): value})
     config = make_config(
@@ -311,9 +318,12 @@ def test_limit_cycle_matches_scipy(model_name, law, value, k_ratio):
         [A * 0.0 + B * math.log(1.01)] if model_name == "inertial" else []
     )
     ref = scipy_cycle(model_name, law, 1, k_ratio * kc * D0, y0, tau_end, **extra)
-    np.testing.assert_allclose(float(ds.v_max) / V, math.exp(ref["lnv_max"]), rtol=0.01)
-    np.testing.assert_allclose(float(ds.period) / T_UNIT, ref["period"], rtol=0.01)
-    np.testing.assert_allclose(float(ds.friction_drop), ref["friction_drop"], rtol=0.01)
+    np.testing.assert_allclose(float(ds.v_max) / V, math.exp(ref["lnv_max"]), rtol=5e-6)
+    np.testing.assert_allclose(float(ds.period) / T_UNIT, ref["period"], rtol=5e-6)
+    np.testing.assert_allclose(float(ds.friction_drop), ref["friction_drop"], rtol=2e-3)
+    if (model_name, law, value) == ("quasi-dynamic", "aging", 0.1):  # the README's numbers
+        printed = dict(zip((0.5, 0.9, 0.99), readme_numbers(README_V_MAX), strict=True))
+        assert_as_printed(float(ds.v_max) / V, printed[k_ratio])
     # one event per cycle: slip per event = V × period
     np.testing.assert_allclose(float(ds.slip_per_event), V * float(ds.period), rtol=1e-12)
 
@@ -378,6 +388,12 @@ def test_onset_amplitude_grows_from_zero_with_damping_but_quasi_static_runs_away
     np.testing.assert_allclose(
         amp[:2] / amp[1:], np.sqrt((1 - ratios[:2]) / (1 - ratios[1:])), rtol=0.03
     )
+    # the README's numbers ("η̂ = 0.04: 0.097 / 0.306 / 0.433 at K/Kc = 0.999 / 0.99 / 0.98")
+    printed = readme_numbers(
+        r"η̂ = ηV/W = 0.04: ([\d.]+) / ([\d.]+) / ([\d.]+) at K/Kc = 0.999 / 0.99 / 0.98\)"
+    )
+    for value, text in zip(amp, printed, strict=True):
+        assert_as_printed(value, text)
 
 
 # --- the transition a sweep finds ------------------------------------------------------
@@ -388,15 +404,6 @@ def transition_columns(ds):
     regime = ds.regime.transpose("K_W", ...).values.reshape(ds.sizes["K_W"], -1)
     kc = ds.critical_K_W.transpose("K_W", ...).values.reshape(ds.sizes["K_W"], -1)[0]
     return regime.T, kc
-
-
-def assert_transition_at(k_w, regime, kc):
-    """Steady exactly above Kc, not steady below: the sweep's transition lies in
-    the grid step that contains Kc (so within one grid step of it)."""
-    below = k_w < kc
-    assert np.all(regime[~below] == kernels.STEADY), (kc, regime)
-    assert np.all(regime[below] != kernels.STEADY), (kc, regime)
-    assert below.any() and (~below).any()
 
 
 SWEEPS = {

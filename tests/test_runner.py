@@ -1,9 +1,9 @@
 """The runner: chunked, resumable and interruptible sweeps give the same numbers every way.
 
 Every system is integrated independently and deterministically, so the result
-Dataset must be *identical* (bit for bit, no tolerance) whatever the chunk
-size, thread count, resumption or interruption. Dataset-level attributes are
-dropped before comparing: they hold creation times.
+file must hold *identical* data (bit for bit, no tolerance) whatever the chunk
+size, thread count, resumption or interruption: ``assert_same_file`` compares
+every variable and attribute, all but the creation time and command line.
 """
 
 import errno
@@ -12,18 +12,20 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import QUICK, without_provenance
+from conftest import QUICK, assert_same_file, interrupted_part_writer, reference_file
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sweep import parts, runner
+from sweep import kernels, parts, runner
 from sweep.cli import main
-from sweep.config import parse_config
+from sweep.config import load_config, parse_config
+from sweep.grid import system_arrays
 
 #: Slow enough per run to kill a sweep part-way: fixed-step RK4 with 1e6 steps per run
 #: (about 0.2 s each on one thread), runs kept going to t_end (early_exit false, and a
@@ -39,16 +41,6 @@ sweep:
 integrator: {method: rk4, dt: 0.002, t_end: 2000.0}
 classification: {early_exit: false, steady_amplitude: 1.0e-12}
 """
-
-
-def assert_same_result(ds, reference):
-    xr.testing.assert_identical(without_provenance(ds), without_provenance(reference))
-
-
-@pytest.fixture(scope="module")
-def quick_reference(quick):
-    """One system per chunk on one thread: the plainest way to run the sweep."""
-    return runner.compute(quick, threads=1, chunk_size=1, show_progress=False)
 
 
 @pytest.fixture
@@ -118,26 +110,26 @@ def test_missing_ranges_are_exactly_the_missing_rows(have, chunk):
 @pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("chunk_size", [1, 7, None])
 def test_chunk_size_and_threads_do_not_change_results(
-    quick, quick_reference, tmp_path, threads, chunk_size
+    quick, quick_reference_file, tmp_path, threads, chunk_size
 ):
-    chunk = chunk_size or quick_reference["regime"].size  # None: the whole grid in one chunk
+    chunk = chunk_size or quick.shape[0]  # None: the whole grid in one chunk
     out = tmp_path / "r.nc"
     result = runner.run_sweep(
         quick, out=out, threads=threads, chunk_size=chunk, show_progress=False
     )
-    assert_same_result(xr.load_dataset(out), quick_reference)
-    assert result.computed == quick_reference["regime"].size
+    assert_same_file(out, quick_reference_file)
+    assert result.computed == quick.shape[0]
     assert not parts.parts_dir_for(out).exists()  # parts removed once the file is written
 
 
-def test_resume_with_another_chunk_size_reuses_saved_rows(quick, quick_reference, tmp_path):
+def test_resume_with_another_chunk_size_reuses_saved_rows(quick, quick_reference_file, tmp_path):
     """Parts of chunk size 2 (rows 0-1, 4-5, 8 from shard 0 of 2) serve a resume in chunks of 3."""
     out = tmp_path / "r.nc"
     shard = runner.run_sweep(quick, out=out, chunk_size=2, shard=(0, 2), show_progress=False)
     assert (shard.computed, shard.dataset, out.exists()) == (5, None, False)
     result = runner.run_sweep(quick, out=out, chunk_size=3, resume=True, show_progress=False)
     assert (result.reused, result.computed) == (5, 4)
-    assert_same_result(xr.load_dataset(out), quick_reference)
+    assert_same_file(out, quick_reference_file)
 
 
 def test_without_resume_everything_is_computed_again(quick, tmp_path):
@@ -145,6 +137,23 @@ def test_without_resume_everything_is_computed_again(quick, tmp_path):
     runner.run_sweep(quick, out=out, chunk_size=2, shard=(0, 2), show_progress=False)
     result = runner.run_sweep(quick, out=out, chunk_size=2, show_progress=False)
     assert (result.reused, result.computed) == (0, 9)
+
+
+def test_default_shard_chunks_do_not_depend_on_the_thread_count(tmp_path):
+    """Without --chunk-size, shards run with different thread counts (as on nodes with
+    other core counts) still cut the grid alike: their parts merge into the whole
+    sweep, no row missing or computed twice. 40 systems, so that a chunk size set by
+    the thread count would differ between the shards."""
+    config = tmp_path / "wide.yaml"
+    config.write_text(QUICK.read_text().replace("num: 9}", "num: 40}"))
+    out = tmp_path / "r.nc"
+    for shard, threads in (("0/2", "1"), ("1/2", "2")):
+        args = ["run", config, "--out", out, "--shard", shard, "--threads", threads, "--quiet"]
+        assert main(list(map(str, args))) == 0
+    assert main(["merge", str(parts.parts_dir_for(out)), "--out", str(out)]) == 0
+    reference = reference_file(load_config(config), tmp_path / "reference.nc")
+    assert xr.load_dataset(reference).sizes["K_W"] == 40
+    assert_same_file(out, reference)
 
 
 # --- interruption -------------------------------------------------------------------
@@ -158,7 +167,9 @@ class StopAfterFirstCheck(runner.StopRequest):
         return True
 
 
-def test_stop_request_keeps_finished_chunks_and_resume_completes(quick, quick_reference, tmp_path):
+def test_stop_request_keeps_finished_chunks_and_resume_completes(
+    quick, quick_reference_file, tmp_path
+):
     out = tmp_path / "r.nc"
     with pytest.raises(runner.Interrupted, match=r"SIGTERM: 2 of 9 runs .* --resume") as info:
         runner.run_sweep(
@@ -169,7 +180,63 @@ def test_stop_request_keeps_finished_chunks_and_resume_completes(quick, quick_re
     assert (parts.read_part(part).start, parts.read_part(part).stop) == (0, 2)
     result = runner.run_sweep(quick, out=out, chunk_size=2, resume=True, show_progress=False)
     assert (result.reused, result.computed) == (2, 7)
-    assert_same_result(xr.load_dataset(out), quick_reference)
+    assert_same_file(out, quick_reference_file)
+
+
+@pytest.mark.parametrize("signals, saved", [(1, 2), (2, 0)])
+def test_a_second_ctrl_c_stops_at_once(quick, tmp_path, monkeypatch, signals, saved):
+    """Ctrl-C (real SIGINTs, through the CLI's handler) while the first chunk's part is
+    being written: once, the sweep finishes that part and stops after it (2 of 9 runs
+    saved); twice, it stops at once, inside the write, and that part is not saved."""
+    write_part = parts.write_part
+
+    def interrupted_write(*args, **kwargs):
+        for _ in range(signals):
+            signal.raise_signal(signal.SIGINT)
+        return write_part(*args, **kwargs)
+
+    monkeypatch.setattr(parts, "write_part", interrupted_write)
+    out = tmp_path / "r.nc"
+    with (
+        runner.stop_on_signals() as stop,
+        pytest.raises(runner.Interrupted, match=f"SIGINT: {saved} of 9 runs are saved") as info,
+    ):
+        runner.run_sweep(quick, out=out, chunk_size=2, threads=1, show_progress=False, stop=stop)
+    assert info.value.signum == signal.SIGINT
+    assert len(list(parts.parts_dir_for(out).glob("*.npz"))) == saved // 2
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_signals_during_a_kernel_are_seen_when_it_returns():
+    """The README's caveat: compiled code cannot be interrupted. Two SIGINTs sent 0.2 s
+    and 0.3 s into a chunk that computes for about 2 s (8 slow runs on one thread)
+    reach the Python handler once, when the kernel has returned (CPython runs handlers
+    between bytecodes and keeps one pending flag per signal)."""
+    params, y0, settings, _ = system_arrays(parse_config(SLOW))
+    seen = []
+    previous = signal.signal(signal.SIGINT, lambda *_: seen.append(time.perf_counter()))
+
+    def send_two():
+        for delay in (0.2, 0.1):
+            time.sleep(delay)
+            os.kill(os.getpid(), signal.SIGINT)
+
+    try:
+        runner.compile_grid_kernel(kernels.integrate_grid_parallel, settings)
+        sender = threading.Thread(target=send_two)
+        start = time.perf_counter()
+        sender.start()
+        (chunk,) = runner.threaded_chunks(params, y0, settings, [(0, 8)], threads=1)
+        returned = time.perf_counter()
+        sender.join()
+        time.sleep(0.05)  # a pending signal would be handled here
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    # both were sent by 0.3 s, while the kernel ran (it took > 0.5 s); the one handler
+    # call came later, when the kernel returned
+    assert returned - start > 0.5
+    assert len(seen) == 1 and seen[0] - start > 0.5
 
 
 @pytest.mark.slow
@@ -210,9 +277,59 @@ def test_sigkill_then_resume_recomputes_only_unfinished_chunks(slow_config, tmp_
     k = len(kept)
     assert f"reusing {k} runs from {k} parts" in err
     assert f"computing {8 - k} runs in {8 - k} chunks" in err
-    reference = runner.compute(parse_config(SLOW), show_progress=False)
-    assert_same_result(xr.load_dataset(out), reference)
+    assert_same_file(out, reference_file(load_config(slow_config), tmp_path / "reference.nc"))
     assert not parts_dir.exists()
+
+
+#: ``python -m sweep ARGS`` that SIGKILLs itself in the middle of writing its third part.
+KILLED_WRITING_THIRD_PART = r"""
+import os, signal, sys
+import numpy as np
+from sweep import cli
+
+calls, savez = [], np.savez
+
+def savez_then_die(f, **arrays):
+    calls.append(1)
+    if len(calls) == 3:
+        f.write(b"PK\x03\x04 a part cut short")
+        f.flush()
+        os.kill(os.getpid(), signal.SIGKILL)
+    savez(f, **arrays)
+
+np.savez = savez_then_die
+sys.exit(cli.main(sys.argv[1:]))
+"""
+
+
+def test_kill_during_a_part_write_then_resume_leaves_no_trace(
+    quick, quick_reference_file, tmp_path
+):
+    """kill -9 inside a part write leaves a temporary file, never a part. --resume reuses
+    the two finished parts, and once the result is written the dead writer's file goes
+    with the parts, while the file of a writer still running (another shard) stays."""
+    out = tmp_path / "r.nc"
+    folder = parts.parts_dir_for(out)
+    args = ["run", QUICK, "--out", out, "--chunk-size", "3", "--threads", "1", "--quiet"]
+    proc = subprocess.run([sys.executable, "-c", KILLED_WRITING_THIRD_PART, *map(str, args)],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    finished = sorted(folder.glob("*.npz"))
+    rows = [(part.start, part.stop) for part in map(parts.read_part, finished)]
+    assert rows == [(0, 3), (3, 6)]
+    (dead,) = set(folder.iterdir()) - set(finished)  # the third part, cut short
+    shard = interrupted_part_writer(folder, "stuck")
+    try:
+        (live,) = set(folder.iterdir()) - set(finished) - {dead}
+        result = runner.run_sweep(quick, out=out, chunk_size=3, resume=True, show_progress=False)
+        assert (result.reused, result.computed) == (6, 3)
+        assert_same_file(out, quick_reference_file)
+        assert list(folder.iterdir()) == [live]
+    finally:
+        shard.kill()
+        shard.wait(timeout=60)
+    parts.remove_parts(folder)  # as the next finished sweep or merge would
+    assert not folder.exists()
 
 
 # --- faults --------------------------------------------------------------------------
@@ -222,17 +339,37 @@ def disk_full(*args, **kwargs):
     raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
 
-def test_disk_full_while_saving_a_chunk(quick, tmp_path, monkeypatch):
+def test_disk_full_while_saving_a_later_chunk_keeps_the_earlier_parts(
+    quick, quick_reference_file, tmp_path, monkeypatch
+):
+    """The disk fills up at the third part of five: the sweep stops with the cause, the
+    earlier result is untouched, the two parts written so far stay (valid), and
+    --resume reuses them once there is room again."""
     out = tmp_path / "r.nc"
     out.write_bytes(b"earlier result")
-    monkeypatch.setattr(parts, "write_part", disk_full)
+    write_part, calls = parts.write_part, []
+
+    def fill_up_at_the_third(*args, **kwargs):
+        calls.append(args[3:5])  # (start, stop)
+        if len(calls) == 3:
+            disk_full()
+        return write_part(*args, **kwargs)
+
+    monkeypatch.setattr(parts, "write_part", fill_up_at_the_third)
     with pytest.raises(runner.RunError, match="cannot write a part .* No space left on device"):
-        runner.run_sweep(quick, out=out, show_progress=False)
+        runner.run_sweep(quick, out=out, chunk_size=2, threads=1, show_progress=False)
+    assert calls == [(0, 2), (2, 4), (4, 6)]  # the sweep stopped at the failing write
     assert out.read_bytes() == b"earlier result"
+    kept = sorted(parts.parts_dir_for(out).iterdir())
+    assert [(p.start, p.stop) for p in map(parts.read_part, kept)] == [(0, 2), (2, 4)]
+    monkeypatch.undo()
+    result = runner.run_sweep(quick, out=out, chunk_size=2, resume=True, show_progress=False)
+    assert (result.reused, result.computed) == (4, 5)
+    assert_same_file(out, quick_reference_file)
 
 
 def test_disk_full_while_writing_the_result_keeps_the_parts(
-    quick, quick_reference, tmp_path, monkeypatch
+    quick, quick_reference_file, tmp_path, monkeypatch
 ):
     out = tmp_path / "r.nc"
     out.write_bytes(b"earlier result")
@@ -244,7 +381,7 @@ def test_disk_full_while_writing_the_result_keeps_the_parts(
     monkeypatch.undo()
     result = runner.run_sweep(quick, out=out, chunk_size=4, resume=True, show_progress=False)
     assert (result.reused, result.computed) == (9, 0)
-    assert_same_result(xr.load_dataset(out), quick_reference)
+    assert_same_file(out, quick_reference_file)
 
 
 def test_unwritable_output_is_bad_input(tmp_path, capsys):

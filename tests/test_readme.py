@@ -1,0 +1,170 @@
+"""The numbers the README states, read from README.md and recomputed.
+
+Each test reads a number from the README's text with a regular expression and
+recomputes it: with the engine the way ``make figures`` or the named config does,
+and, where an independent reference is cheap, with SciPy. A number must agree to
+its last printed digit, so a change in the code that moves it fails here until the
+README is updated (and a README edit that no longer matches fails too). The limit
+cycle numbers of "What happens below Kc" are checked in ``test_regularised.py``,
+beside the runs that produce them.
+"""
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import (
+    PAPER_A,
+    PAPER_B,
+    QUICK,
+    ROOT,
+    assert_as_printed,
+    log_form_rhs,
+    readme_numbers,
+    scipy_runaway_time,
+)
+from scipy.integrate import solve_ivp
+
+from sweep import figures
+from sweep.config import config_mapping, load_config, parse_config
+from sweep.grid import REGIMES
+from sweep.runner import compute
+from sweep.trace import compute_trace, pin_config
+
+PAPER = load_config(ROOT / "configs" / "paper.yaml")
+#: The paper's "stick-slip" stiffness (µm⁻¹), K/Kc = 0.92; D0/V = 10 s.
+K_W = 0.046
+T_UNIT = 10.0
+
+
+def paper_trace(t_end=None, **changes):
+    """The trace ``make figures`` draws at K/W = 0.046 for a variant of the paper config."""
+    config = figures.variant(PAPER, "readme", **changes)
+    return compute_trace(pin_config(config, {"K_W": K_W}, t_end), points=3000)
+
+
+def test_fig1_runaway_time():
+    """ "passing 10⁶ V at t = 970.5 s": the figure's trace and SciPy DOP853 (rtol 1e-10,
+    conftest.scipy_runaway_time) on the log form from Φ/Φss = 1.01."""
+    (printed,) = readme_numbers(r"passing 10⁶ V at t = ([\d.]+) s")
+    assert_as_printed(paper_trace().attrs["t_runaway"], printed)
+    tau = scipy_runaway_time(K_W / (PAPER_B - PAPER_A), 0.0, math.log(1.01))
+    assert_as_printed(tau * T_UNIT, printed)
+
+
+def test_fig1_damped_cycle_and_critical_stiffnesses():
+    """The damped row of Fig. 1 (η/W = 0.01 s/µm): its period and velocity range, and
+    the closed-form Kc/W = (B − A − η̂)/D0 for η̂ = 0.001 and 0.01."""
+    period, v_low, v_high = readme_numbers(
+        r"stick-slip cycle \(period ([\d.]+) s, v between about ([\d.]+) and ([\d.]+) µm/s\)"
+    )
+    trace = paper_trace(model="quasi-dynamic", eta_W=figures.ETA_W)
+    assert trace.attrs["regime"] == "stick_slip"
+    assert_as_printed(trace.attrs["period"], period)
+    assert_as_printed(float(trace["velocity"].min()), v_low)
+    assert_as_printed(float(trace["velocity"].max()), v_high)
+    (kc_small,) = readme_numbers(r"Kc/W = \(B − A − η̂\)/D0 = ([\d.]+) µm⁻¹\)")
+    (kc_large,) = readme_numbers(r"η̂ = 0.01 would move Kc/W to ([\d.]+) µm⁻¹")
+    assert_as_printed(PAPER_B - PAPER_A - 0.001, kc_small)
+    assert_as_printed(PAPER_B - PAPER_A - 0.01, kc_large)
+
+
+def test_fig2_out_of_phase_runaway_and_synchronisation():
+    """Fig. 2's out-of-phase quasi-static run (k2/W = 0.05 µm⁻¹, Φ/Φss = 1.01 and 0.99):
+    runaway time from the figure's trace and from SciPy DOP853 (rtol 1e-10) on the
+    two-block log form; the blocks agree to rounding error from "about 300 s" on."""
+    (printed,) = readme_numbers(r"the quasi-static run runs away at t = ([\d.]+) s")
+    (sync,) = readme_numbers(r"synchronise to rounding error within about ([\d.]+) s")
+    phi = figures.OUT_OF_PHASE
+    t_end = figures.TWO_BLOCK_SPAN * PAPER.integrator.t_end
+    trace = paper_trace(t_end, k2_W=figures.K2_W, phi=phi)
+    assert_as_printed(trace.attrs["t_runaway"], printed)
+
+    def cap(t, y, *args):
+        return np.max(y[:2]) - math.log(PAPER.classification.v_cap_over_V)
+
+    cap.terminal = True
+    kappa2 = figures.K2_W  # κ = k D0/W with D0 = 1 µm
+    reference = solve_ivp(
+        log_form_rhs, (0.0, t_end / T_UNIT), [0.0, 0.0, *np.log(phi)], method="DOP853",
+        rtol=1e-10, atol=1e-12, events=cap, args=(PAPER_A, PAPER_B, K_W, kappa2, 2),
+    )  # fmt: skip
+    assert_as_printed(reference.t_events[0][0] * T_UNIT, printed)
+    # rounding error of ℓ: a few ulps of |ℓ| ≤ ln 1e6 ≈ 14, i.e. ≲ 1e-14; at half the
+    # stated time the blocks must still differ by more, or "about" would be wrong
+    t = trace["time"].values
+    gap = np.abs(trace["lnv"].isel(block=0).values - trace["lnv"].isel(block=1).values)
+    assert gap[t >= float(sync)].max() <= 1e-14
+    assert gap[t >= 0.5 * float(sync)].max() > 1e-14
+
+
+def config_at(path, **values):
+    """The config at ``path`` with each named axis reduced to one value (physical units)."""
+    raw = config_mapping(load_config(path))
+    for name, value in values.items():
+        raw["sweep"][name] = [value]
+    return parse_config(raw, f"{path} at {values}")
+
+
+def test_slip_law_events_are_smaller():
+    """ "v_max/V 12.3 vs 15.4 at K/Kc ≈ 0.48, η̂ = 0.01": the grid point of
+    configs/slip_law.yaml and configs/quasidynamic.yaml nearest to that K/Kc."""
+    slip, aging, ratio = readme_numbers(
+        r"v_max/V ([\d.]+) vs ([\d.]+) at K/Kc ≈ ([\d.]+), η̂ = 0.01\)"
+    )
+    eta_w = 0.1  # η̂ = η V/W = 0.01 with V = 0.1 µm/s
+    kc_w = (PAPER_B - PAPER_A - 0.01) / 1.0
+    k_axis = np.array(load_config(ROOT / "configs" / "slip_law.yaml").axes[0].values)
+    k_w = float(k_axis[np.argmin(np.abs(k_axis / kc_w - float(ratio)))])
+    assert_as_printed(k_w / kc_w, ratio)
+    for name, printed in (("slip_law", slip), ("quasidynamic", aging)):
+        ds = compute(config_at(ROOT / "configs" / f"{name}.yaml", K_W=k_w, eta_W=eta_w),
+                     show_progress=False)  # fmt: skip
+        assert int(ds["regime"].item()) == REGIMES.index("stick_slip")
+        assert_as_printed(float(ds["v_max"].item()) / 0.1, printed)
+
+
+def test_config_sizes_and_inertial_kc_range():
+    """Run counts of the regularised configs, and the inertial Kc/W range from the
+    closed form Kc/W = ((B − A)/D0)(1 + M̂/A) over the config's m/W axis."""
+    for name in ("quasidynamic", "inertial"):
+        (runs,) = readme_numbers(rf"`configs/{name}.yaml`: [^`]*?(\d+) runs")
+        assert math.prod(load_config(ROOT / "configs" / f"{name}.yaml").shape) == int(runs)
+    low, high = readme_numbers(r"Kc ∝ 1 \+ M̂/A from ([\d.]+) to ([\d.]+) µm⁻¹")
+    m_w = np.array(load_config(ROOT / "configs" / "inertial.yaml").axes[1].values)
+    mass_hat = m_w * 0.1**2 / 1.0  # M̂ = m V²/(W D0)
+    kc_w = (PAPER_B - PAPER_A) * (1 + mass_hat / PAPER_A)
+    assert_as_printed(kc_w.min(), low)
+    assert_as_printed(kc_w.max(), high)
+
+
+#: ``python -m sweep ARGS`` that reports its own peak resident memory (KiB) on stderr.
+MEASURED_RUN = """
+import resource, sys
+from sweep.cli import main
+status = main(sys.argv[1:])
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)
+sys.exit(status)
+"""
+
+
+@pytest.mark.slow
+def test_memory_of_a_million_point_sweep(tmp_path):
+    """ "a one-block sweep of 10⁶ grid points peaks at about 1.0 GB": the peak resident
+    memory of ``python -m sweep run`` on configs/quick.yaml with 10⁶ K/W values.
+    The runs are cut short (t_end = 1 D0/V): memory holds the result arrays, not the
+    history of a run. Within 15 %: the allocator and library versions move it."""
+    (gb,) = readme_numbers(r"a one-block sweep of 10⁶ grid points peaks at about ([\d.]+) GB")
+    config = tmp_path / "million.yaml"
+    text = QUICK.read_text().replace("num: 9}", "num: 1000000}")
+    config.write_text(text.replace("t_end: 2000.0", "t_end: 1.0"))
+    proc = subprocess.run(
+        [sys.executable, "-c", MEASURED_RUN, "run", str(config), "--out", "m.nc", "--quiet"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert "wrote m.nc (1000000 runs" in proc.stdout
+    peak_kib = int(proc.stderr.split()[-1])
+    assert peak_kib * 1024 / 1e9 == pytest.approx(float(gb), rel=0.15)
