@@ -1,10 +1,56 @@
 """rsf-sweep: JIT-compiled parameter sweeps of the Rice–Ruina spring-block model.
 
-Importing the package compiles nothing; kernels compile on first use.
+Importing the package compiles nothing; kernels compile on first use::
 
-    from sweep.config import load_config
-    from sweep.runner import run_sweep
-    result = run_sweep(load_config("configs/quick.yaml"))
+    import sweep
+
+    ds = sweep.run("quick")                      # a packaged example, a path or a mapping
+    cfg = sweep.with_changes("quick", {"integrator": {"t_end": 5000}})
+    ds2 = sweep.run(cfg, threads=2)
+    sweep.plot_variable(ds, "period")            # a matplotlib Figure
+
+Configs: :func:`load_config`, :func:`with_changes`, :func:`examples.names`;
+figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
+:func:`plot_trace` (``sweep/plots.py``); traces: ``sweep.trace.compute_trace``.
 """
 
 __version__ = "0.1.0"
+
+from . import examples
+from .api import run
+from .config import Config, ConfigError, load_config, parse_config, with_changes
+
+_LAZY = {
+    "RunError": "runner",
+    "plot_result": "plots",
+    "plot_variable": "plots",
+    "plot_bifurcation": "plots",
+    "plot_trace": "plots",
+    "save_figure": "plots",
+}
+
+
+def __getattr__(name):
+    """Names imported on first use, so ``import sweep`` loads neither numba nor matplotlib."""
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module 'sweep' has no attribute {name!r}")
+
+
+__all__ = [
+    "Config",
+    "ConfigError",
+    "RunError",
+    "examples",
+    "load_config",
+    "parse_config",
+    "plot_bifurcation",
+    "plot_result",
+    "plot_trace",
+    "plot_variable",
+    "run",
+    "save_figure",
+    "with_changes",
+]

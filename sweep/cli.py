@@ -49,13 +49,19 @@ def _shard(text):
 
 
 def build_parser():
+    from . import __version__
+
     parser = argparse.ArgumentParser(
         prog="python -m sweep",
         description="Parameter sweeps of the Rice-Ruina spring-block model.",
     )
+    parser.add_argument("--version", action="version", version=f"rsf-sweep {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("examples", help="list the example configs that ship with the package")
     run = sub.add_parser("run", help="run a sweep config and write its NetCDF result")
-    run.add_argument("config", help="YAML config file")
+    run.add_argument(
+        "config", help="YAML config file, or the name of a packaged example (rsf-sweep examples)"
+    )
     run.add_argument("--out", help="output NetCDF path (default: the config's output)")
     run.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
     run.add_argument("--chunk-size", type=_positive_int, help="systems per chunk")
@@ -164,13 +170,40 @@ def _assignment(text):
     return name.strip(), number
 
 
+def _dpi(text):
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+    if not 10 <= n <= 2000:
+        raise argparse.ArgumentTypeError(f"must be in [10, 2000], got {n}")
+    return n
+
+
+def _add_dpi(parser):
+    from .plots import DPI
+
+    parser.add_argument(
+        "--dpi", type=_dpi, default=DPI, help=f"resolution of PNG output (default {DPI})"
+    )
+
+
 def add_figure_commands(sub):
     """Subcommands plot, trace, bifurcation and figures (``sweep/plots.py``, ``sweep/trace.py``)."""
-    plot = sub.add_parser("plot", help="phase diagram of a result file (PNG)")
+    plot = sub.add_parser("plot", help="phase diagram, or a map of one variable, of a result")
     plot.add_argument("result", help="result NetCDF file of python -m sweep run")
-    plot.add_argument("--out", help="output PNG (default: the result's path with .png)")
-    trace = sub.add_parser("trace", help="time series of one system of a config (NetCDF + PNG)")
-    trace.add_argument("config", help="YAML config file")
+    plot.add_argument(
+        "--var",
+        metavar="NAME",
+        help="map this variable (e.g. period, v_max, friction_drop, convergence) "
+        "instead of the phase diagram",
+    )
+    plot.add_argument(
+        "--out", help="output .png, .pdf or .svg (default: the result's path with .png)"
+    )
+    _add_dpi(plot)
+    trace = sub.add_parser("trace", help="time series of one system of a config (NetCDF + figure)")
+    trace.add_argument("config", help="YAML config file or packaged example name")
     trace.add_argument(
         "--at",
         type=_assignment,
@@ -185,13 +218,25 @@ def add_figure_commands(sub):
         "--points", type=_positive_int, default=4000, help="time bins of the series (default 4000)"
     )
     trace.add_argument("--out", help="output NetCDF (default results/<name>_trace_<at>.nc)")
-    trace.add_argument("--png", help="output PNG (default: the NetCDF path with .png)")
-    bif = sub.add_parser("bifurcation", help="amplitude against K/Kc of 1-D sweeps (PNG)")
+    trace.add_argument(
+        "--png", help="output .png, .pdf or .svg (default: the NetCDF path with .png)"
+    )
+    _add_dpi(trace)
+    bif = sub.add_parser("bifurcation", help="amplitude against K/Kc of 1-D sweeps")
     bif.add_argument("results", nargs="+", help="result NetCDF files, one curve per model")
-    bif.add_argument("--out", help="output PNG (default: <first result>_bifurcation.png)")
-    figs = sub.add_parser("figures", help="regenerate the paper's figures in results/")
-    figs.add_argument("--config", default="configs/paper.yaml", help="the paper config")
-    figs.add_argument("--out-dir", default="results", help="folder for the PNGs")
+    bif.add_argument(
+        "--out", help="output .png, .pdf or .svg (default: <first result>_bifurcation.png)"
+    )
+    _add_dpi(bif)
+    figs = sub.add_parser("figures", help="regenerate the paper's figures (in ./results)")
+    figs.add_argument(
+        "--config", default="paper", help="the paper config (default: the packaged example paper)"
+    )
+    figs.add_argument("--out-dir", default="results", help="folder for the figures")
+    figs.add_argument(
+        "--format", choices=("png", "pdf", "svg"), default="png", help="file type (default png)"
+    )
+    _add_dpi(figs)
     figs.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
 
 
@@ -329,26 +374,40 @@ def cmd_merge(args):
     return 0
 
 
-def _plotted(source, draw, out):
-    """``draw(out)`` after checking ``out``; a result it cannot draw is bad input."""
+def _plotted(source, draw, out, dpi):
+    """Save the figure ``draw()`` to ``out`` after checking ``out``; a result it cannot
+    draw is bad input."""
     from .config import check_writable
+    from .plots import FORMATS, save_figure
 
-    check_writable(out, source, "--out", ".png")
+    check_writable(out, source, "--out", tuple(FORMATS))
     try:
-        return draw(out)
+        fig = draw()
     except ValueError as exc:
         raise ConfigError(source, [f"cannot plot: {exc}"]) from None
+    return save_figure(fig, out, dpi)
+
+
+def cmd_examples(args):
+    from . import examples
+
+    for name in examples.names():
+        print(f"{name:<16} {examples.describe(name)}")
+    print(f"(in {examples.folder()}; run one with: rsf-sweep run NAME)")
+    return 0
 
 
 def cmd_plot(args):
     from pathlib import Path
 
     from .dataset import read_result
-    from .plots import plot_result
+    from .plots import plot_result, plot_variable
 
     ds = read_result(args.result)
-    out = args.out or Path(args.result).with_suffix(".png")
-    print(f"wrote {_plotted(args.result, lambda o: plot_result(ds, o), out)}")
+    suffix = f"_{args.var}.png" if args.var else ".png"
+    out = args.out or Path(args.result).with_name(Path(args.result).stem + suffix)
+    draw = (lambda: plot_variable(ds, args.var)) if args.var else (lambda: plot_result(ds))
+    print(f"wrote {_plotted(args.result, draw, out, args.dpi)}")
     return 0
 
 
@@ -361,7 +420,9 @@ def cmd_trace(args):
     twice = sorted({name for name in names if names.count(name) > 1})
     if twice:
         raise ConfigError(args.config, [f"--at gives {', '.join(twice)} more than once"])
-    ds, nc, png = run_trace(config, dict(args.at), args.out, args.png, args.t_end, args.points)
+    ds, nc, png = run_trace(
+        config, dict(args.at), args.out, args.png, args.t_end, args.points, args.dpi
+    )
     end = f", t_runaway = {ds.attrs['t_runaway']:.6g} s" if ds.attrs["regime"] == "runaway" else ""
     print(f"{ds.attrs['regime']} (t_final = {ds.attrs['t_final']:.6g} s{end})")
     print(f"wrote {nc} ({ds.sizes['time']} time points) and {png}")
@@ -378,19 +439,27 @@ def cmd_bifurcation(args):
     out = args.out or first.with_name(first.stem + "_bifurcation.png")
     datasets = [read_result(p) for p in args.results]
     source = ", ".join(args.results)
-    print(f"wrote {_plotted(source, lambda o: plot_bifurcation(datasets, o), out)}")
+    print(f"wrote {_plotted(source, lambda: plot_bifurcation(datasets), out, args.dpi)}")
     return 0
 
 
 def cmd_figures(args):
     from .figures import make_figures
 
-    for path in make_figures(paper=args.config, out_dir=args.out_dir, threads=args.threads):
+    paths = make_figures(
+        paper=args.config,
+        out_dir=args.out_dir,
+        threads=args.threads,
+        suffix=f".{args.format}",
+        dpi=args.dpi,
+    )
+    for path in paths:
         print(f"wrote {path}")
     return 0
 
 
 COMMANDS = {
+    "examples": cmd_examples,
     "run": cmd_run,
     "merge": cmd_merge,
     "extend": cmd_extend,

@@ -8,10 +8,12 @@ file, the key path, what is allowed and what was found, e.g.::
 Nothing downstream reads raw dicts: it gets a :class:`Config`.
 """
 
+import dataclasses
 import math
 import os
 import re
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,6 +42,10 @@ TOP_LEVEL_KEYS = (
     "classification",
     "output",
 )
+#: ``source`` of a config given as a mapping (no file): provenance says so.
+MAPPING_SOURCE = "<mapping>"
+#: Largest step budget: step counts are stored as 32-bit integers (CF-1.11 files).
+MAX_STEPS_LIMIT = 2**31 - 1
 
 
 class _Loader(yaml.SafeLoader):
@@ -162,6 +168,15 @@ class Config:
         return tuple(len(a.values) for a in self.axes)
 
 
+def _numeric(text):
+    """Whether ``text`` is a string holding a number."""
+    try:
+        float(text)
+    except (TypeError, ValueError):
+        return False
+    return isinstance(text, str)
+
+
 def required_parameters(blocks, model):
     """Parameter names a config must set (fixed or swept) for this model."""
     names = ["A", "B", "mu0", "V", "D0", "K_W"]
@@ -188,7 +203,8 @@ class _Checker:
         close = ")" if high_open or high == math.inf else "]"
         interval = f"{'(' if low_open else '['}{low:g}, {high:g}{close}"
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.add(f"{key} must be a number in {interval}, got {value!r}")
+            hint = " (text, not a number: PyYAML's safe_load reads 1.0e6 as text)"
+            self.add(f"{key} must be a number in {interval}, got {value!r}{hint * _numeric(value)}")
             return None
         value = float(value)
         if not math.isfinite(value):
@@ -201,9 +217,11 @@ class _Checker:
             return None
         return value
 
-    def integer(self, value, key, low):
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            self.add(f"{key} must be an integer >= {low}, got {value!r}")
+    def integer(self, value, key, low, high=None):
+        bad = isinstance(value, bool) or not isinstance(value, int)
+        if bad or value < low or (high is not None and value > high):
+            allowed = f"in [{low}, {high}]" if high is not None else f">= {low}"
+            self.add(f"{key} must be an integer {allowed}, got {value!r}")
             return None
         return value
 
@@ -230,28 +248,90 @@ class _Checker:
         return self.number(value, key, low=info.low, low_open=info.low_open)
 
 
-def load_config(path):
-    """Read and validate the YAML config at ``path``; raise :class:`ConfigError`."""
-    path = Path(path)
+def load_config(config):
+    """A validated :class:`Config` from a path, a packaged example's name, a mapping or a Config.
+
+    Parameters
+    ----------
+    config : str, path, Mapping or Config
+        A YAML file; else, if no such file exists, the name of a packaged example
+        (``sweep.examples.names()``, e.g. ``"quick"``); a mapping as the YAML would
+        read (its ``source`` is ``"<mapping>"``); or a Config, returned as it is.
+
+    Raises :class:`ConfigError` listing every problem.
+    """
+    if isinstance(config, Config):
+        return config
+    if isinstance(config, Mapping):
+        return parse_config(config)
+    from . import examples
+
+    path = Path(config)
+    if not path.exists() and examples.is_example(str(config)):
+        path = examples.path(str(config))
     try:
         text = path.read_text()
     except OSError as exc:
-        raise ConfigError(path, [f"cannot read config: {exc.strerror or exc}"]) from None
+        hint = f" (packaged examples: {', '.join(examples.names())})" if not path.exists() else ""
+        raise ConfigError(path, [f"cannot read config: {exc.strerror or exc}{hint}"]) from None
     return parse_config(text, source=str(path))
 
 
-def parse_config(text, source="<config>"):
-    """Validate config ``text`` (YAML); ``source`` names it in error messages."""
-    try:
-        raw = yaml.load(text, Loader=_Loader)
-    except yaml.YAMLError as exc:
-        raise ConfigError(source, [f"not valid YAML: {exc}"]) from None
+def parse_config(config, source=None):
+    """Validate a config: YAML text, or a mapping as the YAML would read.
+
+    ``source`` names it in error messages and provenance (default: ``"<config>"``
+    for text, :data:`MAPPING_SOURCE` for a mapping). A mapping's ``config_text``
+    is its YAML. Raises :class:`ConfigError` listing every problem.
+    """
+    if isinstance(config, Mapping):
+        source = source or MAPPING_SOURCE
+        raw = _plain(config)
+        try:
+            text = yaml.safe_dump(raw, sort_keys=False, allow_unicode=True)
+        except yaml.YAMLError as exc:
+            problem = f"config mapping holds a value YAML cannot store: {exc}"
+            raise ConfigError(source, [problem]) from None
+    elif isinstance(config, str):
+        source = source or "<config>"
+        text = config
+        try:
+            raw = yaml.load(text, Loader=_Loader)
+        except yaml.YAMLError as exc:
+            raise ConfigError(source, [f"not valid YAML: {exc}"]) from None
+    else:
+        raise ConfigError(
+            source or "<config>",
+            [f"a config must be YAML text or a mapping, got {type(config).__name__}"],
+        )
+    return _validate(raw, text, source)
+
+
+def _plain(value):
+    """A config mapping with numpy scalars and arrays, tuples and Mappings made plain
+    Python (what ``yaml.safe_dump`` and the checks expect)."""
+    if type(value).__module__ == "numpy":
+        value = value.tolist()  # numpy scalar or array → Python number or list
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def _default_name(source):
+    """A config's name when it gives none: its file's stem; ``sweep`` for a mapping."""
+    return "sweep" if source.startswith("<") else Path(source).stem
+
+
+def _validate(raw, text, source):
+    """The checks of :func:`parse_config` on the parsed mapping ``raw``."""
     c = _Checker()
     if not isinstance(raw, dict):
         raise ConfigError(source, ["a config must be a YAML mapping of keys to values"])
     c.unknown(raw, "", TOP_LEVEL_KEYS)
 
-    name = raw.get("name", Path(source).stem)
+    name = raw.get("name", _default_name(source))
     if not isinstance(name, str) or not name or any(ch in name for ch in "/\\ "):
         c.add(f"name must be a non-empty string without spaces or slashes, got {name!r}")
         name = "sweep"
@@ -297,6 +377,88 @@ def parse_config(text, source="<config>"):
         output=output,
         description=description,
     )
+
+
+def config_mapping(config):
+    """A :class:`Config` as the mapping it could be read from (every setting explicit).
+
+    ``output`` is left out where it is the default ``results/<name>.nc``, so a
+    renamed copy writes under its new name.
+    """
+    raw = {
+        "name": config.name,
+        "description": config.description,
+        "blocks": config.blocks,
+        "model": config.model,
+        "state_law": config.state_law,
+        "parameters": dict(config.parameters),
+        "sweep": {a.name: list(a.values) for a in config.axes},
+        "initial": {
+            "v_over_V": list(config.initial.v_over_V),
+            "phi_over_phi_ss": list(config.initial.phi_over_phi_ss),
+        },
+        "integrator": dataclasses.asdict(config.integrator),
+        "classification": dataclasses.asdict(config.classification),
+    }
+    if config.output != f"results/{config.name}.nc":
+        raw["output"] = config.output
+    return raw
+
+
+def with_changes(config, changes, source=None):
+    """``config`` with some values changed, validated again like a file.
+
+    Parameters
+    ----------
+    config : Config, path or Mapping
+        The starting config (anything :func:`load_config` takes).
+    changes : Mapping
+        Nested like the YAML: e.g. ``{"integrator": {"t_end": 5000}, "parameters":
+        {"A": 0.02}}``. Mappings are merged key by key; any other value replaces
+        the old one; ``None`` removes the key (e.g. ``{"sweep": {"K_W": None},
+        "parameters": {"K_W": 0.05}}`` fixes a swept parameter).
+    source : str, optional
+        How errors and provenance name the result (default: the starting
+        config's source and the changed key paths).
+
+    Returns
+    -------
+    Config
+        Raises :class:`ConfigError` naming every changed key that is not valid.
+    """
+    config = load_config(config)
+    if not isinstance(changes, Mapping):
+        raise ConfigError(
+            config.source,
+            [f"changes must be a mapping like the YAML, got {type(changes).__name__}"],
+        )
+    keys = _key_paths(changes)
+    source = source or f"{config.source} with changes to {', '.join(keys)}"
+    return parse_config(_merged(config_mapping(config), _plain(changes)), source)
+
+
+def _merged(base, changes):
+    """``base`` with ``changes`` merged in (nested mappings key by key; None deletes)."""
+    out = dict(base)
+    for key, value in changes.items():
+        if value is None:
+            out.pop(key, None)
+        elif isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _merged(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def _key_paths(changes, prefix=""):
+    """Dotted key paths of the leaves of a nested mapping, e.g. ``integrator.t_end``."""
+    paths = []
+    for key, value in changes.items():
+        if isinstance(value, Mapping) and value:
+            paths.extend(_key_paths(value, f"{prefix}{key}."))
+        else:
+            paths.append(f"{prefix}{key}")
+    return paths
 
 
 def _parse_sweep(c, raw):
@@ -464,7 +626,9 @@ def _parse_integrator(c, raw, model):
             high_open=True,
         )
     t_end = c.number(spec.get("t_end", defaults.t_end), "integrator.t_end", low=0.0, low_open=True)
-    max_steps = c.integer(spec.get("max_steps", defaults.max_steps), "integrator.max_steps", 1)
+    max_steps = c.integer(
+        spec.get("max_steps", defaults.max_steps), "integrator.max_steps", 1, MAX_STEPS_LIMIT
+    )
     if None in (method, unit, t_end, max_steps) or None in values.values():
         return defaults
     return Integrator(method=method, t_unit=unit, t_end=t_end, max_steps=max_steps, **values)
@@ -513,18 +677,21 @@ def _parse_classification(c, raw, t_end):
 
 
 def check_writable(path, source="<config>", key="output", suffix=".nc"):
-    """Raise :class:`ConfigError` unless a ``suffix`` file can be created at ``path``.
+    """Raise :class:`ConfigError` unless a file can be created at ``path``.
 
-    Creates missing parent directories and a probe file (removed at once), so
-    the answer is the file system's, not a guess from permission bits (which
-    root ignores).
+    ``suffix``: the file type, or a tuple of those allowed (e.g. ``(".png",
+    ".pdf", ".svg")``). Creates missing parent directories and a probe file
+    (removed at once), so the answer is the file system's, not a guess from
+    permission bits (which root ignores).
     """
     path = Path(path)
-    if path.suffix != suffix:
-        raise ConfigError(source, [f"{key} {path} must be a file name ending in {suffix}"])
+    suffixes = (suffix,) if isinstance(suffix, str) else tuple(suffix)
+    allowed = " or ".join(suffixes)
+    if path.suffix not in suffixes:
+        raise ConfigError(source, [f"{key} {path} must be a file name ending in {allowed}"])
     if path.is_dir():
         raise ConfigError(
-            source, [f"{key} {path} is a directory; give a file path ending in {suffix}"]
+            source, [f"{key} {path} is a directory; give a file path ending in {allowed}"]
         )
     blocking = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
     if blocking is not None:

@@ -1,10 +1,13 @@
 """The product: kernel statistics → a self-describing xarray.Dataset → NetCDF.
 
 One dimension per sweep axis, named after the parameter, with CF ``units`` and
-``long_name``; data variables from the table in ``sweep/variables.py``;
-provenance (config text, versions, creation time) in the attributes. Files are
-written to a temporary name beside the target and renamed, so a failed write
-never replaces an earlier result.
+``long_name``; every fixed parameter a scalar coordinate with the same attributes
+(so results that differ in it combine along it, e.g. ``xr.concat([a, b], "A")``);
+data variables from the table in ``sweep/variables.py``; provenance (config text,
+versions, creation time) in the attributes. Files follow CF-1.11 (checked with the
+IOOS compliance checker in ``tests/test_dataset.py``) and are written to a
+temporary name beside the target and renamed, so a failed write never replaces an
+earlier result.
 """
 
 import dataclasses
@@ -56,9 +59,9 @@ def derived_fields(config, phys, results, y_final, time_unit):
             "t_runaway": r[:, kernels.R_TAU_RUNAWAY] * time_unit,
             "t_final": r[:, kernels.R_TAU_FINAL] * time_unit,
             "convergence": r[:, kernels.R_CONVERGENCE],
-            "n_steps": r[:, kernels.R_N_STEPS].astype(np.int64),
-            "n_rejected": r[:, kernels.R_N_REJECTED].astype(np.int64),
-            "n_peaks": r[:, kernels.R_N_PEAKS].astype(np.int64),
+            "n_steps": r[:, kernels.R_N_STEPS],
+            "n_rejected": r[:, kernels.R_N_REJECTED],
+            "n_peaks": r[:, kernels.R_N_PEAKS],
             "sync_error": r[:, kernels.R_SYNC_ERROR],
             "phase_lag": r[:, kernels.R_PHASE_LAG],
             "lnv_final": y_final[:, :nb],
@@ -73,19 +76,55 @@ def derived_fields(config, phys, results, y_final, time_unit):
     return fields
 
 
+#: CF citation of the model this package implements (the seed paper; no journal,
+#: year or DOI is given in its text).
+REFERENCES = (
+    "J. Szkutnik and K. Kułakowski, Transition from Uniform Motion to Stick-Slip in the "
+    "Rice-Ruina Model of One and Two Blocks, Department of Applied Computer Science, AGH "
+    "University of Science and Technology, Kraków"
+)
+
+
+def parameter_attrs(name):
+    """CF attributes (``units``, ``long_name``) of the coordinate of model parameter ``name``."""
+    return {"units": PARAMETERS[name].units, "long_name": PARAMETERS[name].long_name}
+
+
+def parameter_coords(config):
+    """Coordinates of a result: one per sweep axis (a dimension) and one scalar
+    coordinate per fixed parameter, each with units and long name."""
+    coords = {a.name: (a.name, np.asarray(a.values), parameter_attrs(a.name)) for a in config.axes}
+    for name, value in config.parameters:
+        coords[name] = ((), value, parameter_attrs(name))
+    coords["block"] = (
+        "block",
+        np.arange(config.blocks, dtype=np.int32),
+        {"long_name": "block index in the chain", "units": "1"},
+    )
+    return coords
+
+
+def parameter_values(ds):
+    """The model parameters of a result or trace that have one value: name → float
+    (in the units of ``model.PARAMETERS``). Reads the scalar coordinates, or the
+    global attributes of files written before version 0.2."""
+    values = {}
+    for name in PARAMETERS:
+        if name in ds.coords and ds[name].ndim == 0:
+            values[name] = float(ds[name])
+        elif name in ds.attrs and name not in ds.coords:
+            values[name] = float(ds.attrs[name])
+    return values
+
+
 def build_dataset(config, phys, results, y_final, time_unit, command="run"):
-    """Assemble the result Dataset of a sweep from the kernels' outputs."""
+    """Assemble the result Dataset of a sweep from the kernels' outputs.
+
+    ``command``: what made it, for ``history`` (see :func:`provenance`).
+    """
     shape = config.shape
     dims = tuple(a.name for a in config.axes)
-    coords = {
-        a.name: (
-            a.name,
-            np.asarray(a.values),
-            {"units": PARAMETERS[a.name].units, "long_name": PARAMETERS[a.name].long_name},
-        )
-        for a in config.axes
-    }
-    coords["block"] = ("block", np.arange(config.blocks), {"long_name": "block index in the chain"})
+    coords = parameter_coords(config)
     fields = derived_fields(config, phys, results, y_final, time_unit)
     data_vars = {}
     for var in variables_for(config.blocks, config.model):
@@ -106,16 +145,26 @@ def build_dataset(config, phys, results, y_final, time_unit, command="run"):
 
 
 def provenance(config, command="run"):
-    """File attributes: model, fixed parameters with units, settings, versions."""
+    """File attributes: model, settings, versions and where the config came from.
+
+    ``command``: the CLI subcommand that made the file (``run``, ``merge``,
+    ``trace``), or the Python function (``sweep.run``). ``history`` names it and
+    the config's source: a file path, ``<mapping>`` for a config given as a
+    mapping, or a derived config's description.
+    """
     import numba
 
     integ, cls = config.integrator, config.classification
+    if command.startswith("sweep."):
+        made_by = f"{command}() in Python from config {config.source}"
+    else:
+        made_by = f"python -m sweep {command} {config.source}"
     attrs = {
-        "Conventions": "CF-1.8",
+        "Conventions": "CF-1.11",
         "title": f"Rice-Ruina spring-block sweep: {config.name}",
-        "institution": "rsf-sweep",
         "source": f"rsf-sweep {__version__} (sweep package), numba {numba.__version__}",
-        "history": f"{utc_now()} created by python -m sweep {command} {config.source}",
+        "references": REFERENCES,
+        "history": f"{utc_now()} created by {made_by}",
         "created": utc_now(),
         "sweep_name": config.name,
         "description": config.description,
@@ -134,7 +183,7 @@ def provenance(config, command="run"):
         "integrator_max_step": integ.max_step,
         "integrator_t_end": integ.t_end,
         "integrator_t_unit": integ.t_unit,
-        "integrator_max_steps": np.int64(integ.max_steps),
+        "integrator_max_steps": np.int32(integ.max_steps),
         "classification_v_cap_over_V": cls.v_cap_over_V,
         "classification_steady_amplitude": cls.steady_amplitude,
         "classification_accuracy": cls.accuracy,
@@ -150,9 +199,6 @@ def provenance(config, command="run"):
         "config_path": config.source,
         "config_text": config.text,
     }
-    for name, value in config.parameters:
-        attrs[name] = value
-        attrs[f"{name}_units"] = PARAMETERS[name].units
     return attrs
 
 
@@ -165,6 +211,7 @@ def write_netcdf(ds, path):
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     encoding = {name: {"zlib": True, "complevel": 4} for name in ds.data_vars}
+    encoding.update({name: {"_FillValue": None} for name in ds.coords})  # CF: none on coordinates
     with replaced_atomically(path) as tmp:
         ds.to_netcdf(tmp, engine="netcdf4", encoding=encoding)
     return path

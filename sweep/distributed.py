@@ -46,13 +46,17 @@ def integrate_chunk(params, y0, settings):
 
 @contextmanager
 def connect(scheduler=None, local_workers=None):
-    """A Dask client: to the scheduler at ``scheduler``, or to a new LocalCluster.
+    """A Dask client: for ``scheduler``, or to a new LocalCluster.
 
-    ``local_workers``: number of single-threaded worker processes of the
-    LocalCluster. Raises :class:`~sweep.runner.RunError` if Dask is missing or
-    the scheduler cannot be reached (the connect timeout is Dask's
-    ``distributed.comm.timeouts.connect``, e.g. env
-    ``DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=10s``).
+    ``scheduler``: a scheduler address (``"tcp://host:8786"``), a running
+    ``distributed.Client`` (used as it is and left open) or a Cluster (e.g. a
+    ``LocalCluster``; a client is opened on it and closed after).
+    ``local_workers``: number of single-threaded worker processes of a new
+    LocalCluster. Logs the dashboard link when there is one. Raises
+    :class:`~sweep.runner.RunError` if Dask is missing or the scheduler cannot be
+    reached (the connect timeout is Dask's ``distributed.comm.timeouts.connect``,
+    e.g. env ``DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=10s``), and
+    :class:`~sweep.config.ConfigError` for a ``scheduler`` of another type.
     """
     try:
         from distributed import Client, LocalCluster
@@ -61,11 +65,10 @@ def connect(scheduler=None, local_workers=None):
             "Dask is not installed; install it with pip install 'rsf-sweep[distributed]'"
         ) from None
     cluster = None
-    if scheduler is not None:
-        try:
-            client = Client(scheduler)
-        except (OSError, ValueError) as exc:
-            raise RunError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+    if isinstance(scheduler, Client):
+        client, owned = scheduler, False
+    elif scheduler is not None:
+        client, owned = _open_client(Client, scheduler), True
     else:
         cluster = LocalCluster(
             n_workers=local_workers,
@@ -74,13 +77,44 @@ def connect(scheduler=None, local_workers=None):
             dashboard_address=None,
             silence_logs=logging.ERROR,
         )
-        client = Client(cluster)
+        client, owned = Client(cluster), True
+    link = dashboard_link(client)
+    if link:
+        log.info("Dask dashboard: %s", link)
     try:
         yield client
     finally:
-        client.close()
+        if owned:
+            client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _open_client(Client, scheduler):
+    """A new Client on a scheduler address or a Cluster; errors in the tool's terms."""
+    from .config import ConfigError
+
+    is_cluster = hasattr(scheduler, "scheduler_address")
+    if not isinstance(scheduler, str) and not is_cluster:
+        raise ConfigError(
+            "client",
+            [f"must be a dask distributed Client, a Cluster or a scheduler address such as "
+             f"'tcp://host:8786'; got {type(scheduler).__name__}"],
+        )  # fmt: skip
+    try:
+        return Client(scheduler)
+    except (OSError, ValueError, TypeError) as exc:
+        where = getattr(scheduler, "scheduler_address", scheduler)
+        raise RunError(f"cannot reach the Dask scheduler at {where}: {exc}") from None
+
+
+def dashboard_link(client):
+    """The URL of the Dask dashboard of ``client``'s scheduler, or None without one."""
+    try:
+        services = client.scheduler_info().get("services", {})
+    except Exception:  # a scheduler that does not answer has no link to give
+        return None
+    return client.dashboard_link if "dashboard" in services else None
 
 
 def load_kernels(config, parallel=False):

@@ -17,11 +17,10 @@ import dataclasses
 import numpy as np
 
 from . import kernels
-from .config import ConfigError, check_writable
+from .config import ConfigError, check_writable, config_mapping, parse_config
 from .dataset import derived_fields, read_result, stored_config, utc_now, write_netcdf
 from .grid import physical_parameters, system_arrays
 from .runner import RunError, integrate_chunks
-from .trace import config_from_mapping, config_mapping
 from .variables import variables_for
 
 #: Variables from linear theory, not from the run: never recomputed.
@@ -80,7 +79,7 @@ def with_end_time(config, t_end, early_exit=None, source=None):
     """``config`` with end time ``t_end`` (its ``t_unit``), no continuation past it,
     and, if given, ``early_exit``.
 
-    The config text is rewritten to match (``sweep.trace.config_mapping``), so a
+    The config text is rewritten to match (``sweep.config.config_mapping``), so a
     file's ``config_text`` stays the config that made it.
     """
     raw = config_mapping(config)
@@ -88,7 +87,7 @@ def with_end_time(config, t_end, early_exit=None, source=None):
     raw["classification"]["max_t_end"] = float(t_end)
     if early_exit is not None:
         raw["classification"]["early_exit"] = bool(early_exit)
-    changed = config_from_mapping(raw, source or config.source)
+    changed = parse_config(raw, source or config.source)
     return dataclasses.replace(changed, source=config.source)
 
 

@@ -17,17 +17,19 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import check_writable, load_config
+from .config import check_writable, config_mapping, load_config, parse_config
+from .dataset import parameter_values
 from .plots import (
     BLOCK_STYLES,
+    DPI,
     draw_trace,
     initial_text,
+    new_figure,
     parameter_text,
     power_text,
-    pyplot,
     save_figure,
 )
-from .trace import compute_trace, config_from_mapping, config_mapping, pin_config
+from .trace import compute_trace, pin_config
 
 #: Radiation damping per normal load of the quasi-dynamic comparison (s/µm): η̂ = η V/W = 0.001.
 ETA_W = 0.01
@@ -79,7 +81,7 @@ def variant(config, name, model=None, eta_W=None, k2_W=None, phi=None):
     if phi is not None:
         raw["blocks"] = len(phi)
         raw["initial"] = {"v_over_V": [1.0] * len(phi), "phi_over_phi_ss": list(phi)}
-    return config_from_mapping(raw, f"{config.source} ({name})")
+    return parse_config(raw, f"{config.source} ({name})")
 
 
 def stiffnesses(config):
@@ -106,9 +108,9 @@ def trace_grid(config, rows, points, t_end=None):
 
 def _panel_title(ax, label, ds):
     """Row label (η/W and ηV/W filled in) and the panel's K/W, Kc/W and K/Kc."""
-    a = ds.attrs
-    label = label.format(eta_W=ETA_W, eta_hat=ETA_W * a["V"])
-    k = f"K/W = {a['K_W']:g} µm⁻¹, Kc/W = {a['critical_K_W']:.3g} µm⁻¹: K/Kc = {a['K_over_Kc']:.3g}"
+    a, p = ds.attrs, parameter_values(ds)
+    label = label.format(eta_W=ETA_W, eta_hat=ETA_W * p["V"])
+    k = f"K/W = {p['K_W']:g} µm⁻¹, Kc/W = {a['critical_K_W']:.3g} µm⁻¹: K/Kc = {a['K_over_Kc']:.3g}"
     ax.set_title(f"{label}\n{k}", fontsize=9)
 
 
@@ -117,14 +119,8 @@ def _trace_panels(rows, traces, height, extra_rows=0, legend_first=False):
     ``extra_rows`` free rows below; time labels on the bottom row only. Returns
     ``(fig, axes)``."""
     n_rows, ncol = len(traces) + extra_rows, len(traces[0])
-    fig, axes = pyplot().subplots(
-        n_rows,
-        ncol,
-        figsize=(5.6 * ncol, height),
-        sharex=True,
-        layout="constrained",
-        squeeze=False,
-    )
+    fig = new_figure(figsize=(5.6 * ncol, height))
+    axes = fig.subplots(n_rows, ncol, sharex=True, squeeze=False)
     for r, (label, _) in enumerate(rows):
         for c, ds in enumerate(traces[r]):
             draw_trace(axes[r, c], ds, legend=legend_first and r == 0 and c == 0)
@@ -134,8 +130,9 @@ def _trace_panels(rows, traces, height, extra_rows=0, legend_first=False):
     return fig, axes
 
 
-def figure_one_block(config, out, points=3000):
-    """The paper's Fig. 1 (one block at each K/W) with the quasi-dynamic comparison."""
+def figure_one_block(config, points=3000):
+    """The paper's Fig. 1 (one block at each K/W) with the quasi-dynamic comparison;
+    returns the Figure."""
     traces = trace_grid(config, ONE_BLOCK_ROWS, points)
     fig, _ = _trace_panels(ONE_BLOCK_ROWS, traces, height=6.6)
     ds = traces[0][0]
@@ -145,12 +142,13 @@ def figure_one_block(config, out, points=3000):
         f"Kc/W = {ds.attrs['critical_K_W']:.3g} µm⁻¹",
         fontsize=10,
     )
-    return save_figure(fig, out)
+    return fig
 
 
-def figure_two_blocks(config, out, points=3000):
+def figure_two_blocks(config, points=3000):
     """The paper's Fig. 2 (two blocks, k2/W = 0.05 µm⁻¹), with an out-of-phase start,
-    the quasi-dynamic comparison, and the synchronisation of the blocks."""
+    the quasi-dynamic comparison, and the synchronisation of the blocks; returns the
+    Figure."""
     rows = tuple((label, {**changes, "k2_W": K2_W}) for label, changes in TWO_BLOCK_ROWS)
     traces = trace_grid(config, rows, points, TWO_BLOCK_SPAN * config.integrator.t_end)
     fig, axes = _trace_panels(rows, traces, height=11.5, extra_rows=1, legend_first=True)
@@ -159,9 +157,10 @@ def figure_two_blocks(config, out, points=3000):
         ax = axes[-1, c]
         for r in range(1, len(rows)):
             ds = traces[r][c]
-            gap = np.abs(ds["lnv"].values[:, 0] - ds["lnv"].values[:, 1])
+            lnv = ds["lnv"]
+            gap = np.abs(lnv.isel(block=0).values - lnv.isel(block=1).values)
             colour, _ = BLOCK_STYLES[r - 1]
-            label = rows[r][0].format(eta_hat=ETA_W * ds.attrs["V"])
+            label = rows[r][0].format(eta_hat=ETA_W * parameter_values(ds)["V"])
             ax.plot(
                 ds["time"].values, np.maximum(gap, SYNC_FLOOR), color=colour, lw=1.0, label=label
             )
@@ -181,22 +180,30 @@ def figure_two_blocks(config, out, points=3000):
         "so Kc is the one-block value for every k2",
         fontsize=10,
     )
-    return save_figure(fig, out)
+    return fig
 
 
 def _fixed(ds):
     """Parameters of a trace for a figure title, without the per-panel K/W."""
-    return {k: ds.attrs[k] for k in ("A", "B", "D0", "V", "k2_W") if k in ds.attrs}
+    values = parameter_values(ds)
+    return {k: values[k] for k in ("A", "B", "D0", "V", "k2_W") if k in values}
 
 
 def make_figures(
-    paper="configs/paper.yaml",
-    twoblock="configs/twoblock.yaml",
-    bifurcation=("configs/bifurcation_qs.yaml", "configs/bifurcation_qd.yaml"),
+    paper="paper",
+    twoblock="twoblock",
+    bifurcation=("bifurcation_qs", "bifurcation_qd"),
     out_dir="results",
     threads=None,
+    suffix=".png",
+    dpi=DPI,
 ):
-    """Regenerate every paper figure into ``out_dir``; returns the PNG paths."""
+    """Regenerate every paper figure into ``out_dir``; returns the file paths.
+
+    Configs are paths or names of packaged examples (``sweep/examples.py``), so
+    this works from any folder. ``suffix``: ``.png``, ``.pdf`` or ``.svg``;
+    ``dpi``: resolution of PNGs.
+    """
     from .plots import plot_bifurcation, plot_result
     from .runner import compute
 
@@ -205,18 +212,19 @@ def make_figures(
     config = load_config(paper)
     phase_config = load_config(twoblock)
     bifurcation_configs = [load_config(p) for p in bifurcation]
-    check_writable(out_dir / "fig1_one_block.png", str(out_dir), "--out-dir", ".png")
+    check_writable(out_dir / f"fig1_one_block{suffix}", str(out_dir), "--out-dir", suffix)
     paths = [
-        figure_one_block(config, out_dir / "fig1_one_block.png"),
-        figure_two_blocks(config, out_dir / "fig2_two_blocks.png"),
+        save_figure(figure_one_block(config), out_dir / f"fig1_one_block{suffix}", dpi),
+        save_figure(figure_two_blocks(config), out_dir / f"fig2_two_blocks{suffix}", dpi),
     ]
     phase = compute(phase_config, threads=threads, show_progress=False)
     caption = "the transition stays at the one-block Kc/W = (B − A)/D0 for every coupling k2"
-    paths.append(plot_result(phase, out_dir / "phase_twoblock.png", caption))
+    paths.append(save_figure(plot_result(phase, caption), out_dir / f"phase_twoblock{suffix}", dpi))
     sweeps = [compute(c, threads=threads, show_progress=False) for c in bifurcation_configs]
     caption = (
         "quasi-static: no cycle below Kc, every run runs away (a jump); "
         "radiation damping: the cycle grows continuously from zero"
     )
-    paths.append(plot_bifurcation(sweeps, out_dir / "bifurcation.png", caption))
+    fig = plot_bifurcation(sweeps, caption)
+    paths.append(save_figure(fig, out_dir / f"bifurcation{suffix}", dpi))
     return paths

@@ -1,8 +1,11 @@
 """Figures of sweep results and traces: phase diagrams, bifurcation diagrams, time series.
 
 All drawing lives here; the numbers come from result Datasets (``sweep/dataset.py``)
-and trace Datasets (``sweep/trace.py``). matplotlib is imported lazily with the
-Agg backend, so importing the package stays light and no display is needed.
+and trace Datasets (``sweep/trace.py``). Every ``plot_*`` function returns a
+matplotlib Figure (drawn in a notebook, saved with :func:`save_figure`); those with
+one panel draw on a given ``ax=`` instead. Figures are made without pyplot, so
+nothing here selects a backend or keeps figures open; matplotlib is imported
+lazily, so importing the package stays light.
 
 One table, :data:`REGIME_COLOURS`, colours each regime in every figure.
 """
@@ -12,6 +15,7 @@ import textwrap
 
 import numpy as np
 
+from .dataset import parameter_values
 from .grid import REGIMES
 from .model import PARAMETERS
 
@@ -26,22 +30,29 @@ REGIME_COLOURS = {
 #: regimes'). Later blocks are wider and drawn underneath, so blocks moving in
 #: synchrony show as a dark line with a coloured halo.
 BLOCK_STYLES = (("#222222", 0.9), ("#CC79A7", 2.6), ("#8C6BB1", 4.2), ("#BBBBBB", 5.8))
-#: Resolution of every PNG (dots per inch): readable, and small files.
-DPI = 100
+#: Default resolution of saved raster figures (dots per inch; ``--dpi`` changes it).
+DPI = 150
+#: File types :func:`save_figure` writes, by suffix.
+FORMATS = {".png": "png", ".pdf": "pdf", ".svg": "svg"}
 #: Parameters shown in figure titles, in this order (mu0, V0, Phi0 do not change the dynamics).
 TITLE_PARAMETERS = ("A", "B", "D0", "V", "K_W", "k2_W", "eta_W", "m_W")
 SYMBOLS = {"D0": "D0", "K_W": "K/W", "k2_W": "k2/W", "eta_W": "η/W", "m_W": "m/W"}
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
 
-def pyplot():
-    """matplotlib.pyplot with the non-interactive Agg backend."""
+def new_figure(**kwargs):
+    """A matplotlib Figure with constrained layout, made without pyplot (so no
+    backend is selected and nothing is kept open)."""
+    from matplotlib.figure import Figure
+
+    return Figure(layout="constrained", **kwargs)
+
+
+def colormap(name):
+    """The registered matplotlib colormap ``name``."""
     import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return matplotlib.colormaps[name]
 
 
 def power_text(x):
@@ -86,8 +97,8 @@ def describe(ds):
     """Title line of a result or trace: blocks, model, state law and fixed parameters."""
     blocks = int(ds.attrs["blocks"])
     kind = "one block" if blocks == 1 else f"{blocks} blocks"
-    fixed = {name: ds.attrs[name] for name in TITLE_PARAMETERS if name in ds.attrs}
-    return f"{kind}, {ds.attrs['model']}, {ds.attrs['state_law']} law: {parameter_text(fixed)}"
+    fixed = parameter_text(parameter_values(ds))
+    return f"{kind}, {ds.attrs['model']}, {ds.attrs['state_law']} law: {fixed}"
 
 
 def initial_text(ds):
@@ -174,8 +185,8 @@ def critical_crossings(x, ratio):
 MEASURES = ("lnv_amplitude", "growth_rate")
 
 
-def plot_result(ds, out, caption=""):
-    """Phase diagram of a sweep result, written to ``out`` (PNG).
+def plot_result(ds, caption=""):
+    """Phase diagram of a sweep result; returns the Figure.
 
     Two or more sweep axes: regimes as a categorical map over the first two
     (first axis along x), beside maps of :data:`MEASURES`; one axis: the
@@ -185,16 +196,15 @@ def plot_result(ds, out, caption=""):
     ``caption``: an extra title line.
     """
     ds, fixed_axes = _squeeze(ds, keep=2)
-    plt = pyplot()
     if ds["regime"].ndim == 2:
-        fig = _phase_map(plt, ds)
+        fig = _phase_map(ds)
     elif ds["regime"].ndim == 1:
-        fig = _phase_line(plt, ds)
+        fig = _phase_line(ds)
     else:
         raise ValueError("a phase diagram needs a sweep axis with more than one value")
     note = "; ".join(filter(None, [fixed_axes and f"at {fixed_axes}", initial_text(ds)]))
     _suptitle(fig, [f"{ds.attrs.get('sweep_name', '')}: {describe(ds)}", note, caption])
-    return save_figure(fig, out)
+    return fig
 
 
 def _kc_handle():
@@ -203,31 +213,15 @@ def _kc_handle():
     return Line2D([], [], color="k", ls="--", lw=1.5, label="analytic Kc (K/Kc = 1)")
 
 
-def _phase_map(plt, ds):
-    from matplotlib.colors import BoundaryNorm, ListedColormap
-
+def _phase_map(ds):
     xdim, ydim = ds["regime"].dims
-    x, y = ds[xdim].values, ds[ydim].values
-    xe, ye = _edges(x), _edges(y)
-    names = regime_names(ds)
-    fig, axes = plt.subplots(
-        1, 1 + len(MEASURES), figsize=(14.5, 4.8), sharey=True, layout="constrained"
-    )
-    codes = sorted(names)
-    regime = ds["regime"].transpose(ydim, xdim).values
-    cmap = ListedColormap([REGIME_COLOURS[names[c]] for c in codes])
-    norm = BoundaryNorm(np.arange(len(codes) + 1) - 0.5, len(codes))
-    axes[0].pcolormesh(xe, ye, regime, cmap=cmap, norm=norm)
-    axes[0].set_title("regime")
-    counts = {names[c]: int(np.count_nonzero(regime == c)) for c in codes}
+    fig = new_figure(figsize=(14.5, 4.8))
+    axes = fig.subplots(1, 1 + len(MEASURES), sharey=True)
+    counts = _regime_map(axes[0], ds)
     for ax, measure in zip(axes[1:], MEASURES, strict=True):
-        _measure_map(plt, fig, ax, xe, ye, ds[measure].transpose(ydim, xdim))
-    ratio = stiffness_ratio(ds).transpose(ydim, xdim).values
+        _measure_map(ax, ds, ds[measure])
     for ax in axes:
-        ax.contour(x, y, ratio, levels=[1.0], colors="k", linewidths=1.5, linestyles="--")
-        ax.set_xlabel(axis_label(ds[xdim]))
-        ax.set_xscale("log" if _log_spaced(x) else "linear")
-        ax.set_yscale("log" if _log_spaced(y) else "linear")
+        _grid_axes(ax, ds)
     axes[0].set_ylabel(axis_label(ds[ydim]))
     present = [name for name in REGIMES if counts.get(name)]
     below = {"loc": "upper left", "bbox_to_anchor": (0, -0.15), "fontsize": 8, "frameon": False}
@@ -236,61 +230,176 @@ def _phase_map(plt, ds):
     return fig
 
 
-def _measure_map(plt, fig, ax, xe, ye, var):
-    """One continuous measure as a colour map: diverging about 0 if it changes sign,
-    else logarithmic; grey where it was not measured (NaN)."""
-    from matplotlib.colors import LogNorm, TwoSlopeNorm
+def _grid_axes(ax, ds):
+    """Labels and scales of a map over a result's two sweep axes, and the line K/Kc = 1."""
+    xdim, ydim = ds["regime"].dims
+    x, y = ds[xdim].values, ds[ydim].values
+    ratio = stiffness_ratio(ds).transpose(ydim, xdim).values
+    if np.any(np.isfinite(ratio)) and min(ratio.shape) > 1:
+        ax.contour(x, y, ratio, levels=[1.0], colors="k", linewidths=1.5, linestyles="--")
+    ax.set_xlabel(axis_label(ds[xdim]))
+    ax.set_xscale("log" if _log_spaced(x) else "linear")
+    ax.set_yscale("log" if _log_spaced(y) else "linear")
 
+
+def _regime_map(ax, ds):
+    """Regimes of a 2-D result as a categorical map on ``ax``; returns the run count
+    of each regime."""
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+
+    xdim, ydim = ds["regime"].dims
+    names = regime_names(ds)
+    codes = sorted(names)
+    regime = ds["regime"].transpose(ydim, xdim).values
+    cmap = ListedColormap([REGIME_COLOURS[names[c]] for c in codes])
+    norm = BoundaryNorm(np.arange(len(codes) + 1) - 0.5, len(codes))
+    ax.pcolormesh(_edges(ds[xdim].values), _edges(ds[ydim].values), regime, cmap=cmap, norm=norm)
+    ax.set_title("regime")
+    return {names[c]: int(np.count_nonzero(regime == c)) for c in codes}
+
+
+def _measure_map(ax, ds, var):
+    """One continuous variable of a 2-D result as a colour map on ``ax``: diverging
+    about 0 if it changes sign, else logarithmic when it spans more than a decade;
+    grey where it was not measured (NaN). The colour bar names its units."""
+    from matplotlib.colors import LogNorm, Normalize, TwoSlopeNorm
+
+    xdim, ydim = ds["regime"].dims
+    var = var.transpose(ydim, xdim)
     values = var.values.astype(float)
     finite = values[np.isfinite(values)]
-    if finite.size == 0 or finite.min() <= 0:
+    if finite.size == 0 or finite.min() < 0 < finite.max():
         top = np.abs(finite).max() if finite.size and finite.any() else 1.0
-        norm, cmap = TwoSlopeNorm(0.0, -top, top), plt.get_cmap("RdBu_r")
+        norm, cmap = TwoSlopeNorm(0.0, -top, top), colormap("RdBu_r")
+    elif finite.min() > 0 and finite.max() > 10 * finite.min():
+        norm, cmap = LogNorm(finite.min(), finite.max()), colormap("viridis")
     else:
-        norm, cmap = LogNorm(finite.min(), finite.max()), plt.get_cmap("viridis")
+        norm, cmap = Normalize(finite.min(), finite.max()), colormap("viridis")
     cmap = cmap.with_extremes(bad="#DDDDDD")
+    xe, ye = _edges(ds[xdim].values), _edges(ds[ydim].values)
     mesh = ax.pcolormesh(xe, ye, np.ma.masked_invalid(values), cmap=cmap, norm=norm)
     grey = "\n(grey: not measured)" if finite.size < values.size else ""
-    fig.colorbar(mesh, ax=ax, label=axis_label(var) + grey)
+    ax.figure.colorbar(mesh, ax=ax, label=axis_label(var) + grey)
     ax.set_title(var.attrs.get("long_name", var.name))
 
 
-def _phase_line(plt, ds):
+def _phase_line(ds):
+    fig = new_figure(figsize=(7.5, 6.4))
+    axes = fig.subplots(len(MEASURES), 1, sharex=True)
+    for i, (ax, measure) in enumerate(zip(axes, MEASURES, strict=True)):
+        _measure_line(ax, ds, measure, legend=i == 0)
+        if i < len(axes) - 1:
+            ax.set_xlabel("")
+    axes[-1].legend(handles=[*axes[-1].get_lines()[:1], _kc_handle()], loc="best", fontsize=8)
+    return fig
+
+
+def _measure_line(ax, ds, measure, legend=True):
+    """One variable of a 1-D result against its sweep axis on ``ax``, points coloured by
+    regime (growth rate with the linear theory), the analytic Kc dashed."""
     (xdim,) = ds["regime"].dims
     x = ds[xdim].values
     names = regime_names(ds)
     regime = ds["regime"].values
-    fig, axes = plt.subplots(
-        len(MEASURES), 1, figsize=(7.5, 6.4), sharex=True, layout="constrained"
-    )
     counts = {name: int(np.count_nonzero(regime == code)) for code, name in names.items()}
-    for ax, measure in zip(axes, MEASURES, strict=True):
-        values = ds[measure].values.astype(float)
-        if measure == "growth_rate":
-            ax.plot(
-                x,
-                ds["linear_growth_rate"].values,
-                color="k",
-                lw=1.2,
-                label="linear theory: max Re λ",
-            )
-            ax.axhline(0.0, color="#BBBBBB", lw=0.8)
+    values = ds[measure].values.astype(float)
+    if measure == "growth_rate":
+        ax.plot(
+            x,
+            ds["linear_growth_rate"].values,
+            color="k",
+            lw=1.2,
+            label="linear theory: max Re λ",
+        )
+        ax.axhline(0.0, color="#BBBBBB", lw=0.8)
+    else:
+        ax.plot(x, values, color="#BBBBBB", lw=1, zorder=1)
+    for code, name in names.items():
+        sel = regime == code
+        ax.scatter(x[sel], values[sel], color=REGIME_COLOURS[name], s=18, zorder=3)
+    finite = values[np.isfinite(values)]
+    if finite.size and finite.min() > 0 and finite.max() > 100 * finite.min():
+        ax.set_yscale("log")
+    for xc in critical_crossings(x, stiffness_ratio(ds).values):
+        ax.axvline(xc, color="k", ls="--", lw=1.5)
+    ax.set_ylabel(axis_label(ds[measure]))
+    ax.set_xlabel(axis_label(ds[xdim]))
+    ax.set_xscale("log" if _log_spaced(x) else "linear")
+    if legend:
+        present = [name for name in REGIMES if counts.get(name)]
+        regime_legend(ax, present, counts, loc="best", fontsize=8)
+
+
+def plottable(ds):
+    """Names of the variables of a result that :func:`plot_variable` can map: numeric,
+    over the sweep axes (per-block ones too)."""
+    dims = set(ds["regime"].dims)
+    return [
+        name
+        for name, var in ds.data_vars.items()
+        if dims <= set(var.dims) and set(var.dims) <= dims | {"block"} and var.dtype.kind in "iuf"
+    ]
+
+
+def _figure_and_axes(ax, figsize):
+    """``(figure, ax)``: the given axes and its figure, or a new figure with one axes."""
+    if ax is not None:
+        return ax.figure, ax
+    fig = new_figure(figsize=figsize)
+    return fig, fig.subplots()
+
+
+def plot_variable(ds, name, ax=None, block=0):
+    """Any variable of a sweep result over its sweep axes; returns the Figure.
+
+    Two or more sweep axes: a colour map over the first two (``regime`` as
+    categories, others with a colour bar naming the units); one axis: the
+    variable against it, points coloured by regime. Further axes are taken at
+    their first value, per-block variables at ``block``; both are named in the
+    title. The analytic Kc (K/Kc = 1) is drawn dashed.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A sweep result.
+    name : str
+        The variable, e.g. ``"period"`` (s) or ``"v_max"`` (µm s⁻¹); see :func:`plottable`.
+    ax : matplotlib Axes, optional
+        Draw there (default: a new figure).
+    block : int
+        Block index for per-block variables.
+
+    Raises ``ValueError`` listing the valid names for an unknown ``name``.
+    """
+    valid = plottable(ds)
+    if name not in valid:
+        raise ValueError(f"no variable {name!r} to plot; valid names: {', '.join(valid)}")
+    ds, fixed_axes = _squeeze(ds, keep=2)
+    notes = [f"at {fixed_axes}"] if fixed_axes else []
+    if "block" in ds[name].dims:
+        ds = ds.assign({name: ds[name].isel(block=block)})
+        notes.append(f"block {block}")
+    ndim = ds["regime"].ndim
+    if ndim == 0:
+        raise ValueError("a map needs a sweep axis with more than one value")
+    fig, ax = _figure_and_axes(ax, (7.5, 5.0) if ndim == 2 else (7.5, 4.2))
+    if ndim == 2:
+        if name == "regime":
+            counts = _regime_map(ax, ds)
+            present = [n for n in REGIMES if counts.get(n)]
+            regime_legend(ax, present, counts, loc="best", fontsize=8)
         else:
-            ax.plot(x, values, color="#BBBBBB", lw=1, zorder=1)
-        for code, name in names.items():
-            sel = regime == code
-            ax.scatter(x[sel], values[sel], color=REGIME_COLOURS[name], s=18, zorder=3)
-        finite = values[np.isfinite(values)]
-        if finite.size and finite.min() > 0 and finite.max() > 100 * finite.min():
-            ax.set_yscale("log")
-        for xc in critical_crossings(x, stiffness_ratio(ds).values):
-            ax.axvline(xc, color="k", ls="--", lw=1.5)
-        ax.set_ylabel(axis_label(ds[measure]))
-    axes[-1].set_xlabel(axis_label(ds[xdim]))
-    axes[-1].set_xscale("log" if _log_spaced(x) else "linear")
-    present = [name for name in REGIMES if counts.get(name)]
-    regime_legend(axes[0], present, counts, loc="best", fontsize=8)
-    axes[-1].legend(handles=[*axes[-1].get_lines()[:1], _kc_handle()], loc="best", fontsize=8)
+            _measure_map(ax, ds, ds[name])
+        _grid_axes(ax, ds)
+        ax.set_ylabel(axis_label(ds[ds["regime"].dims[1]]))
+    elif name == "regime":
+        _measure_line(ax, ds.assign(regime_code=ds["regime"].astype(float)), "regime_code")
+        ax.set_ylabel("regime")
+        ax.set_yticks(list(regime_names(ds)), list(regime_names(ds).values()))
+    else:
+        _measure_line(ax, ds, name)
+    title = ds[name].attrs.get("long_name", name)
+    ax.set_title(f"{title} ({'; '.join(notes)})" if notes else title, fontsize=10)
     return fig
 
 
@@ -325,15 +434,13 @@ def bifurcation_curves(ds):
 
 
 def _scalar(ds, name):
-    """The single value of parameter ``name`` in a result (scalar coordinate or
-    fixed-parameter attribute), or None if it varies or is absent."""
-    if name in ds.coords:
-        return float(ds[name]) if ds[name].ndim == 0 else None
-    return float(ds.attrs[name]) if name in ds.attrs else None
+    """The single value of parameter ``name`` in a result, or None if it varies or is
+    absent."""
+    return parameter_values(ds).get(name)
 
 
-def plot_bifurcation(datasets, out, caption=""):
-    """Bifurcation diagram of 1-D sweeps over K (or any axis), written to ``out`` (PNG).
+def plot_bifurcation(datasets, caption=""):
+    """Bifurcation diagram of 1-D sweeps over K (or any axis); returns the Figure.
 
     Amplitude of the attractor against K/Kc, one curve per model (and per value
     of any further sweep axis): (a) peak-to-peak ln v, (b) v_max/V and v_min/V.
@@ -344,8 +451,8 @@ def plot_bifurcation(datasets, out, caption=""):
     """
     from matplotlib.lines import Line2D
 
-    plt = pyplot()
-    fig, (ax_a, ax_v) = plt.subplots(1, 2, figsize=(12, 5), layout="constrained")
+    fig = new_figure(figsize=(12, 5))
+    ax_a, ax_v = fig.subplots(1, 2)
     model_handles = []
     seen = set()
     curves = [c for ds in datasets for c in bifurcation_curves(ds) if c[1]["regime"].size]
@@ -440,7 +547,7 @@ def plot_bifurcation(datasets, out, caption=""):
     )
     title = f"Bifurcation at K = Kc: {describe_common(datasets)}"
     _suptitle(fig, [title, caption])
-    return save_figure(fig, out)
+    return fig
 
 
 def describe_common(datasets):
@@ -448,11 +555,8 @@ def describe_common(datasets):
     ds = datasets[0]
     blocks = int(ds.attrs["blocks"])
     kind = "one block" if blocks == 1 else f"{blocks} blocks"
-    shared = {
-        name: ds.attrs[name]
-        for name in TITLE_PARAMETERS
-        if all(name in d.attrs and d.attrs[name] == ds.attrs[name] for d in datasets)
-    }
+    values = [parameter_values(d) for d in datasets]
+    shared = {k: v for k, v in values[0].items() if all(other.get(k) == v for other in values)}
     return f"{kind}, {ds.attrs['state_law']} law, {parameter_text(shared)}"
 
 
@@ -475,13 +579,13 @@ def draw_trace(ax, ds, legend=True):
     the regime's colour says how the run ended.
     """
     t = ds["time"].values
-    V = float(ds["v"].values[0, 0] / np.exp(ds["lnv"].values[0, 0]))
+    V = parameter_values(ds)["V"]
     lnv = ds["lnv"].values
     for b in range(ds.sizes["block"]):
         colour, width = BLOCK_STYLES[b % len(BLOCK_STYLES)]
         ax.plot(
             t,
-            ds["v"].values[:, b],
+            ds["velocity"].isel(block=b).values,
             color=colour,
             lw=width,
             zorder=3 - b / 10,
@@ -503,35 +607,40 @@ def draw_trace(ax, ds, legend=True):
         color="white",
         bbox={"boxstyle": "round", "facecolor": REGIME_COLOURS[regime], "lw": 0},
     )
-    ax.set_xlim(0.0, ds.attrs["t_end"])
+    ax.set_xlim(0.0, t[-1])  # where the run ended (a runaway ends it early)
     ax.set_xlabel("time t [s]")
-    ax.set_ylabel(axis_label(ds["v"]))
+    ax.set_ylabel(axis_label(ds["velocity"]))
     if legend:
         ax.legend(loc="lower right", fontsize=8, framealpha=0.8)
 
 
-def plot_trace(ds, out):
-    """Block velocity against time of one trace, written to ``out`` (PNG)."""
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(8, 4.2), layout="constrained")
+def plot_trace(ds, ax=None):
+    """Block velocity against time of one trace (``sweep/trace.py``); returns the Figure.
+
+    ``ax``: draw there (default: a new figure). The time axis ends where the run
+    ended.
+    """
+    fig, ax = _figure_and_axes(ax, (8, 4.2))
     draw_trace(ax, ds)
     ratio = f"K/Kc = {ds.attrs['K_over_Kc']:.3g}"
     ax.set_title(f"{describe(ds)}\n{ratio}; {initial_text(ds)}", fontsize=9.5)
-    return save_figure(fig, out)
+    return fig
 
 
-def save_figure(fig, out):
-    """Write ``fig`` to ``out`` (PNG, :data:`DPI`) atomically, creating folders; close it;
-    return the path."""
+def save_figure(fig, out, dpi=DPI):
+    """Write ``fig`` to ``out`` atomically, creating folders; return the path.
+
+    The suffix picks the format: ``.png`` (at ``dpi`` dots per inch), ``.pdf`` or
+    ``.svg`` (see :data:`FORMATS`); raises ``ValueError`` for another.
+    """
     from pathlib import Path
 
     from .atomic import replaced_atomically
 
     out = Path(out)
+    if out.suffix not in FORMATS:
+        raise ValueError(f"{out}: figure files end in {', '.join(FORMATS)}")
     out.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        with replaced_atomically(out) as tmp:
-            fig.savefig(tmp, dpi=DPI, format="png")
-    finally:
-        pyplot().close(fig)
+    with replaced_atomically(out) as tmp:
+        fig.savefig(tmp, dpi=dpi, format=FORMATS[out.suffix])
     return out

@@ -246,8 +246,12 @@ def integrate_chunks(params, y0, settings, threads=None, chunk_size=None, progre
     return results, y_final
 
 
-def compute(config, threads=None, chunk_size=None, show_progress=True, client=None):
-    """Run every system of ``config`` and return the result Dataset (nothing written)."""
+def compute(config, threads=None, chunk_size=None, show_progress=True, client=None,
+            command="run"):  # fmt: skip
+    """Run every system of ``config`` and return the result Dataset (nothing written).
+
+    ``command``: what is running it, for the file's ``history`` (``dataset.provenance``).
+    """
     phys = physical_parameters(config)
     params, y0, settings, time_unit = system_arrays(config, phys)
     progress = Progress(params.shape[0], desc=config.name, enabled=show_progress)
@@ -257,7 +261,7 @@ def compute(config, threads=None, chunk_size=None, show_progress=True, client=No
         )
     finally:
         progress.close()
-    return build_dataset(config, phys, results, y_final, time_unit)
+    return build_dataset(config, phys, results, y_final, time_unit, command)
 
 
 def time_compute(config, threads=None, chunk_size=None, client=None):

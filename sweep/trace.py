@@ -18,11 +18,10 @@ import math
 
 import numpy as np
 import xarray as xr
-import yaml
 
 from . import kernels, model
-from .config import ConfigError, parse_config
-from .dataset import derived_fields, provenance
+from .config import ConfigError, config_mapping, parse_config
+from .dataset import derived_fields, parameter_attrs, parameter_coords, provenance
 from .grid import REGIMES, kernel_codes, physical_parameters, system_arrays
 from .model import PARAMETERS
 from .variables import variables_for
@@ -32,40 +31,11 @@ OVERSAMPLE = 50
 
 #: The time series of a trace: name → (units, long_name).
 TRACE_VARIABLES = {
-    "v": ("um s-1", "slip velocity"),
+    "velocity": ("um s-1", "slip velocity"),
     "lnv": ("1", "ln(v/V)"),
     "ln_state": ("1", "ln(Phi/Phi_ss)"),
     "friction": ("1", "friction coefficient mu0 + A ln(v/V0) + B ln(Phi/Phi0)"),
 }
-
-
-def config_mapping(config):
-    """A :class:`~sweep.config.Config` as the YAML mapping it could be read from."""
-    return {
-        "name": config.name,
-        "description": config.description,
-        "blocks": config.blocks,
-        "model": config.model,
-        "state_law": config.state_law,
-        "parameters": dict(config.parameters),
-        "sweep": {a.name: list(a.values) for a in config.axes},
-        "initial": {
-            "v_over_V": list(config.initial.v_over_V),
-            "phi_over_phi_ss": list(config.initial.phi_over_phi_ss),
-        },
-        "integrator": dataclasses.asdict(config.integrator),
-        "classification": dataclasses.asdict(config.classification),
-        "output": config.output,
-    }
-
-
-def config_from_mapping(raw, source):
-    """Validate a config mapping (as from :func:`config_mapping`, then edited).
-
-    The config text becomes the mapping's YAML, so provenance stays true.
-    Raises :class:`~sweep.config.ConfigError` naming ``source``.
-    """
-    return parse_config(yaml.safe_dump(raw, sort_keys=False, allow_unicode=True), source)
 
 
 def pin_config(config, at, t_end=None):
@@ -101,7 +71,7 @@ def pin_config(config, at, t_end=None):
         raw["integrator"]["t_end"] = float(t_end)
         raw["classification"]["max_t_end"] = None  # no continuation without early exit
     # errors name the --at values; the result's provenance names the config file
-    return dataclasses.replace(config_from_mapping(raw, source), source=config.source)
+    return dataclasses.replace(parse_config(raw, source), source=config.source)
 
 
 def decimate(lnv, points):
@@ -130,9 +100,10 @@ def compute_trace(config, points=4000):
     """Integrate the single system of a pinned config (see :func:`pin_config`).
 
     ``points``: number of time bins of the decimated series (each keeps up to
-    1 + 2 × blocks samples). Returns the trace Dataset: ``v`` (µm/s), ``lnv``,
-    ``ln_state``, ``friction`` over (time [s], block); the run's regime,
-    t_runaway and other statistics of the sweep's schema in the attributes.
+    1 + 2 × blocks samples). Returns the trace Dataset: ``velocity`` (µm/s), ``lnv``,
+    ``ln_state``, ``friction`` over (block, time [s]); every model parameter a
+    scalar coordinate; the run's regime, t_runaway and other statistics of the
+    sweep's schema in the attributes.
     """
     if math.prod(config.shape) != 1:
         raise ValueError(
@@ -159,23 +130,25 @@ def compute_trace(config, points=4000):
     mu_ss = model.steady_friction(first["mu0"], first["A"], first["B"], first["V"], first["V0"])
     with np.errstate(over="ignore"):
         series = {
-            "v": first["V"] * np.exp(lnv),
+            "velocity": first["V"] * np.exp(lnv),
             "lnv": lnv,
             "ln_state": psi,
             "friction": mu_ss + first["A"] * lnv + first["B"] * psi,
         }
-    data_vars = {
+    data_vars = {  # block before time: CF wants other dimensions left of T
         name: (
-            ("time", "block"),
-            values,
+            ("block", "time"),
+            values.T,
             dict(zip(("units", "long_name"), TRACE_VARIABLES[name], strict=True)),
         )
         for name, values in series.items()
     }
-    coords = {
-        "time": ("time", rec_t[keep] * time_unit[0], {"units": "s", "long_name": "time"}),
-        "block": ("block", np.arange(nb), {"long_name": "block index in the chain"}),
-    }
+    time_attrs = {"units": "s", "long_name": "time since the start", "standard_name": "time",
+                  "axis": "T"}  # fmt: skip
+    coords = {"time": ("time", rec_t[keep] * time_unit[0], time_attrs)}
+    coords.update(parameter_coords(config))
+    for axis in config.axes:  # each pinned to one value: a scalar coordinate
+        coords[axis.name] = ((), axis.values[0], parameter_attrs(axis.name))
     return xr.Dataset(
         data_vars,
         coords=coords,
@@ -185,9 +158,8 @@ def compute_trace(config, points=4000):
 
 def trace_attributes(config, phys, params, result, y_final, time_unit):
     """Provenance of a trace plus its pinned parameters and run statistics (with units)."""
-    attrs = provenance(config)
+    attrs = provenance(config, "trace")
     attrs["title"] = f"Rice-Ruina spring-block trace: {config.name}"
-    attrs["history"] = attrs["history"].replace("python -m sweep run", "python -m sweep trace")
     attrs["time_sampling"] = (
         f"decimated from a uniform grid: per bin the first sample and each block's "
         f"largest and smallest ln(v/V) ({OVERSAMPLE} fine samples per output point), "
@@ -195,9 +167,6 @@ def trace_attributes(config, phys, params, result, y_final, time_unit):
     )
     attrs["t_end"] = float(params[0, kernels.P_TAU_END] * time_unit[0])
     attrs["t_end_units"] = "s"
-    for axis in config.axes:
-        attrs[axis.name] = axis.values[0]
-        attrs[f"{axis.name}_units"] = PARAMETERS[axis.name].units
     fields = derived_fields(config, phys, result, y_final, time_unit)
     for var in variables_for(config.blocks, config.model):
         if var.per_block:
@@ -211,25 +180,27 @@ def trace_attributes(config, phys, params, result, y_final, time_unit):
     return attrs
 
 
-def run_trace(config, at, out=None, png=None, t_end=None, points=4000):
-    """Pin ``config`` at ``at``, integrate, write the trace NetCDF and its PNG.
+def run_trace(config, at, out=None, png=None, t_end=None, points=4000, dpi=None):
+    """Pin ``config`` at ``at``, integrate, write the trace NetCDF and its figure.
 
     Default paths: ``results/<name>_trace_<name>=<value>….nc`` and the same
-    with ``.png``. Returns ``(dataset, nc_path, png_path)``.
+    with ``.png``; ``png`` may end in ``.png``, ``.pdf`` or ``.svg``; ``dpi``:
+    resolution of a PNG (default ``plots.DPI``). Returns ``(dataset, nc_path,
+    figure_path)``.
     """
     from pathlib import Path
 
     from .config import check_writable
     from .dataset import write_netcdf
-    from .plots import plot_trace
+    from .plots import DPI, FORMATS, plot_trace, save_figure
 
     pinned = pin_config(config, at, t_end)
     stem = "_".join(f"{name}={value:g}" for name, value in at.items())
     nc = Path(out) if out else Path("results") / f"{config.name}_trace_{stem}.nc"
     png = Path(png) if png else nc.with_suffix(".png")
     check_writable(nc, config.source, "--out")
-    check_writable(png, config.source, "--png", ".png")
+    check_writable(png, config.source, "--png", tuple(FORMATS))
     ds = compute_trace(pinned, points)
     write_netcdf(ds, nc)
-    plot_trace(ds, png)
+    save_figure(plot_trace(ds), png, dpi or DPI)
     return ds, nc, png

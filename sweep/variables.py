@@ -60,9 +60,9 @@ VARIABLES = (
              "of the cycle-to-cycle sequence; stick_slip runs have at most "
              "classification_accuracy; inf where the cycles do not contract yet; NaN for "
              "steady and runaway runs"),
-    Variable("n_steps", "int64", "1", "accepted integration steps", ""),
-    Variable("n_rejected", "int64", "1", "rejected integration steps", "adaptive method only"),
-    Variable("n_peaks", "int64", "1", "maxima of ln v of block 0", ""),
+    Variable("n_steps", "int32", "1", "accepted integration steps", ""),
+    Variable("n_rejected", "int32", "1", "rejected integration steps", "adaptive method only"),
+    Variable("n_peaks", "int32", "1", "maxima of ln v of block 0", ""),
     Variable("sync_error", "float64", "1", "synchronisation error",
              "max |ln v_i - ln v_0| over blocks in the final window", min_blocks=2),
     Variable("phase_lag", "float64", "1", "phase lag of the last block",

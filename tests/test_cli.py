@@ -35,6 +35,7 @@ out = {
     "vars": {n: {"dims": list(v.dims), "dtype": str(v.dtype),
                  **{k: plain(a) for k, a in v.attrs.items()}} for n, v in ds.data_vars.items()},
     "attrs": {k: plain(v) for k, v in ds.attrs.items()},
+    "scalars": {n: c.item() for n, c in ds.coords.items() if c.ndim == 0},
     "regime": ds["regime"].values.tolist(),
     "sweep_imported": "sweep" in sys.modules,
 }
@@ -105,10 +106,11 @@ def test_file_schema(schema):
                  "t_runaway", "linear_growth_rate"):  # fmt: skip
         assert name in schema["vars"]
     attrs = schema["attrs"]
+    coords = schema["coords"]
     for name, units in (("A", "1"), ("B", "1"), ("mu0", "1"), ("V", "um s-1"), ("Phi0", "s"),
                         ("D0", "um")):  # fmt: skip
-        assert name in attrs and attrs[f"{name}_units"] == units
-    assert attrs["V"] == 0.1 and attrs["D0"] == 1.0
+        assert coords[name]["dims"] == [] and coords[name]["units"] == units
+    assert schema["scalars"]["V"] == 0.1 and schema["scalars"]["D0"] == 1.0
     for key in ("integrator_method", "integrator_rtol", "integrator_atol", "integrator_t_end",
                 "package_version", "numba_version", "created"):  # fmt: skip
         assert key in attrs

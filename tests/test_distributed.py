@@ -103,3 +103,35 @@ def test_threads_and_dask_do_not_mix(tmp_path, capsys):
     out = tmp_path / "r.nc"
     assert main(["run", str(QUICK), "--out", str(out), "--threads", "1", "--dask-local", "2"]) == 2
     assert "--threads" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_api_runs_on_a_client_a_cluster_or_not_a_client(quick, quick_reference_file, local_client,
+                                                        tmp_path):  # fmt: skip
+    """``sweep.run(client=...)`` and ``run_sweep(scheduler=...)`` take a Client (left
+    open) or a Cluster; anything else is the tool's ConfigError, not a TypeError."""
+    import sweep
+    from sweep.dataset import write_netcdf
+
+    for k, client in enumerate((local_client, local_client.cluster)):
+        ds = sweep.run(quick, client=client, progress=False)
+        assert_same_file(write_netcdf(ds, tmp_path / f"{k}.nc"), quick_reference_file)
+    assert local_client.status == "running"
+    with pytest.raises(sweep.ConfigError, match="must be a dask distributed Client"):
+        sweep.run(quick, client=3, progress=False)
+    with pytest.raises(sweep.ConfigError, match="threads is for numba threads"):
+        sweep.run(quick, client=local_client, threads=1, progress=False)
+
+
+@pytest.mark.slow
+def test_run_sweep_takes_a_client_and_logs_its_dashboard(quick, quick_reference_file, local_client,
+                                                         tmp_path, caplog):  # fmt: skip
+    """``run_sweep(scheduler=client)`` used to raise TypeError; the dashboard link (which
+    the CLI prints) is logged whenever the scheduler serves one."""
+    caplog.set_level("INFO", logger="sweep")
+    result = runner.run_sweep(quick, out=tmp_path / "c.nc", show_progress=False,
+                              scheduler=local_client)  # fmt: skip
+    assert_same_file(result.path, quick_reference_file)
+    link = sweep_distributed.dashboard_link(local_client)
+    if link is not None:  # None without bokeh, which serves the dashboard
+        assert f"Dask dashboard: {link}" in caplog.text

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sweep.cli import main
-from sweep.config import load_config
+from sweep.config import config_mapping, load_config, parse_config
 from sweep.dataset import write_netcdf
 from sweep.grid import REGIMES
 from sweep.plots import (
@@ -15,11 +15,12 @@ from sweep.plots import (
     critical_crossings,
     plot_bifurcation,
     plot_result,
+    plot_variable,
+    save_figure,
     stiffness_ratio,
     unit_text,
 )
 from sweep.runner import compute
-from sweep.trace import config_from_mapping, config_mapping
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
@@ -35,7 +36,12 @@ def small(path, name, **changes):
     for key, value in changes.items():
         merge = key != "sweep" and isinstance(raw.get(key), dict)
         raw[key] = {**raw[key], **value} if merge else value
-    return config_from_mapping(raw, f"{path} ({name})")
+    return parse_config(raw, f"{path} ({name})")
+
+
+def saved(fig, path):
+    """``fig`` written to ``path`` (the format from the suffix); returns the path."""
+    return save_figure(fig, path)
 
 
 def assert_png(path, min_bytes=10_000):
@@ -129,15 +135,15 @@ def test_no_critical_line_or_curve_point_where_kc_is_not_positive(tmp_path):
     ((_, curve),) = bifurcation_curves(ds)
     assert curve.sizes["eta_W"] == np.count_nonzero(eta * 0.1 < 0.05)
     assert np.all(curve["K_over_Kc"].values > 0)
-    assert_png(plot_result(ds, tmp_path / "eta.png"))
+    assert_png(saved(plot_result(ds), tmp_path / "eta.png"))
 
 
 def test_phase_diagram_of_a_1d_sweep(one_d, tmp_path):
-    assert_png(plot_result(one_d, tmp_path / "one_d.png"))
+    assert_png(saved(plot_result(one_d), tmp_path / "one_d.png"))
 
 
 def test_phase_diagram_of_a_2d_sweep(two_d, tmp_path):
-    assert_png(plot_result(two_d, tmp_path / "two_d.png"))
+    assert_png(saved(plot_result(two_d), tmp_path / "two_d.png"))
 
 
 def test_bifurcation_curves_one_per_model_and_damping(one_d, quasi_dynamic):
@@ -155,7 +161,7 @@ def test_bifurcation_curves_one_per_model_and_damping(one_d, quasi_dynamic):
 
 
 def test_bifurcation_diagram(one_d, quasi_dynamic, tmp_path):
-    assert_png(plot_bifurcation([one_d, quasi_dynamic], tmp_path / "bifurcation.png"))
+    assert_png(saved(plot_bifurcation([one_d, quasi_dynamic]), tmp_path / "bifurcation.png"))
 
 
 def test_plot_and_bifurcation_commands(one_d, quasi_dynamic, tmp_path):
@@ -195,7 +201,7 @@ def test_bifurcation_of_runaways_only(tmp_path):
     ds = compute(small(CONFIGS / "quick.yaml", "runaways", sweep={"K_W": [0.03, 0.04]}),
                  show_progress=False)  # fmt: skip
     assert set(ds["regime"].values) == {REGIMES.index("runaway")}
-    assert_png(plot_bifurcation([ds], tmp_path / "b.png"), min_bytes=5_000)
+    assert_png(saved(plot_bifurcation([ds]), tmp_path / "b.png"), min_bytes=5_000)
 
 
 def test_bifurcation_configs_show_the_jump_and_the_continuous_onset():
@@ -257,3 +263,57 @@ def test_committed_figures_are_present_and_small(name):
     path = ROOT / "results" / f"{name}.png"
     assert_png(path)
     assert path.stat().st_size < 300_000
+
+
+def test_plots_are_figures_drawn_without_pyplot(one_d, tmp_path):
+    """Library plots return Figures and never touch pyplot or the backend (a notebook's
+    backend stays as it is); run in a fresh process to see what gets imported."""
+    result = write_netcdf(one_d, tmp_path / "q.nc")
+    code = f"""
+import sys, matplotlib
+matplotlib.use = lambda *args, **kwargs: sys.exit("matplotlib.use was called")
+from sweep.dataset import read_result
+from sweep.plots import plot_result, plot_variable, save_figure
+ds = read_result({str(result)!r})
+fig = plot_result(ds)
+save_figure(plot_variable(ds, "period"), {str(tmp_path / "p.svg")!r})
+print(type(fig).__name__, "matplotlib.pyplot" in sys.modules)
+"""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["Figure", "False"]
+    assert (tmp_path / "p.svg").read_text().lstrip().startswith("<?xml")
+
+
+def test_plot_variable_labels_units_and_draws_on_a_given_axes(one_d, two_d):
+    from matplotlib.figure import Figure
+
+    fig = plot_variable(two_d, "v_max")
+    assert fig.axes[-1].get_ylabel().startswith("maximum slip velocity [µm s⁻¹]")  # colour bar
+    ax = Figure().subplots()
+    assert plot_variable(one_d, "period", ax=ax) is ax.figure
+    assert ax.get_ylabel() == "oscillation period [s]"
+    assert plot_variable(two_d, "regime").axes[0].get_title() == "dynamical regime"
+    with pytest.raises(ValueError, match="valid names: regime, lnv_amplitude"):
+        plot_variable(one_d, "nope")
+
+
+def test_plot_command_maps_any_variable_in_any_format(one_d, tmp_path, capsys):
+    path = write_netcdf(one_d, tmp_path / "q.nc")
+    assert main(["plot", str(path), "--var", "friction_drop"]) == 0
+    assert_png(tmp_path / "q_friction_drop.png")
+    for suffix, magic in ((".pdf", b"%PDF"), (".svg", b"<?xml")):
+        out = tmp_path / f"v{suffix}"
+        assert main(["plot", str(path), "--var", "v_max", "--out", str(out)]) == 0
+        assert out.read_bytes().lstrip()[: len(magic)] == magic
+    small_png, big_png = tmp_path / "s.png", tmp_path / "b.png"
+    assert main(["plot", str(path), "--out", str(small_png), "--dpi", "50"]) == 0
+    assert main(["plot", str(path), "--out", str(big_png), "--dpi", "200"]) == 0
+    assert big_png.stat().st_size > 2 * small_png.stat().st_size
+    capsys.readouterr()
+    assert main(["plot", str(path), "--var", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert "no variable 'nope'" in err and "period" in err

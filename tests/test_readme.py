@@ -28,10 +28,10 @@ from conftest import (
 from scipy.integrate import solve_ivp
 
 from sweep import figures
-from sweep.config import load_config
+from sweep.config import config_mapping, load_config, parse_config
 from sweep.grid import REGIMES
 from sweep.runner import compute
-from sweep.trace import compute_trace, config_from_mapping, config_mapping, pin_config
+from sweep.trace import compute_trace, pin_config
 
 PAPER = load_config(ROOT / "configs" / "paper.yaml")
 #: The paper's "stick-slip" stiffness (µm⁻¹), K/Kc = 0.92; D0/V = 10 s.
@@ -63,8 +63,8 @@ def test_fig1_damped_cycle_and_critical_stiffnesses():
     trace = paper_trace(model="quasi-dynamic", eta_W=figures.ETA_W)
     assert trace.attrs["regime"] == "stick_slip"
     assert_as_printed(trace.attrs["period"], period)
-    assert_as_printed(float(trace["v"].min()), v_low)
-    assert_as_printed(float(trace["v"].max()), v_high)
+    assert_as_printed(float(trace["velocity"].min()), v_low)
+    assert_as_printed(float(trace["velocity"].max()), v_high)
     (kc_small,) = readme_numbers(r"Kc/W = \(B − A − η̂\)/D0 = ([\d.]+) µm⁻¹\)")
     (kc_large,) = readme_numbers(r"η̂ = 0.01 would move Kc/W to ([\d.]+) µm⁻¹")
     assert_as_printed(PAPER_B - PAPER_A - 0.001, kc_small)
@@ -95,7 +95,7 @@ def test_fig2_out_of_phase_runaway_and_synchronisation():
     # rounding error of ℓ: a few ulps of |ℓ| ≤ ln 1e6 ≈ 14, i.e. ≲ 1e-14; at half the
     # stated time the blocks must still differ by more, or "about" would be wrong
     t = trace["time"].values
-    gap = np.abs(trace["lnv"].values[:, 0] - trace["lnv"].values[:, 1])
+    gap = np.abs(trace["lnv"].isel(block=0).values - trace["lnv"].isel(block=1).values)
     assert gap[t >= float(sync)].max() <= 1e-14
     assert gap[t >= 0.5 * float(sync)].max() > 1e-14
 
@@ -105,7 +105,7 @@ def config_at(path, **values):
     raw = config_mapping(load_config(path))
     for name, value in values.items():
         raw["sweep"][name] = [value]
-    return config_from_mapping(raw, f"{path} at {values}")
+    return parse_config(raw, f"{path} at {values}")
 
 
 def test_slip_law_events_are_smaller():

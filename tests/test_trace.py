@@ -9,13 +9,11 @@ from scipy.integrate import solve_ivp
 
 from sweep import kernels
 from sweep.cli import main
-from sweep.config import ConfigError, load_config
+from sweep.config import ConfigError, config_mapping, load_config, parse_config
 from sweep.grid import kernel_codes, system_arrays
 from sweep.runner import compute
 from sweep.trace import (
     compute_trace,
-    config_from_mapping,
-    config_mapping,
     decimate,
     pin_config,
 )
@@ -42,12 +40,12 @@ def quasi_dynamic_two_blocks():
     raw["parameters"]["eta_W"] = 0.01
     raw["initial"]["phi_over_phi_ss"] = [1.01, 0.99]
     raw["integrator"]["t_end"] = 800.0
-    return config_from_mapping(raw, "twoblock, quasi-dynamic")
+    return parse_config(raw, "twoblock, quasi-dynamic")
 
 
 def test_config_mapping_round_trip():
     config = load_config(TWOBLOCK)
-    again = config_from_mapping(config_mapping(config), "round trip")
+    again = parse_config(config_mapping(config), "round trip")
     for field in ("blocks", "model", "state_law", "parameters", "axes", "initial", "output"):
         assert getattr(again, field) == getattr(config, field)
     assert again.integrator == config.integrator
@@ -110,10 +108,16 @@ def test_trace_ends_at_the_kernels_final_state(make_config, at):
     V = pinned.fixed["V"]
     _, _, _, time_unit = system_arrays(pinned)
     # Same kernel, same arithmetic (recording only interpolates): agreement to rounding.
-    np.testing.assert_allclose(ds["lnv"].values[-1], y_final[:nb], rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(ds["ln_state"].values[-1], y_final[nb:], rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(ds["v"].values[-1], V * np.exp(y_final[:nb]), rtol=1e-12)
-    np.testing.assert_allclose(ds["time"].values[-1], result[kernels.R_TAU_FINAL] * time_unit[0])
+    np.testing.assert_allclose(ds["lnv"].isel(time=-1).values, y_final[:nb], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(
+        ds["ln_state"].isel(time=-1).values, y_final[nb:], rtol=1e-12, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        ds["velocity"].isel(time=-1).values, V * np.exp(y_final[:nb]), rtol=1e-12
+    )
+    np.testing.assert_allclose(
+        ds["time"].isel(time=-1).values, result[kernels.R_TAU_FINAL] * time_unit[0]
+    )
     assert (
         ds.attrs["regime"]
         == ("steady", "stick_slip", "runaway", "undecided")[int(result[kernels.R_REGIME])]
@@ -132,7 +136,7 @@ def test_quasi_static_trace_ends_at_the_sweeps_runaway_time():
         t_runaway = float(sweep["t_runaway"].sel(K_W=k_w))
         step = ds.attrs["t_end"] / points  # one output step (time bin) of the trace
         assert ds.attrs["regime"] == "runaway"
-        assert abs(ds["time"].values[-1] - t_runaway) <= step
+        assert abs(ds["time"].isel(time=-1).values - t_runaway) <= step
         # Same system, same path: the sweep's early exit never triggers on a growing envelope.
         assert ds.attrs["t_runaway"] == pytest.approx(t_runaway, rel=1e-12)
 
@@ -154,13 +158,13 @@ def test_quasi_static_trace_ends_at_the_sweeps_runaway_time():
 def test_runaway_time_of_a_trace_matches_the_reference(v0, psi0, k_over_kc, tau_runaway, tol):
     raw = config_mapping(load_config(QUICK))  # paper A, B; D0 = 1 um, V = 0.1 um/s
     raw["initial"] = {"v_over_V": [v0], "phi_over_phi_ss": [float(np.exp(psi0))]}
-    config = config_from_mapping(raw, "quick, brief's start")
+    config = parse_config(raw, "quick, brief's start")
     ds = compute_trace(pin_config(config, {"K_W": k_over_kc * 0.05}), points=200)
     assert ds.attrs["regime"] == "runaway"
     time_unit = 1.0 / 0.1  # D0/V in s
     assert ds.attrs["t_runaway"] / time_unit == pytest.approx(tau_runaway, abs=tol)
     # the series ends with the step that crossed the cap, within one output step
-    assert ds["time"].values[-1] - ds.attrs["t_runaway"] <= ds.attrs["t_end"] / 200
+    assert ds["time"].isel(time=-1).values - ds.attrs["t_runaway"] <= ds.attrs["t_end"] / 200
 
 
 def test_recorded_samples_lie_on_the_scipy_trajectory():
@@ -187,11 +191,11 @@ def test_recorded_samples_lie_on_the_scipy_trajectory():
     # Tolerance 1e-5: the kernel's DOPRI5 (rtol 1e-8) plus cubic Hermite recording
     # errs by < 1e-6 here; a sample stamped one fine step (0.004 D0/V) off would err
     # by ~5e-3 (slope of ln v up to ~1.3 per D0/V).
-    np.testing.assert_allclose(ds["lnv"].values[:, 0], ref[0], atol=1e-5)
-    np.testing.assert_allclose(ds["ln_state"].values[:, 0], ref[1], atol=1e-5)
+    np.testing.assert_allclose(ds["lnv"].isel(block=0).values, ref[0], atol=1e-5)
+    np.testing.assert_allclose(ds["ln_state"].isel(block=0).values, ref[1], atol=1e-5)
     mu_ss = 0.4 + (0.03 - 0.08) * np.log(0.1 / 1.0)  # V0 = D0/Phi0 = 1 um/s
     np.testing.assert_allclose(
-        ds["friction"].values[:, 0], mu_ss + A * ref[0] + B * ref[1], atol=1e-6
+        ds["friction"].isel(block=0).values, mu_ss + A * ref[0] + B * ref[1], atol=1e-6
     )
 
 
@@ -202,8 +206,8 @@ def test_trace_command_writes_netcdf_and_png(tmp_path):
     png = nc.with_suffix(".png")
     assert png.read_bytes()[:8] == PNG_MAGIC and png.stat().st_size > 10_000
     with xr.open_dataset(nc) as ds:
-        assert ds["v"].dims == ("time", "block")
-        assert ds["time"].attrs["units"] == "s" and ds["v"].attrs["units"] == "um s-1"
+        assert ds["velocity"].dims == ("block", "time")
+        assert ds["time"].attrs["units"] == "s" and ds["velocity"].attrs["units"] == "um s-1"
         assert {"lnv", "ln_state", "friction"} <= set(ds.data_vars)
         assert ds.attrs["regime"] == "runaway"
         assert ds.attrs["t_runaway_units"] == "s"
@@ -215,3 +219,18 @@ def test_trace_command_missing_axis_exits_2(tmp_path, capsys):
     assert code == 2
     assert "k2_W" in capsys.readouterr().err
     assert not (tmp_path / "t.nc").exists()
+
+
+def test_trace_figure_ends_where_the_run_ended_and_takes_an_axes():
+    """A runaway at ~970 s of a 20000 s end time: the time axis stops at the last sample,
+    not at the end time. CF attributes of the time coordinate are set."""
+    from matplotlib.figure import Figure
+
+    from sweep.plots import plot_trace
+
+    ds = compute_trace(pin_config(load_config(QUICK), {"K_W": 0.046}, 2000.0), points=300)
+    assert ds.attrs["regime"] == "runaway" and ds.attrs["t_end"] == 20000.0
+    ax = Figure().subplots()
+    assert plot_trace(ds, ax=ax) is ax.figure
+    assert ax.get_xlim()[1] == ds["time"].values[-1] < 1000.0
+    assert ds["time"].attrs["standard_name"] == "time" and ds["time"].attrs["axis"] == "T"

@@ -1,0 +1,67 @@
+"""The Python API for notebooks and scripts: ``import sweep; ds = sweep.run("quick")``.
+
+Thin functions over the same pieces the CLI uses; nothing here writes a file.
+``sweep.load_config`` and ``sweep.with_changes`` come from ``sweep/config.py``.
+"""
+
+from .config import ConfigError, load_config
+
+
+def run(config, *, threads=None, client=None, progress=True):
+    """Run a sweep and return its result; nothing is written.
+
+    Parameters
+    ----------
+    config : path, str, Mapping or Config
+        A YAML file, the name of a packaged example (``sweep.examples.names()``),
+        a mapping as the YAML would read, or a :class:`~sweep.config.Config`
+        (e.g. from :func:`~sweep.config.with_changes`).
+    threads : int, optional
+        numba threads (default: all cores); not with ``client``.
+    client : distributed.Client, Cluster or str, optional
+        Run the chunks as tasks on this Dask client, on a new client of this
+        cluster (e.g. a ``LocalCluster``), or on the scheduler at this address
+        (``"tcp://host:8786"``). A given Client is left open.
+    progress : bool
+        Show a progress bar.
+
+    Returns
+    -------
+    xarray.Dataset
+        The result, as ``python -m sweep run`` writes it (dimensions named after
+        the sweep axes, fixed parameters as scalar coordinates, CF attributes);
+        its ``history`` says it was made by ``sweep.run()`` and from which config
+        (``<mapping>`` for a mapping). Save it with ``sweep.dataset.write_netcdf``
+        (atomic) or ``ds.to_netcdf``.
+
+    Raises ``ConfigError`` for a bad config or arguments and ``RunError`` when
+    Dask is missing or the cluster cannot be reached.
+    """
+    from contextlib import nullcontext
+
+    from .runner import compute
+
+    config = load_config(config)
+    if client is not None and threads is not None:
+        raise ConfigError(config.source, ["threads is for numba threads; Dask workers own theirs"])
+    _check_threads(config.source, threads)
+    if client is None:
+        backend = nullcontext(None)
+    else:
+        from .distributed import connect
+
+        backend = connect(client)
+    with backend as dask_client:
+        return compute(
+            config, threads, show_progress=progress, client=dask_client, command="sweep.run"
+        )
+
+
+def _check_threads(source, threads):
+    """Raise :class:`ConfigError` unless ``threads`` is None or in [1, cores]."""
+    import numba
+
+    top = numba.config.NUMBA_NUM_THREADS
+    ok = threads is None or (isinstance(threads, int) and 1 <= threads <= top)
+    if not ok or isinstance(threads, bool):
+        raise ConfigError(source, [f"threads must be an integer in [1, {top}], got {threads!r}"])

@@ -1,0 +1,148 @@
+"""The notebook API (sweep/api.py, sweep/__init__.py) and the packaged examples
+(sweep/examples.py): configs from paths, names, mappings and changes; results that
+combine along a fixed parameter; nothing written."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import xarray as xr
+from conftest import QUICK, ROOT, without_provenance
+
+import sweep
+from sweep import examples, runner
+from sweep.cli import main
+from sweep.config import MAPPING_SOURCE, config_mapping
+from sweep.dataset import write_netcdf
+
+
+def without_file_attrs(ds):
+    """``ds`` with no file (global) attributes."""
+    out = ds.copy()
+    out.attrs = {}
+    return out
+
+
+@pytest.fixture(scope="module")
+def quick_result():
+    return sweep.run(QUICK, threads=1, progress=False)
+
+
+def test_import_loads_neither_numba_nor_matplotlib_nor_xarray():
+    code = (
+        "import sys, sweep; "
+        "print([m for m in ('numba', 'matplotlib', 'xarray') if m in sys.modules])"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+def test_run_from_a_path_a_name_and_a_mapping_agree(quick_result, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # a folder with no configs/: the name is the packaged example
+    by_name = sweep.run("quick", threads=1, progress=False)
+    raw = config_mapping(sweep.load_config(QUICK))
+    del raw["name"]
+    by_mapping = sweep.run(raw, threads=1, progress=False)
+    for ds in (by_name, by_mapping):
+        # the numbers and their attributes; file attributes name the config's origin
+        xr.testing.assert_identical(without_file_attrs(ds), without_file_attrs(quick_result))
+    assert list(tmp_path.iterdir()) == []  # nothing written
+    # provenance says where the config came from, and invents no file
+    assert quick_result.attrs["history"].endswith(f"sweep.run() in Python from config {QUICK}")
+    assert by_mapping.attrs["config_path"] == MAPPING_SOURCE
+    assert by_mapping.attrs["history"].endswith(f"from config {MAPPING_SOURCE}")
+    assert by_mapping.attrs["sweep_name"] == "sweep"
+    assert sweep.load_config(raw).output == "results/sweep.nc"
+
+
+def test_parse_config_takes_a_mapping_with_numpy_values():
+    raw = config_mapping(sweep.load_config(QUICK))
+    raw["sweep"]["K_W"] = np.linspace(0.04, 0.06, 3)
+    raw["parameters"]["A"] = np.float64(0.02)
+    config = sweep.parse_config(raw)
+    assert config.axes[0].values == (0.04, 0.05, 0.06)
+    assert config.fixed["A"] == 0.02 and config.source == MAPPING_SOURCE
+
+
+def test_with_changes_revalidates_and_names_the_keys():
+    config = sweep.with_changes("quick", {"integrator": {"t_end": 5000}, "parameters": {"A": 0.02}})
+    assert config.integrator.t_end == 5000.0 and config.fixed["A"] == 0.02
+    assert config.fixed["B"] == 0.08  # untouched values stay
+    assert "with changes to integrator.t_end, parameters.A" in config.source
+    fixed = sweep.with_changes(config, {"sweep": {"K_W": None, "A": [0.02, 0.03]},
+                                        "parameters": {"K_W": 0.05, "A": None}})  # fmt: skip
+    assert [a.name for a in fixed.axes] == ["A"] and fixed.fixed["K_W"] == 0.05
+    with pytest.raises(sweep.ConfigError) as err:
+        sweep.with_changes("quick", {"integrator": {"t_ned": 1}, "parameters": {"A": -1}})
+    problems = "\n".join(err.value.problems)
+    assert "unknown key integrator.t_ned" in problems
+    assert "parameters.A must be in (0, inf), got -1" in problems
+
+
+def test_a_text_number_from_safe_load_gets_a_hint():
+    raw = config_mapping(sweep.load_config(QUICK))
+    raw["classification"]["v_cap_over_V"] = "1.0e6"  # what yaml.safe_load makes of 1.0e6
+    with pytest.raises(sweep.ConfigError, match="text, not a number"):
+        sweep.parse_config(raw)
+
+
+def test_run_rejects_bad_threads():
+    with pytest.raises(sweep.ConfigError, match="threads must be an integer"):
+        sweep.run(QUICK, threads=0, progress=False)
+
+
+def test_results_differing_in_a_fixed_parameter_combine_along_it(quick_result, tmp_path):
+    """Fixed parameters are scalar coordinates: open_mfdataset labels each file by its A."""
+    pytest.importorskip("dask")
+    other = sweep.run(sweep.with_changes(QUICK, {"parameters": {"A": 0.02}}), progress=False)
+    paths = [write_netcdf(quick_result, tmp_path / "a.nc"), write_netcdf(other, tmp_path / "b.nc")]
+    with xr.open_mfdataset(paths, combine="nested", concat_dim="A") as both:
+        np.testing.assert_array_equal(both["A"].values, [0.03, 0.02])
+        assert both["A"].attrs["units"] == "1"
+        assert both["regime"].dims == ("A", "K_W")
+        np.testing.assert_array_equal(both["regime"].sel(A=0.02), other["regime"])
+
+
+def test_examples_list_every_config_of_the_repository():
+    assert examples.names() == sorted(p.stem for p in QUICK.parent.glob("*.yaml"))
+    assert examples.path("quick").read_text() == QUICK.read_text()
+    with pytest.raises(KeyError, match="quick"):
+        examples.path("nope")
+
+
+def test_cli_version_and_examples(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0
+    assert capsys.readouterr().out.strip() == f"rsf-sweep {sweep.__version__}"
+    assert main(["examples"]) == 0
+    out = capsys.readouterr().out
+    assert all(name in out for name in examples.names())
+
+
+def test_cli_runs_a_packaged_example_from_any_folder(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", "quick", "--quiet", "--threads", "1"]) == 0
+    assert (tmp_path / "results" / "quick.nc").is_file()
+    assert "wrote results/quick.nc" in capsys.readouterr().out
+    assert main(["run", "nonesuch"]) == 2
+    err = capsys.readouterr().err
+    assert "cannot read config" in err and "packaged examples: " in err
+
+
+def test_a_result_written_by_the_api_is_what_the_runner_writes(quick_result):
+    computed = runner.compute(sweep.load_config(QUICK), threads=1, show_progress=False)
+    xr.testing.assert_identical(without_provenance(quick_result), without_provenance(computed))
+
+
+def test_license_and_citation_are_shipped():
+    import yaml
+
+    assert "MIT License" in (ROOT / "LICENSE").read_text()
+    assert "2026 rsf-sweep contributors" in (ROOT / "LICENSE").read_text()
+    cff = yaml.safe_load((ROOT / "CITATION.cff").read_text())
+    assert cff["cff-version"] == "1.2.0" and cff["version"] == sweep.__version__
+    (paper,) = cff["references"]
+    assert paper["title"].startswith("Transition from Uniform Motion to Stick-Slip")
+    assert [a["family-names"] for a in paper["authors"]] == ["Szkutnik", "Kułakowski"]
