@@ -97,21 +97,13 @@ def output_lock(output, shared=False):
     removes it. Taken without waiting: if another process holds it, raise
     :class:`OutputBusy` naming the process that last took it (pid, host, command,
     start time, as each holder writes into the lock file). The operating system releases the
-    lock when the holder exits, even after ``kill -9``.
+    lock when the holder exits, even after ``kill -9``; an exclusive holder removes the
+    file when it is done.
     """
     output = Path(output)
     lock_path = output.with_name(f".{output.name}.lock")
-    handle = open(lock_path, "a+")
+    handle = _locked_file(lock_path, shared, output)
     try:
-        try:
-            fcntl.flock(handle, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
-        except BlockingIOError:
-            handle.seek(0)
-            holder = handle.read().strip() or "an unknown process"
-            raise OutputBusy(
-                f"{output} is in use by another run (the lock was last taken by {holder}); "
-                "wait for it to finish, or write to another --out"
-            ) from None
         handle.seek(0)
         handle.truncate()  # the newest holder names itself (with shards: one of them)
         handle.write(
@@ -121,6 +113,32 @@ def output_lock(output, shared=False):
         handle.flush()
         yield
     finally:
+        if not shared:  # removed while still held: nobody else can hold it now
+            lock_path.unlink(missing_ok=True)
+        handle.close()
+
+
+def _locked_file(lock_path, shared, output):
+    """The lock file, opened and locked; retried if an exclusive holder removed it
+    between our open and our lock (we would hold a lock on a file nobody sees)."""
+    while True:
+        handle = open(lock_path, "a+")
+        try:
+            fcntl.flock(handle, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.seek(0)
+            holder = handle.read().strip() or "an unknown process"
+            handle.close()
+            raise OutputBusy(
+                f"{output} is in use by another run (the lock was last taken by {holder}); "
+                "wait for it to finish, or write to another --out"
+            ) from None
+        try:
+            same = os.stat(lock_path).st_ino == os.fstat(handle.fileno()).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            return handle
         handle.close()
 
 

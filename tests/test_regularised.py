@@ -603,7 +603,7 @@ BAD_CONFIGS = [
     (raw_config(parameters={"eta_W": -0.1}), "parameters.eta_W must be in [0, inf), got -0.1"),
     (
         raw_config(sweep={"K_W": [0.04], "eta_W": [0.1, -0.2]}),
-        "sweep.eta_W must be in [0, inf), got -0.2",
+        "sweep.eta_W[1] must be in [0, inf), got -0.2",
     ),
     (
         raw_config("inertial", parameters={"m_W": -1.0}),

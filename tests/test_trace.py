@@ -73,7 +73,7 @@ def test_pin_config_rejects_unknown_and_inapplicable_parameters():
         pin_config(load_config(QUICK), {"K_W": 0.046, "stiffness": 1.0})
     with pytest.raises(ConfigError, match="eta_W only applies to model quasi-dynamic"):
         pin_config(load_config(QUICK), {"K_W": 0.046, "eta_W": 0.1})
-    with pytest.raises(ConfigError, match=r"K_W must be in \(0, inf\)"):
+    with pytest.raises(ConfigError, match=r"K_W\[0\] must be in \(0, inf\), got -1"):
         pin_config(load_config(QUICK), {"K_W": -1.0})
 
 
