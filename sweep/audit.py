@@ -17,9 +17,10 @@ from . import kernels
 from .config import ConfigError
 from .dataset import stored_config
 from .extend import load_result
-from .grid import REGIMES, system_arrays
+from .grid import system_arrays
 from .model import PARAMETERS
 from .runner import integrate_chunks
+from .variables import REGIMES
 
 
 def audit_points(ds, sample=20, near_kc=0.01, seed=0):

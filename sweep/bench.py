@@ -29,8 +29,9 @@ import yaml
 
 from . import kernels
 from .config import load_config, parse_config
-from .grid import REGIMES, system_arrays
+from .grid import system_arrays
 from .runner import integrate_chunks
+from .variables import REGIMES
 
 PAPER = {"A": 0.03, "B": 0.08, "mu0": 0.4, "V": 0.1, "Phi0": 1.0, "D0": 1.0}
 KC_W = (PAPER["B"] - PAPER["A"]) / PAPER["D0"]  # um^-1

@@ -17,16 +17,17 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from . import __version__, kernels, model
+from . import __version__, model
 from .atomic import replaced_atomically
 from .config import ConfigError, parse_config
-from .grid import REGIMES
 from .model import PARAMETERS
-from .variables import variables_for
+from .variables import REGIMES, variables_for
 
 
 def derived_fields(config, phys, results, y_final, time_unit):
     """Every output variable as a flat array (per system, or per system × block)."""
+    from . import kernels  # lazily: reading and plotting results needs no numba
+
     r = results
     nb = config.blocks
     V = phys["V"]

@@ -19,8 +19,6 @@ MODEL_CODES = {
 }
 LAW_CODES = {"aging": kernels.AGING, "slip": kernels.SLIP}
 METHOD_CODES = {"dopri5": kernels.DOPRI5, "rk4": kernels.RK4, "rosenbrock": kernels.ROSENBROCK}
-#: Regime codes and names, in code order (the CF flag_values / flag_meanings).
-REGIMES = ("steady", "stick_slip", "runaway", "undecided")
 
 
 def physical_parameters(config):

@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from .accelerate import jit, literally, parallel_jit, prange
+from .accelerate import jit, jit_inline, literally, parallel_jit, prange
 
 # --- codes shared with the Python side --------------------------------------
 QUASI_STATIC, QUASI_DYNAMIC, INERTIAL = 0, 1, 2
@@ -135,7 +135,7 @@ _RODAS_C = np.array(
 )  # fmt: skip
 
 
-@jit
+@jit_inline
 def rhs(y, p, model, law, nb, ev, dydt):
     """Time derivative (per D0/V) of the log-form state ``y`` into ``dydt``.
 
@@ -270,7 +270,7 @@ def lu_solve(a, perm, b, x):
         x[i] = acc / a[i, i]
 
 
-@jit
+@jit_inline
 def step_rk4(y, f, h, p, model, law, nb, ev, k2, k3, k4, ytmp, ynew):
     """One classical RK4 step of size h from (y, f = rhs(y)) into ``ynew``."""
     n = y.size
@@ -287,7 +287,7 @@ def step_rk4(y, f, h, p, model, law, nb, ev, k2, k3, k4, ytmp, ynew):
         ynew[j] = y[j] + h / 6.0 * (f[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
 
 
-@jit
+@jit_inline
 def step_dopri5(y, f, h, p, model, law, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, fnew, rtol, atol):
     """One Dormand–Prince 5(4) step; returns the scaled RMS error estimate.
 
@@ -375,7 +375,7 @@ _D1, _D3, _D4 = -12715105075 / 11282082432, 87487479700 / 32700410799, -10690763
 _D5, _D6, _D7 = 701980252875 / 199316789632, -1453857185 / 822651844, 69997945 / 29380423
 
 
-@jit
+@jit_inline
 def dense_r5(j, h, f, k3, k4, k5, k6, fnew):
     """Fifth coefficient of the DOPRI5 interpolant of component ``j`` over a step of
     size h (stages k1 = ``f``, k3 … k6, k7 = ``fnew``)."""

@@ -16,8 +16,8 @@ import textwrap
 import numpy as np
 
 from .dataset import parameter_values
-from .grid import REGIMES
 from .model import PARAMETERS
+from .variables import REGIMES
 
 #: Colour of each regime in every figure (Okabe–Ito palette, colour-blind safe).
 REGIME_COLOURS = {

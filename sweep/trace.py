@@ -22,9 +22,9 @@ import xarray as xr
 from . import kernels, model
 from .config import ConfigError, config_mapping, parse_config
 from .dataset import derived_fields, parameter_attrs, parameter_coords, provenance
-from .grid import REGIMES, kernel_codes, physical_parameters, system_arrays
+from .grid import kernel_codes, physical_parameters, system_arrays
 from .model import PARAMETERS
-from .variables import variables_for
+from .variables import REGIMES, variables_for
 
 #: Fine samples recorded per output point before decimation.
 OVERSAMPLE = 50

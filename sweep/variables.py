@@ -9,6 +9,10 @@ models (empty: every model).
 
 from dataclasses import dataclass
 
+#: Regime names in code order (``kernels.STEADY`` … ``UNDECIDED``; the CF flag_values /
+#: flag_meanings of ``regime``). Output vocabulary, so it lives here, not with the kernels.
+REGIMES = ("steady", "stick_slip", "runaway", "undecided")
+
 
 @dataclass(frozen=True)
 class Variable:

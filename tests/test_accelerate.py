@@ -49,6 +49,14 @@ def test_kernel_options(name):
     assert options.get("parallel", False) == (name == "integrate_grid_parallel")
 
 
+@NO_JIT
+@pytest.mark.parametrize("name", ["rhs", "step_rk4", "step_dopri5", "dense_r5"])
+def test_rhs_and_explicit_steps_are_inlined(name):
+    """accelerate.py: the right-hand side and the explicit steps are inlined at numba-IR
+    level (a third of the time per step)."""
+    assert getattr(kernels, name).targetoptions.get("inline") == "always"
+
+
 # Runs one sweep in a fresh process and reports the grid kernel's compiled versions.
 SPECIALISED_PROBE = """
 import json

@@ -13,9 +13,8 @@ import xarray as xr
 from conftest import KC_W, make_config, write_config
 
 from sweep import cli, runner
-from sweep.grid import REGIMES
 from sweep.model import PARAMETERS
-from sweep.variables import variables_for
+from sweep.variables import REGIMES, variables_for
 
 ROOT = Path(__file__).resolve().parent.parent
 QUICK = ROOT / "configs" / "quick.yaml"

@@ -11,9 +11,8 @@ from conftest import KC_W, PAPER_A, PAPER_B, make_config, run_grid
 
 from sweep import kernels, runner
 from sweep.dataset import write_netcdf
-from sweep.grid import REGIMES
 from sweep.model import PARAMETERS
-from sweep.variables import BY_NAME, VARIABLES, variables_for
+from sweep.variables import BY_NAME, REGIMES, VARIABLES, variables_for
 
 A, B = PAPER_A, PAPER_B
 ONE_BLOCK = {"sweep": {"K_W": (KC_W * np.array([0.8, 0.95, 1.0, 1.1])).tolist()}}

@@ -8,7 +8,6 @@ import pytest
 from sweep.cli import main
 from sweep.config import config_mapping, load_config, parse_config
 from sweep.dataset import write_netcdf
-from sweep.grid import REGIMES
 from sweep.plots import (
     REGIME_COLOURS,
     bifurcation_curves,
@@ -21,6 +20,7 @@ from sweep.plots import (
     unit_text,
 )
 from sweep.runner import compute
+from sweep.variables import REGIMES
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
@@ -317,3 +317,13 @@ def test_plot_command_maps_any_variable_in_any_format(one_d, tmp_path, capsys):
     assert main(["plot", str(path), "--var", "nope"]) == 2
     err = capsys.readouterr().err
     assert "no variable 'nope'" in err and "period" in err
+
+
+def test_reading_and_plotting_results_loads_no_numba():
+    """Plots and result files need no kernels: importing them loads no numba (1.25 s)."""
+    import subprocess
+    import sys
+
+    code = "import sys, sweep.plots, sweep.dataset; print('numba' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

@@ -29,9 +29,9 @@ from scipy.integrate import solve_ivp
 
 from sweep import figures
 from sweep.config import config_mapping, load_config, parse_config
-from sweep.grid import REGIMES
 from sweep.runner import compute
 from sweep.trace import compute_trace, pin_config
+from sweep.variables import REGIMES
 
 PAPER = load_config(ROOT / "configs" / "paper.yaml")
 #: The paper's "stick-slip" stiffness (µm⁻¹), K/Kc = 0.92; D0/V = 10 s.
