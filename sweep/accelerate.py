@@ -12,21 +12,18 @@ Decisions (each tested in ``tests/test_accelerate.py``):
   would let LLVM assume they never occur).
 * ``error_model="numpy"``: a division by zero gives inf/NaN (a classified
   outcome), not a Python exception raised from inside a parallel loop.
-* Kernels are specialised at compile time for the model, state law and method a
-  sweep uses: the grid kernels and ``integrate_system`` take their codes as
-  ``numba.literally`` arguments, so each combination is its own compiled (and
-  cached) version in which LLVM folds the branches on the codes away. numba still
-  types every branch, so a combination compiles in about the same time whatever
-  its method (15-16 s for ``integrate_system``, measured); only the combinations a
-  sweep uses are compiled. Callers reach the compiled version through its entry
-  point (``runner.compile_grid_kernel``): through the dispatcher each call would
-  first try the codes as plain integers (14 ms per call).
+* One kernel for every model, state law and method, branching on their codes at
+  run time. Specialising it at compile time (the codes as ``numba.literally``
+  arguments, one compiled version per combination) was tried and measured: numba
+  still types every branch, so each combination took as long to compile as the
+  whole kernel (cold start 41 vs 42 s), calls through the dispatcher cost 14 ms
+  each, and the time per step did not improve (RK4 168-189 vs 157 ns, DOPRI5
+  318-344 vs 327-351 ns per step, ``make bench``).
 * The right-hand side, the explicit steps and the dense-output coefficient are
   inlined into the integration loop at numba-IR level (``inline="always"``): left
-  to LLVM, they stay calls passing a dozen arrays each. Measured on the
-  specialised kernels (``make bench``, idle machine): RK4 189 vs 288 ns per step,
-  DOPRI5 318 vs 396 ns per step. The cost is about 10 s more of first compile,
-  which the cache pays once.
+  to LLVM, they stay calls passing a dozen arrays each (measured on an idle
+  machine: RK4 189 vs 288 ns per step, DOPRI5 318 vs 396 ns). The cost is about
+  10 s more of first compile, which the cache pays once.
 * Threads have one owner: on one machine ``prange`` in the parallel grid kernel;
   under Dask each task calls the serial grid kernel and Dask owns the threads.
 """
@@ -41,7 +38,6 @@ CACHE = os.environ.get("SWEEP_NUMBA_CACHE", "1") != "0"
 _COMMON = {"nogil": True, "cache": CACHE, "fastmath": False, "error_model": "numpy"}
 
 prange = numba.prange
-literally = numba.literally
 
 
 def jit(func):

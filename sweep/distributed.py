@@ -7,10 +7,9 @@ fight Dask for the cores). Results come back to the client, which writes the
 parts, so workers need no shared file system; they do need the ``sweep``
 package importable (``pip install rsf-sweep[distributed]`` or ``-e .``).
 
-Before any task is submitted, the parent compiles the serial kernel for the
-sweep's model, state law and method, so the numba cache on disk is written by
-one process only (concurrent writers can crash, numba#4807); workers on the
-same machine and CPU then load it.
+Before any task is submitted, the parent compiles the serial kernel, so the
+numba cache on disk is written by one process only (concurrent writers can
+crash, numba#4807); workers on the same machine and CPU then load it.
 """
 
 import logging
@@ -40,7 +39,7 @@ def integrate_chunk(params, y0, settings):
     params, y0, settings = (np.require(a, np.float64, ["C", "W"]) for a in (params, y0, settings))
     results = np.empty((params.shape[0], N_RESULTS))
     y_final = np.empty_like(y0)
-    compile_grid_kernel(integrate_grid_serial, settings)(params, y0, settings, results, y_final)
+    integrate_grid_serial(params, y0, settings, results, y_final)
     return results, y_final
 
 
@@ -117,19 +116,14 @@ def dashboard_link(client):
     return client.dashboard_link if "dashboard" in services else None
 
 
-def load_kernels(config, parallel=False):
-    """Load (or compile) the serial grid kernel for ``config`` (a Config, a config
-    path or a settings array) in this process, e.g. on every worker; with
-    ``parallel``, the threaded one as well (to warm the cache before job arrays)."""
+def load_kernels(parallel=False):
+    """Load (or compile) the serial grid kernel in this process, e.g. on every worker;
+    with ``parallel``, the threaded one as well (to warm the cache before job arrays)."""
     from . import kernels
-    from .config import load_config
-    from .grid import settings_array
 
-    if not isinstance(config, np.ndarray):
-        config = settings_array(config if hasattr(config, "model") else load_config(config))
-    compile_grid_kernel(kernels.integrate_grid_serial, config)
+    compile_grid_kernel(kernels.integrate_grid_serial)
     if parallel:
-        compile_grid_kernel(kernels.integrate_grid_parallel, config)
+        compile_grid_kernel(kernels.integrate_grid_parallel)
 
 
 def worker_threads(client):
@@ -148,7 +142,7 @@ def dask_chunks(client, params, y0, settings, ranges, stop=None):
     """
     from distributed import wait
 
-    load_kernels(settings)  # in this process, before any task: one cache writer
+    load_kernels()  # in this process, before any task: one cache writer
     todo = list(reversed(ranges))
     flying = {}
     try:
@@ -187,7 +181,6 @@ def compare_backends(config, workers=2):
     threads_n), ``cluster_start`` (starting the LocalCluster and its workers)
     and ``cluster`` (the computation on it); for ``make bench``.
     """
-    from .grid import settings_array
     from .runner import time_compute
 
     times = {"threads_1": time_compute(config, threads=1)}
@@ -196,7 +189,7 @@ def compare_backends(config, workers=2):
     start = time.perf_counter()
     with connect(local_workers=workers) as client:
         client.wait_for_workers(workers)
-        client.run(load_kernels, settings_array(config))
+        client.run(load_kernels)
         times["cluster_start"] = time.perf_counter() - start
         times["cluster"] = time_compute(config, client=client)
     return times

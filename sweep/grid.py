@@ -61,16 +61,6 @@ def settings_array(config):
     return s
 
 
-def kernel_codes(settings):
-    """``(model, law, method)`` codes of a settings array, as the kernels take them
-    (compile-time constants: each combination is its own compiled version)."""
-    return (
-        int(settings[kernels.S_MODEL]),
-        int(settings[kernels.S_LAW]),
-        int(settings[kernels.S_METHOD]),
-    )
-
-
 def system_arrays(config, phys=None):
     """Dimensionless parameters (n, N_PARAMS) and initial states (n, n_vars).
 

@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from .accelerate import jit, jit_inline, literally, parallel_jit, prange
+from .accelerate import jit, jit_inline, parallel_jit, prange
 
 # --- codes shared with the Python side --------------------------------------
 QUASI_STATIC, QUASI_DYNAMIC, INERTIAL = 0, 1, 2
@@ -602,20 +602,18 @@ def start_window(y, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin):
 
 
 @jit
-def integrate_system(p, y0, settings, model, law, method, result, y_final, rec_dt, rec_t, rec_y):
+def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     """Integrate one system from ``y0`` and write its statistics into ``result``.
 
     ``p``: dimensionless parameters (``P_*`` columns); ``settings``: the ``S_*``
-    entries; ``model``, ``law``, ``method``: the codes (``settings[S_MODEL]`` …),
-    compile-time constants (one specialised version per combination);
-    ``result``: the ``R_*`` columns; ``y_final``: the state at the end.
+    entries; ``result``: the ``R_*`` columns; ``y_final``: the state at the end.
     Recording (for traces): the state every ``rec_dt`` (D0/V, interpolated) and
     at the end goes into ``rec_t``/``rec_y`` while they have room; sweeps pass
     empty buffers. The count is ``result[R_N_RECORDED]``.
     """
-    literally(model)
-    literally(law)
-    literally(method)
+    model = int(settings[S_MODEL])
+    law = int(settings[S_LAW])
+    method = int(settings[S_METHOD])
     nb = int(settings[S_NBLOCKS])
     rtol = settings[S_RTOL]
     atol = settings[S_ATOL]
@@ -969,31 +967,18 @@ def integrate_system(p, y0, settings, model, law, method, result, y_final, rec_d
 
 
 @jit
-def integrate_grid_serial(params, y0, settings, model, law, method, results, y_final):
-    """Integrate every system (rows of ``params``/``y0``) one after another; the codes
-    as for :func:`integrate_system`."""
-    literally(model)
-    literally(law)
-    literally(method)
+def integrate_grid_serial(params, y0, settings, results, y_final):
+    """Integrate every system (rows of ``params``/``y0``) one after another."""
     no_t = np.empty(0)
     no_y = np.empty((0, y0.shape[1]))
     for s in range(params.shape[0]):
-        integrate_system(
-            params[s], y0[s], settings, model, law, method, results[s], y_final[s], 0.0, no_t,
-            no_y,
-        )  # fmt: skip
+        integrate_system(params[s], y0[s], settings, results[s], y_final[s], 0.0, no_t, no_y)
 
 
 @parallel_jit
-def integrate_grid_parallel(params, y0, settings, model, law, method, results, y_final):
+def integrate_grid_parallel(params, y0, settings, results, y_final):
     """Integrate every system on numba's thread pool (one system per iteration)."""
-    literally(model)
-    literally(law)
-    literally(method)
     for s in prange(params.shape[0]):
         no_t = np.empty(0)
         no_y = np.empty((0, y0.shape[1]))
-        integrate_system(
-            params[s], y0[s], settings, model, law, method, results[s], y_final[s], 0.0, no_t,
-            no_y,
-        )  # fmt: skip
+        integrate_system(params[s], y0[s], settings, results[s], y_final[s], 0.0, no_t, no_y)

@@ -22,7 +22,7 @@ import xarray as xr
 from . import kernels, model
 from .config import ConfigError, config_mapping, parse_config
 from .dataset import derived_fields, parameter_attrs, parameter_coords, provenance
-from .grid import kernel_codes, physical_parameters, system_arrays
+from .grid import physical_parameters, system_arrays
 from .model import PARAMETERS
 from .variables import REGIMES, variables_for
 
@@ -118,8 +118,7 @@ def compute_trace(config, points=4000):
     y_final = np.empty_like(y0)
     rec_dt = params[0, kernels.P_TAU_END] / (fine - 1)
     kernels.integrate_system(
-        params[0], y0[0], settings, *kernel_codes(settings), result[0], y_final[0], rec_dt,
-        rec_t, rec_y,
+        params[0], y0[0], settings, result[0], y_final[0], rec_dt, rec_t, rec_y
     )  # fmt: skip
     n = int(result[0, kernels.R_N_RECORDED])
     nb = config.blocks

@@ -89,8 +89,7 @@ def run_recorded(config, rec_dt, index=0):
     result = np.zeros(kernels.N_RESULTS)
     y_final = np.zeros(y0.shape[1])
     kernels.integrate_system(
-        params[index], y0[index], settings, *grid.kernel_codes(settings), result, y_final,
-        rec_dt, rec_t, rec_y,
+        params[index], y0[index], settings, result, y_final, rec_dt, rec_t, rec_y,
     )  # fmt: skip
     n = int(result[kernels.R_N_RECORDED])
     return result, rec_t[:n], rec_y[:n]

@@ -57,34 +57,6 @@ def test_rhs_and_explicit_steps_are_inlined(name):
     assert getattr(kernels, name).targetoptions.get("inline") == "always"
 
 
-# Runs one sweep in a fresh process and reports the grid kernel's compiled versions.
-SPECIALISED_PROBE = """
-import json
-from sweep import kernels, runner
-from sweep.config import load_config
-runner.compute(load_config({config!r}), threads=1, show_progress=False)
-print(json.dumps([str(sig) for sig in kernels.integrate_grid_parallel.signatures]))
-"""
-
-
-@NO_JIT
-def test_a_sweep_compiles_only_its_own_model_law_and_method():
-    """A quasi-dynamic sweep with the slip law on DOPRI5 compiles one version of the grid
-    kernel, with those three codes as compile-time constants (numba Literal types)."""
-    from conftest import ROOT
-
-    config = ROOT / "configs" / "slip_law.yaml"
-    out = subprocess.run(
-        [sys.executable, "-c", SPECIALISED_PROBE.format(config=str(config))],
-        capture_output=True, text=True, check=True, cwd=ROOT,
-    )  # fmt: skip
-    (signature,) = json.loads(out.stdout.strip().splitlines()[-1])
-    codes = (kernels.QUASI_DYNAMIC, kernels.SLIP, kernels.DOPRI5)
-    assert signature.count("Literal[int]") == 3
-    for code in codes:
-        assert f"Literal[int]({code})" in signature
-
-
 # Imports the kernels (compiles nothing) and reports each kernel's numba cache.
 CACHE_PROBE = """
 import json

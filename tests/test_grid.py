@@ -163,7 +163,7 @@ def test_serial_and_parallel_kernels_agree():
     ):
         results = np.full((n, kernels.N_RESULTS), -1.0)
         y_final = np.full_like(y0, -1.0)
-        kernel(params, y0, shared, *grid.kernel_codes(shared), results, y_final)
+        kernel(params, y0, shared, results, y_final)
         out[name] = (results, y_final)
     assert np.array_equal(out["serial"][0], out["parallel"][0], equal_nan=True)
     assert np.array_equal(out["serial"][1], out["parallel"][1], equal_nan=True)

@@ -223,7 +223,7 @@ def test_signals_during_a_kernel_are_seen_when_it_returns():
             os.kill(os.getpid(), signal.SIGINT)
 
     try:
-        runner.compile_grid_kernel(kernels.integrate_grid_parallel, settings)
+        runner.compile_grid_kernel(kernels.integrate_grid_parallel)
         sender = threading.Thread(target=send_two)
         start = time.perf_counter()
         sender.start()

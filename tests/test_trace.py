@@ -10,7 +10,7 @@ from scipy.integrate import solve_ivp
 from sweep import kernels
 from sweep.cli import main
 from sweep.config import ConfigError, config_mapping, load_config, parse_config
-from sweep.grid import kernel_codes, system_arrays
+from sweep.grid import system_arrays
 from sweep.runner import compute
 from sweep.trace import (
     compute_trace,
@@ -29,7 +29,7 @@ def kernel_final_state(config):
     params, y0, settings, _ = system_arrays(config)
     results = np.empty((1, kernels.N_RESULTS))
     y_final = np.empty_like(y0)
-    kernels.integrate_grid_serial(params, y0, settings, *kernel_codes(settings), results, y_final)
+    kernels.integrate_grid_serial(params, y0, settings, results, y_final)
     return results[0], y_final[0]
 
 
