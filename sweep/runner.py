@@ -157,6 +157,16 @@ def compile_grid_kernel(kernel):
         notice.cancel()
 
 
+def compile_kernels_for(client=None):
+    """Compile (or load) the grid kernel a run uses: the parallel one on numba threads,
+    the serial one (in this process, before any task) under Dask."""
+    from . import kernels
+
+    compile_grid_kernel(
+        kernels.integrate_grid_parallel if client is None else kernels.integrate_grid_serial
+    )
+
+
 def threaded_chunks(params, y0, settings, ranges, threads=None):
     """Integrate ``ranges`` of systems on numba threads; yield each as it finishes.
 
@@ -237,6 +247,7 @@ def compute(config, threads=None, chunk_size=None, show_progress=True, client=No
     """
     phys = physical_parameters(config)
     params, y0, settings, time_unit = system_arrays(config, phys)
+    compile_kernels_for(client)  # before the progress clock starts
     progress = Progress(params.shape[0], desc=config.name, enabled=show_progress)
     try:
         results, y_final = integrate_chunks(
@@ -343,6 +354,7 @@ def run_sweep(config, out=None, threads=None, chunk_size=None, show_progress=Tru
             log.info(
                 "%s: computing %d runs in %d chunks on %s", config.name, left, len(todo), where
             )
+            compile_kernels_for(client)  # before the progress clock starts
             progress = Progress(total, config.name, enabled=show_progress, initial=total - left)
             try:
                 integrate_ranges(params, y0, settings, todo, results, y_final, threads, client,
