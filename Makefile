@@ -34,7 +34,7 @@ bench: $(STAMP)
 	$(PY) -m sweep.bench
 
 figures: $(STAMP)
-	$(PY) -m sweep figures
+	$(PY) -m sweep figures --dpi 100
 
 lint: $(STAMP)
 	$(PY) -m ruff check sweep tests
