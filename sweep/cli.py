@@ -15,27 +15,56 @@ from .config import ConfigError
 EXIT_BAD_INPUT = 2
 
 
+def _integer(text):
+    """``text`` as an integer, or the argparse error saying it is not one."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+
+
 def _threads(text):
     import numba
 
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+    n = _integer(text)
     top = numba.config.NUMBA_NUM_THREADS
     if not 1 <= n <= top:
         raise argparse.ArgumentTypeError(f"must be in [1, {top}] on this machine, got {n}")
     return n
 
 
-def _positive_int(text):
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {n}")
-    return n
+def _integer_at_least(low):
+    """An argparse type: an integer ``>= low``."""
+
+    def parse(text):
+        n = _integer(text)
+        if n < low:
+            raise argparse.ArgumentTypeError(f"must be >= {low}, got {n}")
+        return n
+
+    return parse
+
+
+def _finite_number(low_open):
+    """An argparse type: a finite number in [0, inf), or (0, inf) with ``low_open``."""
+    interval = "(0, inf)" if low_open else "[0, inf)"
+
+    def parse(text):
+        try:
+            x = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+        if not (0 < x if low_open else 0 <= x) or x == float("inf"):
+            raise argparse.ArgumentTypeError(f"must be in {interval}, got {text}")
+        return x
+
+    return parse
+
+
+_positive_int = _integer_at_least(1)
+_count = _integer_at_least(0)
+_fraction = _finite_number(low_open=False)
+_positive_float = _finite_number(low_open=True)
 
 
 def _shard(text):
@@ -84,36 +113,6 @@ def build_parser():
     add_check_commands(sub)
     add_figure_commands(sub)
     return parser
-
-
-def _count(text):
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
-    if n < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {n}")
-    return n
-
-
-def _fraction(text):
-    try:
-        x = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
-    if not 0 <= x < float("inf"):
-        raise argparse.ArgumentTypeError(f"must be in [0, inf), got {text}")
-    return x
-
-
-def _positive_float(text):
-    try:
-        x = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
-    if not 0 < x < float("inf"):
-        raise argparse.ArgumentTypeError(f"must be in (0, inf), got {text}")
-    return x
 
 
 def add_check_commands(sub):
@@ -171,10 +170,7 @@ def _assignment(text):
 
 
 def _dpi(text):
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+    n = _integer(text)
     if not 10 <= n <= 2000:
         raise argparse.ArgumentTypeError(f"must be in [10, 2000], got {n}")
     return n

@@ -142,7 +142,6 @@ def dask_chunks(client, params, y0, settings, ranges, stop=None):
     """
     from distributed import wait
 
-    load_kernels()  # in this process, before any task: one cache writer
     todo = list(reversed(ranges))
     flying = {}
     try:

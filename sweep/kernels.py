@@ -30,10 +30,9 @@ STEADY, STICK_SLIP, RUNAWAY, UNDECIDED = 0, 1, 2, 3
 # ln v/V of every block), i.e. in the linear regime where decay is geometric: see
 # steady_verdict.
 LINEAR_AMPLITUDE = 0.1
-# Cycle values that change by less than NOISE_FACTOR * (atol + rtol |x|) from one
-# cycle to the next are converged to round-off: the Hermite-located extrema of a
-# converged DOPRI5 cycle scatter by about 1e-9 at rtol 1e-8 (measured on the
-# quasi-dynamic cycles of tests/test_classification.py).
+# Cycle values that change by less than NOISE_FACTOR * (atol + rtol |x|), ten times
+# the integrator's local error tolerance, from one cycle to the next count as
+# converged to round-off (their ratio of differences would be noise).
 NOISE_FACTOR = 10.0
 # Cycles of history kept per observable (the extrapolation uses the last four).
 HISTORY = 4
@@ -376,9 +375,12 @@ _D5, _D6, _D7 = 701980252875 / 199316789632, -1453857185 / 822651844, 69997945 /
 
 
 @jit_inline
-def dense_r5(j, h, f, k3, k4, k5, k6, fnew):
-    """Fifth coefficient of the DOPRI5 interpolant of component ``j`` over a step of
-    size h (stages k1 = ``f``, k3 … k6, k7 = ``fnew``)."""
+def dense_r5(method, j, h, f, k3, k4, k5, k6, fnew):
+    """Fifth coefficient of the interpolant of component ``j`` over a step of size h:
+    DOPRI5's (stages k1 = ``f``, k3 … k6, k7 = ``fnew``), 0 for the other methods
+    (cubic Hermite)."""
+    if method != DOPRI5:
+        return 0.0
     return h * (_D1 * f[j] + _D3 * k3[j] + _D4 * k4[j] + _D5 * k5[j] + _D6 * k6[j] + _D7 * fnew[j])
 
 
@@ -477,9 +479,22 @@ def history_value(hist, k, n_cycles, back):
 
 
 @jit
-def ptp_value(hist, nb, i, n_cycles, back):
-    """Peak-to-peak ℓ_i (rows i and nb + i of ``hist``) ``back`` cycles before the last."""
-    return history_value(hist, i, n_cycles, back) - history_value(hist, nb + i, n_cycles, back)
+def last_four(hist, k, n_cycles):
+    """Observable ``k`` over the last four cycles, oldest first."""
+    return (
+        history_value(hist, k, n_cycles, 3),
+        history_value(hist, k, n_cycles, 2),
+        history_value(hist, k, n_cycles, 1),
+        history_value(hist, k, n_cycles, 0),
+    )
+
+
+@jit
+def last_four_ptp(hist, nb, i, n_cycles):
+    """Peak-to-peak ℓ_i (rows i and nb + i of ``hist``) over the last four cycles."""
+    a0, a1, a2, a3 = last_four(hist, i, n_cycles)
+    b0, b1, b2, b3 = last_four(hist, nb + i, n_cycles)
+    return a0 - b0, a1 - b1, a2 - b2, a3 - b3
 
 
 @jit
@@ -496,7 +511,7 @@ def decays_to_zero(x0, x1, x2, x3, accuracy, steady_amp, noise):
 
 
 @jit
-def steady_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, atol):
+def steady_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, atol):
     """Whether the last four cycles show the decay onto steady sliding.
 
     Only where steady sliding is linearly stable (``lin_growth`` < 0): an unstable
@@ -511,20 +526,13 @@ def steady_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, a
         return False
     noise = NOISE_FACTOR * atol
     for i in range(nb):
-        x3 = ptp_value(hist, nb, i, n_cycles, 0)
+        x0, x1, x2, x3 = last_four_ptp(hist, nb, i, n_cycles)
         if not (x3 < LINEAR_AMPLITUDE):
             return False
-        x0 = ptp_value(hist, nb, i, n_cycles, 3)
-        x1 = ptp_value(hist, nb, i, n_cycles, 2)
-        x2 = ptp_value(hist, nb, i, n_cycles, 1)
         if not decays_to_zero(x0, x1, x2, x3, accuracy, steady_amp, noise):
             return False
     if nb > 1:
-        k = 2 * nb + 1
-        x0 = history_value(hist, k, n_cycles, 3)
-        x1 = history_value(hist, k, n_cycles, 2)
-        x2 = history_value(hist, k, n_cycles, 1)
-        x3 = history_value(hist, k, n_cycles, 0)
+        x0, x1, x2, x3 = last_four(hist, 2 * nb + 1, n_cycles)
         if not decays_to_zero(x0, x1, x2, x3, accuracy, steady_amp, noise):
             return False
     return True
@@ -545,15 +553,14 @@ def cycle_convergence(hist, n_cycles, nb, rtol, atol):
         return np.inf
     ptp = 0.0
     for i in range(nb):
-        ptp = max(ptp, ptp_value(hist, nb, i, n_cycles, 0))
+        ptp = max(
+            ptp, history_value(hist, i, n_cycles, 0) - history_value(hist, nb + i, n_cycles, 0)
+        )
     worst = 0.0
     for k in range(2 * nb + 2):
         if k == 2 * nb + 1 and nb == 1:
             break
-        x0 = history_value(hist, k, n_cycles, 3)
-        x1 = history_value(hist, k, n_cycles, 2)
-        x2 = history_value(hist, k, n_cycles, 1)
-        x3 = history_value(hist, k, n_cycles, 0)
+        x0, x1, x2, x3 = last_four(hist, k, n_cycles)
         noise = NOISE_FACTOR * (atol + rtol * abs(x3))
         limit, error = aitken_limit(x0, x1, x2, x3, noise)
         error += abs(limit - x3)
@@ -576,7 +583,7 @@ def cycle_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, at
     ``accuracy`` (relative, see :func:`cycle_convergence`) of its extrapolated
     limit, so the reported features are those of the limit cycle to that accuracy.
     """
-    if steady_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, atol):
+    if steady_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, atol):
         return STEADY, np.nan
     conv = cycle_convergence(hist, n_cycles, nb, rtol, atol)
     if conv <= accuracy:
@@ -702,7 +709,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     n_rejected = 0
     # unsettled at tau_end: go on (settling early from then on) up to tau_max
     tau_stop = tau_end
-    while t < tau_stop or (regime < 0 and t < tau_max):
+    while t < tau_max:
         if t >= tau_stop:
             tau_stop = tau_max
             if last_verdict >= 0:
@@ -764,7 +771,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
                 crossed = i
         if crossed >= 0:
             i = crossed
-            r5 = dense_r5(i, h, f, k3, k4, k5, k6, fnew) if method == DOPRI5 else 0.0
+            r5 = dense_r5(method, i, h, f, k3, k4, k5, k6, fnew)
             theta = dense_crossing(y[i], ynew[i], f[i], fnew[i], h, r5, lnv_cap)
             if y[i] > lnv_cap:
                 theta = 0.0
@@ -785,7 +792,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             rising = f[i] > 0.0
             falling_now = fnew[i] <= 0.0
             if rising == falling_now:  # slope changed sign: one extremum in the step
-                r5 = dense_r5(i, h, f, k3, k4, k5, k6, fnew) if method == DOPRI5 else 0.0
+                r5 = dense_r5(method, i, h, f, k3, k4, k5, k6, fnew)
                 theta = dense_extremum(y[i], ynew[i], f[i], fnew[i], h, r5)
                 val = dense_value(y[i], ynew[i], f[i], fnew[i], h, r5, theta)
                 win_lmax[i] = max(win_lmax[i], val)
@@ -807,11 +814,9 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             dmu0 = A * f[i] + B * f[nb + i]
             dmu1 = A * fnew[i] + B * fnew[nb + i]
             if (dmu0 > 0.0) == (dmu1 <= 0.0):
-                r5 = 0.0
-                if method == DOPRI5:
-                    r5 = A * dense_r5(i, h, f, k3, k4, k5, k6, fnew) + B * dense_r5(
-                        nb + i, h, f, k3, k4, k5, k6, fnew
-                    )
+                r5 = A * dense_r5(method, i, h, f, k3, k4, k5, k6, fnew) + B * dense_r5(
+                    method, nb + i, h, f, k3, k4, k5, k6, fnew
+                )
                 theta = dense_extremum(mu0, mu, dmu0, dmu1, h, r5)
                 val = dense_value(mu0, mu, dmu0, dmu1, h, r5, theta)
                 win_mumax[i] = max(win_mumax[i], val)
@@ -832,9 +837,8 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
                 dm1 += fnew[i] / nb
             if (dm0 > 0.0) == (dm1 <= 0.0):
                 r5 = 0.0
-                if method == DOPRI5:
-                    for i in range(nb):
-                        r5 += dense_r5(i, h, f, k3, k4, k5, k6, fnew) / nb
+                for i in range(nb):
+                    r5 += dense_r5(method, i, h, f, k3, k4, k5, k6, fnew) / nb
                 theta = dense_extremum(m0, m1, dm0, dm1, h, r5)
                 val = dense_value(m0, m1, dm0, dm1, h, r5, theta)
                 win_mbar_max = max(win_mbar_max, val)
@@ -846,7 +850,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             theta = (n_rec * rec_dt - t) / h
             rec_t[n_rec] = n_rec * rec_dt
             for j in range(n):
-                r5 = dense_r5(j, h, f, k3, k4, k5, k6, fnew) if method == DOPRI5 else 0.0
+                r5 = dense_r5(method, j, h, f, k3, k4, k5, k6, fnew)
                 rec_y[n_rec, j] = dense_value(y[j], ynew[j], f[j], fnew[j], h, r5, theta)
             n_rec += 1
 

@@ -177,7 +177,6 @@ def threaded_chunks(params, y0, settings, ranges, threads=None):
     from .kernels import integrate_grid_parallel
 
     accelerate.set_threads(threads)
-    compile_grid_kernel(integrate_grid_parallel)
     for a, b in ranges:
         order = balanced_order(b - a)  # row a + order[j] is computed in place j
         shuffled = np.empty((b - a, N_RESULTS)), np.empty((b - a, y0.shape[1]))
@@ -207,8 +206,11 @@ def integrate_ranges(params, y0, settings, ranges, results, y_final, threads=Non
 
     On numba threads, or as tasks of the Dask ``client``. After each chunk:
     ``save(start, stop)`` (e.g. write a part), then ``progress.update``.
-    Stops early, between chunks, once ``stop`` is set.
+    Stops early, between chunks, once ``stop`` is set. The kernel is compiled (or
+    loaded) here first, in this process: under Dask before any task is submitted,
+    so only one process writes numba's cache.
     """
+    compile_kernels_for(client)
     if client is None:
         chunks = threaded_chunks(params, y0, settings, ranges, threads)
     else:
@@ -247,7 +249,8 @@ def compute(config, threads=None, chunk_size=None, show_progress=True, client=No
     """
     phys = physical_parameters(config)
     params, y0, settings, time_unit = system_arrays(config, phys)
-    compile_kernels_for(client)  # before the progress clock starts
+    # compiled here, not first in integrate_ranges: before the progress clock
+    compile_kernels_for(client)
     progress = Progress(params.shape[0], desc=config.name, enabled=show_progress)
     try:
         results, y_final = integrate_chunks(
@@ -263,10 +266,8 @@ def time_compute(config, threads=None, chunk_size=None, client=None):
 
     For benchmarks: compare thread counts, or threads against a Dask ``client``.
     """
-    from . import kernels
 
-    kernel = kernels.integrate_grid_serial if client else kernels.integrate_grid_parallel
-    compile_grid_kernel(kernel)
+    compile_kernels_for(client)
     start = time.perf_counter()
     compute(config, threads, chunk_size, show_progress=False, client=client)
     return time.perf_counter() - start
@@ -354,7 +355,8 @@ def run_sweep(config, out=None, threads=None, chunk_size=None, show_progress=Tru
             log.info(
                 "%s: computing %d runs in %d chunks on %s", config.name, left, len(todo), where
             )
-            compile_kernels_for(client)  # before the progress clock starts
+            # compiled here, not first in integrate_ranges: before the progress clock
+            compile_kernels_for(client)
             progress = Progress(total, config.name, enabled=show_progress, initial=total - left)
             try:
                 integrate_ranges(params, y0, settings, todo, results, y_final, threads, client,

@@ -393,7 +393,7 @@ def test_dopri5_dense_output_is_fourth_order():
         ref = y0.copy()
         for _ in range(64):
             ref = step(ref, h / 128)[0]
-        r5 = kernels.dense_r5(j, h, f0, k3, k4, k5, k6, f1)
+        r5 = kernels.dense_r5(kernels.DOPRI5, j, h, f0, k3, k4, k5, k6, f1)
         dense = kernels.dense_value(y0[j], y1[j], f0[j], f1[j], h, r5, 0.5)
         hermite = kernels.dense_value(y0[j], y1[j], f0[j], f1[j], h, 0.0, 0.5)
         return abs(dense - ref[j]), abs(hermite - ref[j])
