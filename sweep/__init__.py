@@ -18,10 +18,10 @@ __version__ = "0.1.0"
 
 from . import examples
 from .api import run
-from .config import Config, ConfigError, load_config, parse_config, with_changes
+from .config import Config, load_config, parse_config, with_changes
+from .errors import ConfigError, InputError, RunError, SweepError
 
 _LAZY = {
-    "RunError": "runner",
     "plot_result": "plots",
     "plot_variable": "plots",
     "plot_bifurcation": "plots",
@@ -42,6 +42,7 @@ def __getattr__(name):
 __all__ = [
     "Config",
     "ConfigError",
+    "InputError",
     "RunError",
     "examples",
     "load_config",
@@ -52,5 +53,6 @@ __all__ = [
     "plot_variable",
     "run",
     "save_figure",
+    "SweepError",
     "with_changes",
 ]

@@ -10,16 +10,15 @@ Nothing downstream reads raw dicts: it gets a :class:`Config`.
 
 import dataclasses
 import math
-import os
 import re
-import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
 
-from .model import MODELS, PARAMETERS, STATE_LAWS, interval_text
+from .errors import ConfigError
+from .physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
 
 METHODS = ("dopri5", "rk4", "rosenbrock")
 #: Default integrator per model where it is not dopri5: the inertial model is stiff
@@ -66,18 +65,9 @@ _Loader.add_implicit_resolver(
 )
 
 
-class ConfigError(ValueError):
-    """A config that cannot be run; ``problems`` lists every reason."""
-
-    def __init__(self, source, problems):
-        self.source = str(source)
-        self.problems = list(problems)
-        super().__init__("\n".join(f"{self.source}: {p}" for p in self.problems))
-
-
 @dataclass(frozen=True)
 class Axis:
-    """One sweep axis: a model parameter (see ``model.PARAMETERS``) and its values."""
+    """One sweep axis: a model parameter (see ``physics.PARAMETERS``) and its values."""
 
     name: str
     values: tuple
@@ -674,36 +664,3 @@ def _parse_classification(c, raw, t_end):
     if None in (cap, amp, accuracy, cycles, early) or not max_ok:
         return d
     return Classification(cap, amp, accuracy, cycles, max_t_end, early)
-
-
-def check_writable(path, source="<config>", key="output", suffix=".nc"):
-    """Raise :class:`ConfigError` unless a file can be created at ``path``.
-
-    ``suffix``: the file type, or a tuple of those allowed (e.g. ``(".png",
-    ".pdf", ".svg")``). Creates missing parent directories and a probe file
-    (removed at once), so the answer is the file system's, not a guess from
-    permission bits (which root ignores).
-    """
-    path = Path(path)
-    suffixes = (suffix,) if isinstance(suffix, str) else tuple(suffix)
-    allowed = " or ".join(suffixes)
-    if path.suffix not in suffixes:
-        raise ConfigError(source, [f"{key} {path} must be a file name ending in {allowed}"])
-    if path.is_dir():
-        raise ConfigError(
-            source, [f"{key} {path} is a directory; give a file path ending in {allowed}"]
-        )
-    blocking = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
-    if blocking is not None:
-        raise ConfigError(
-            source, [f"{key} {path} cannot be written: {blocking} is a file, not a directory"]
-        )
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.probe-"):
-            pass
-    except OSError as exc:
-        reason = exc.strerror or str(exc)
-        raise ConfigError(source, [f"{key} {path} cannot be written: {reason}"]) from None
-    if path.exists() and not os.access(path, os.W_OK):
-        raise ConfigError(source, [f"{key} {path} exists and is not writable"])

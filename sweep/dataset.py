@@ -17,32 +17,35 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from . import __version__, model
-from .atomic import replaced_atomically
-from .config import ConfigError, parse_config
-from .model import PARAMETERS
+from . import __version__, physics
+from .config import parse_config
+from .errors import ConfigError, InputError
+from .physics import PARAMETERS
+from .store import replaced_atomically
 from .variables import REGIMES, variables_for
 
 
-def derived_fields(config, phys, results, y_final, time_unit):
-    """Every output variable as a flat array (per system, or per system × block)."""
+def derived_fields(grid, results, y_final):
+    """Every output variable as a flat array (per system, or per system × block).
+
+    ``grid``: the :class:`~sweep.grid.Grid` the kernels ran (its physical and
+    dimensionless parameters); ``results``, ``y_final``: their outputs, one row per
+    system of the grid.
+    """
     from . import kernels  # lazily: reading and plotting results needs no numba
 
+    config, phys, dl, time_unit = grid.config, grid.physical, grid.dimensionless, grid.time_unit
     r = results
     nb = config.blocks
     V = phys["V"]
     regime = r[:, kernels.R_REGIME].astype(np.int8)
     period = r[:, kernels.R_PERIOD] * time_unit
-    dl = model.dimensionless(
-        phys["A"], phys["B"], phys["D0"], phys["V"], phys["K_W"], phys["k2_W"],
-        phys["eta_W"], phys["m_W"],
-    )  # fmt: skip
-    growth = model.linear_growth_rate(
+    growth = physics.linear_growth_rate(
         config.model, nb, dl["A"], dl["B"], dl["kappa1"], dl["kappa2"], dl["eta_hat"],
         dl["mass_hat"],
     )  # fmt: skip
-    kc = model.critical_kappa(config.model, dl["A"], dl["B"], dl["eta_hat"], dl["mass_hat"])
-    omega = model.onset_angular_frequency(
+    kc = physics.critical_kappa(config.model, dl["A"], dl["B"], dl["eta_hat"], dl["mass_hat"])
+    omega = physics.onset_angular_frequency(
         config.model, dl["A"], dl["B"], dl["eta_hat"], dl["mass_hat"]
     )
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
@@ -107,7 +110,7 @@ def parameter_coords(config):
 
 def parameter_values(ds):
     """The model parameters of a result or trace that have one value: name → float
-    (in the units of ``model.PARAMETERS``). Reads the scalar coordinates, or the
+    (in the units of ``physics.PARAMETERS``). Reads the scalar coordinates, or the
     global attributes of files written before version 0.2."""
     values = {}
     for name in PARAMETERS:
@@ -118,15 +121,16 @@ def parameter_values(ds):
     return values
 
 
-def build_dataset(config, phys, results, y_final, time_unit, command="run"):
-    """Assemble the result Dataset of a sweep from the kernels' outputs.
+def build_dataset(grid, results, y_final, command="run"):
+    """Assemble the result Dataset of a sweep from the kernels' outputs on ``grid``.
 
     ``command``: what made it, for ``history`` (see :func:`provenance`).
     """
+    config = grid.config
     shape = config.shape
     dims = tuple(a.name for a in config.axes)
     coords = parameter_coords(config)
-    fields = derived_fields(config, phys, results, y_final, time_unit)
+    fields = derived_fields(grid, results, y_final)
     data_vars = {}
     for var in variables_for(config.blocks, config.model):
         attrs = {"units": var.units, "long_name": var.long_name}
@@ -222,19 +226,19 @@ def read_result(path, needs_config=False):
     """Load the result file ``path`` into memory (the file is closed again).
 
     With ``needs_config``, the file must also hold the config that made it
-    (``config_text``). Raises :class:`~sweep.config.ConfigError` naming ``path``
+    (``config_text``). Raises :class:`~sweep.errors.InputError` naming ``path``
     for a missing or unreadable file, or one that is not a sweep result.
     """
     try:
         with xr.open_dataset(path) as ds:
             ds.load()
     except (OSError, ValueError) as exc:
-        raise ConfigError(path, [f"cannot read result file: {exc}"]) from None
+        raise InputError(path, [f"cannot read result file: {exc}"]) from None
     missing = [v for v in ("regime", "K_over_Kc", "lnv_amplitude") if v not in ds]
     if needs_config and "config_text" not in ds.attrs:
         missing.append("config_text attribute")
     if missing:
-        raise ConfigError(path, [f"not a sweep result (no {', '.join(missing)})"])
+        raise InputError(path, [f"not a sweep result (no {', '.join(missing)})"])
     return ds
 
 

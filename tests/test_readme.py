@@ -5,7 +5,7 @@ recomputes it: with the engine the way ``make figures`` or the named config does
 and, where an independent reference is cheap, with SciPy. A number must agree to
 its last printed digit, so a change in the code that moves it fails here until the
 README is updated (and a README edit that no longer matches fails too). The limit
-cycle numbers of "What happens below Kc" are checked in ``test_regularised.py``,
+cycle numbers of "What happens below Kc" are checked in ``test_models.py``,
 beside the runs that produce them.
 """
 
