@@ -7,6 +7,7 @@ single bit. See that file for when regenerating it is legitimate.
 
 import numpy as np
 import pytest
+
 from bit_identity_cases import REFERENCE, compute_all, flatten
 
 
