@@ -14,9 +14,8 @@ figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
 :func:`plot_trace` (``sweep/plots.py``); traces: ``sweep.trace.compute_trace``.
 """
 
-__version__ = "0.1.0"
-
 from . import examples
+from ._version import __version__ as __version__
 from .api import run
 from .config import Config, load_config, parse_config, with_changes
 from .errors import ConfigError, InputError, RunError, SweepError

@@ -78,7 +78,7 @@ def _shard(text):
 
 
 def build_parser():
-    from . import __version__
+    from ._version import __version__
 
     parser = argparse.ArgumentParser(
         prog="python -m sweep",

@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from . import __version__, physics
+from . import physics
+from ._version import __version__
 from .config import parse_config
 from .errors import ConfigError, InputError
 from .physics import PARAMETERS

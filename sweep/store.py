@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
+from ._version import __version__
 from .errors import InputError, OutputBusy, PartError
 
 #: Bumped when the layout of a part file changes.
