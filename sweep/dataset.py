@@ -248,7 +248,7 @@ def stored_config(ds, source):
 
     ``source`` names the result file in errors; the Config keeps the original
     config path (``config_path``) as its source. Raises
-    :class:`~sweep.config.ConfigError` if the text is no longer a valid config
+    :class:`~sweep.errors.ConfigError` if the text is no longer a valid config
     or its grid is not the file's.
     """
     try:

@@ -6,7 +6,7 @@ the chunk size, the number of threads or workers, sharding or resumption.
 
 A sweep of ``n`` systems (rows of the C-ordered grid) is cut into chunks of
 ``chunk_size`` rows. Chunks run on numba's thread pool (``prange`` over the
-systems of a chunk) or as Dask tasks (see ``sweep/distributed.py``). Each
+systems of a chunk) or as Dask tasks (``sweep/backends.py``). Each
 finished chunk is saved at once as a part file (``sweep/store.py``); with
 ``resume=True`` the rows already saved are read back instead of recomputed.
 The NetCDF is written once every row is known, and the parts are removed only

@@ -44,7 +44,7 @@ def pin_config(config, at, t_end=None):
     ``at``: parameter name → value (physical units). Every sweep axis must be
     given; a fixed parameter given in ``at`` is overridden. ``t_end`` (in the
     config's ``t_unit``) replaces the end time. Early exit is switched off.
-    Raises :class:`~sweep.config.ConfigError` listing every problem.
+    Raises :class:`~sweep.errors.ConfigError` listing every problem.
     """
     text = " ".join(f"--at {name}={value:g}" for name, value in at.items())
     source = f"{config.source} {text}".strip()
