@@ -161,6 +161,8 @@ def provenance(config, command="run"):
     import numba
 
     integ, cls = config.integrator, config.classification
+    if cls.max_t_end is None:  # written as the value it stands for
+        cls = dataclasses.replace(cls, max_t_end=10.0 * integ.t_end)
     if command.startswith("sweep."):
         made_by = f"{command}() in Python from config {config.source}"
     else:
@@ -182,22 +184,8 @@ def provenance(config, command="run"):
         "time_unit_note": "the dynamics scale with D0/V; times are stored in s",
         "initial_v_over_V": np.asarray(config.initial.v_over_V, float),
         "initial_phi_over_phi_ss": np.asarray(config.initial.phi_over_phi_ss, float),
-        "integrator_method": integ.method,
-        "integrator_rtol": integ.rtol,
-        "integrator_atol": integ.atol,
-        "integrator_dt": integ.dt,
-        "integrator_max_step": integ.max_step,
-        "integrator_t_end": integ.t_end,
-        "integrator_t_unit": integ.t_unit,
-        "integrator_max_steps": np.int32(integ.max_steps),
-        "classification_v_cap_over_V": cls.v_cap_over_V,
-        "classification_steady_amplitude": cls.steady_amplitude,
-        "classification_accuracy": cls.accuracy,
-        "classification_confirm_cycles": np.int32(cls.confirm_cycles),
-        "classification_max_t_end": (
-            10.0 * integ.t_end if cls.max_t_end is None else cls.max_t_end
-        ),
-        "classification_early_exit": np.int8(cls.early_exit),
+        **settings_attrs("integrator", integ),
+        **settings_attrs("classification", cls),
         "package_version": __version__,
         "numba_version": numba.__version__,
         "numpy_version": np.__version__,
@@ -205,6 +193,21 @@ def provenance(config, command="run"):
         "config_path": config.source,
         "config_text": config.text,
     }
+    return attrs
+
+
+def settings_attrs(section, settings):
+    """File attributes ``<section>_<name>`` of every setting of an ``Integrator`` or
+    ``Classification``, in their declared order: integers as int32 and booleans as int8
+    (NetCDF has no bool)."""
+    attrs = {}
+    for field in dataclasses.fields(settings):
+        value = getattr(settings, field.name)
+        if isinstance(value, bool):
+            value = np.int8(value)
+        elif isinstance(value, int):
+            value = np.int32(value)
+        attrs[f"{section}_{field.name}"] = value
     return attrs
 
 
