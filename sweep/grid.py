@@ -1,16 +1,18 @@
-"""From a validated config to the arrays the kernels take.
+"""From a validated config to a :class:`Grid`: every system, as the kernels take it.
 
 The grid is the Cartesian product of the sweep axes, flattened in C order (the
 last axis varies fastest). Every grid point is one system; its physical
 parameters become one row of dimensionless parameters (``kernels.P_*``) and its
-initial perturbation one row of initial state.
+initial perturbation one row of initial state. A Grid is built once per run
+(:func:`build_grid`) and handed on to the kernels and the Dataset.
 """
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from . import kernels, model
+from . import kernels, physics
 
 MODEL_CODES = {
     "quasi-static": kernels.QUASI_STATIC,
@@ -61,15 +63,54 @@ def settings_array(config):
     return s
 
 
-def system_arrays(config, phys=None):
-    """Dimensionless parameters (n, N_PARAMS) and initial states (n, n_vars).
+@dataclass(frozen=True, eq=False)
+class Grid:
+    """Every system of ``config``: physical and dimensionless parameters, kernel arrays.
 
-    Returns ``(params, y0, settings, time_unit)`` with ``time_unit`` = D0/V in s
-    per system. With ``t_unit: s`` the end time is converted to units of D0/V
-    per system; step sizes are always in D0/V.
+    ``physical``: name → 1-D array per system (physical units, see
+    :func:`physical_parameters`); ``dimensionless``: ``physics.dimensionless`` of
+    those (``time_unit`` = D0/V in s per system); ``params`` (n, N_PARAMS),
+    ``y0`` (n, n_vars) and ``settings`` (N_SETTINGS,): the kernels' arrays.
     """
-    phys = physical_parameters(config) if phys is None else phys
-    dl = model.dimensionless(
+
+    config: object
+    physical: dict
+    dimensionless: dict
+    params: np.ndarray
+    y0: np.ndarray
+    settings: np.ndarray
+
+    @property
+    def n(self):
+        """Number of systems."""
+        return self.params.shape[0]
+
+    @property
+    def time_unit(self):
+        """D0/V in s, per system."""
+        return self.dimensionless["time_unit"]
+
+    def rows(self, index):
+        """The grid of the systems ``index`` only (kernel arrays C-contiguous)."""
+        pick = {name: values[index] for name, values in self.physical.items()}
+        return Grid(
+            self.config,
+            pick,
+            {name: values[index] for name, values in self.dimensionless.items()},
+            np.ascontiguousarray(self.params[index]),
+            np.ascontiguousarray(self.y0[index]),
+            self.settings,
+        )
+
+
+def build_grid(config):
+    """The :class:`Grid` of a validated config.
+
+    With ``t_unit: s`` the end time is converted to units of D0/V per system;
+    step sizes are always in D0/V.
+    """
+    phys = physical_parameters(config)
+    dl = physics.dimensionless(
         phys["A"], phys["B"], phys["D0"], phys["V"], phys["K_W"], phys["k2_W"],
         phys["eta_W"], phys["m_W"],
     )  # fmt: skip
@@ -89,13 +130,16 @@ def system_arrays(config, phys=None):
     max_t_end = config.classification.max_t_end
     max_t_end = 10.0 * integ.t_end if max_t_end is None else max_t_end
     params[:, kernels.P_TAU_MAX] = max_t_end * to_tau
-    params[:, kernels.P_LIN_GROWTH] = model.linear_growth_rate(
+    params[:, kernels.P_LIN_GROWTH] = physics.linear_growth_rate(
         config.model, config.blocks, dl["A"], dl["B"], dl["kappa1"], dl["kappa2"],
         dl["eta_hat"], dl["mass_hat"],
     )  # fmt: skip
-    settings = settings_array(config)
-    y0 = initial_state(config, n)
-    return params, y0, settings, dl["time_unit"]
+    return Grid(config, phys, dl, params, initial_state(config, n), settings_array(config))
+
+
+def state_size(config):
+    """State variables per system: ℓ and ψ per block, and z per block (inertial model)."""
+    return config.blocks * (3 if config.model == "inertial" else 2)
 
 
 def initial_state(config, n_systems):
