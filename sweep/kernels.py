@@ -1,6 +1,6 @@
 """Numba kernels: right-hand side, steppers and the per-system integration loop.
 
-Only jitted loops live here; the equations are documented in ``sweep/model.py``.
+Only jitted loops live here; the equations are documented in ``sweep/physics.py``.
 Everything a kernel needs is passed as an argument (numba's cache freezes
 globals, so the module-level integers below are true constants: column indices
 and codes shared with the Python side).
@@ -658,7 +658,7 @@ def collapse_regime(y, nb):
     finite-time blow-up of v (runaway); otherwise the solver failed (undecided).
     Steps below the resolution of t are legitimate: an inertial block arresting
     after a fast slip lands on ℓ ~ −30 within ~1e-20 D0/V
-    (test_regularised.py::test_inertial_arrest_is_resolved).
+    (test_models.py::test_inertial_arrest_is_resolved).
     """
     regime = UNDECIDED
     for i in range(nb):
