@@ -400,8 +400,8 @@ def _validate(raw, text, source):
     integrator = _parse_integrator(c, raw, model)
     classification = _parse_classification(c, raw, integrator.t_end)
     output = raw.get("output", f"results/{name}.nc")
-    if not isinstance(output, str) or not output.endswith(".nc"):
-        c.add(f"output must be a file path ending in .nc, got {output!r}")
+    if not isinstance(output, str) or not output.endswith((".nc", ".zarr")):
+        c.add(f"output must be a path ending in .nc (NetCDF) or .zarr (Zarr), got {output!r}")
         output = f"results/{name}.nc"
     if c.problems:
         raise ConfigError(source, c.problems)

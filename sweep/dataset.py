@@ -22,7 +22,7 @@ from ._version import __version__
 from .config import parse_config
 from .errors import ConfigError, InputError
 from .physics import PARAMETERS
-from .store import replaced_atomically
+from .store import ZARR_SUFFIX, replaced_atomically, require_zarr
 from .variables import REGIMES, variables_for
 
 
@@ -127,11 +127,15 @@ def build_dataset(grid, results, y_final, command="run"):
 
     ``command``: what made it, for ``history`` (see :func:`provenance`).
     """
-    config = grid.config
+    return dataset_from_fields(grid.config, derived_fields(grid, results, y_final), command)
+
+
+def dataset_from_fields(config, fields, command="run"):
+    """The result Dataset of ``config`` from its flat variables ``fields`` (as from
+    :func:`derived_fields`; arrays already of the schema's dtype are not copied)."""
     shape = config.shape
     dims = tuple(a.name for a in config.axes)
     coords = parameter_coords(config)
-    fields = derived_fields(grid, results, y_final)
     data_vars = {}
     for var in variables_for(config.blocks, config.model):
         attrs = {"units": var.units, "long_name": var.long_name}
@@ -139,10 +143,10 @@ def build_dataset(grid, results, y_final, command="run"):
             attrs["description"] = var.description
         if var.per_block:
             data = fields[var.name].reshape(shape + (config.blocks,))
-            data_vars[var.name] = (dims + ("block",), data.astype(var.dtype), attrs)
+            data_vars[var.name] = (dims + ("block",), data.astype(var.dtype, copy=False), attrs)
         else:
             data = fields[var.name].reshape(shape)
-            data_vars[var.name] = (dims, data.astype(var.dtype), attrs)
+            data_vars[var.name] = (dims, data.astype(var.dtype, copy=False), attrs)
     regime_attrs = data_vars["regime"][2]
     regime_attrs["flag_values"] = np.arange(len(REGIMES), dtype=np.int8)
     regime_attrs["flag_meanings"] = " ".join(REGIMES)
@@ -230,11 +234,15 @@ def read_result(path, needs_config=False):
     """Load the result file ``path`` into memory (the file is closed again).
 
     With ``needs_config``, the file must also hold the config that made it
-    (``config_text``). Raises :class:`~sweep.errors.InputError` naming ``path``
+    (``config_text``). A ``.zarr`` path is read as a Zarr store (needs zarr) and
+    must be complete. Raises :class:`~sweep.errors.InputError` naming ``path``
     for a missing or unreadable file, or one that is not a sweep result.
     """
+    zarr = Path(path).suffix == ZARR_SUFFIX
+    if zarr:
+        require_zarr(path, "result")
     try:
-        with xr.open_dataset(path) as ds:
+        with xr.open_dataset(path, engine="zarr" if zarr else None, chunks=None) as ds:
             ds.load()
     except (OSError, ValueError) as exc:
         raise InputError(path, [f"cannot read result file: {exc}"]) from None
@@ -243,6 +251,12 @@ def read_result(path, needs_config=False):
         missing.append("config_text attribute")
     if missing:
         raise InputError(path, [f"not a sweep result (no {', '.join(missing)})"])
+    pending = int((ds["regime"] < 0).sum())
+    if pending:
+        raise InputError(
+            path, [f"{pending} of {ds['regime'].size} runs are not computed yet; finish the "
+                   "sweep first (python -m sweep run CONFIG --out PATH --resume)"]
+        )  # fmt: skip
     return ds
 
 

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import store
+from . import store, zarr_store
 from .backends import DaskTasks, NumbaThreads, open_backend
 from .config import parse_config
 from .dataset import build_dataset, write_netcdf
@@ -216,18 +216,32 @@ def run_sweep(config, out=None, *, resources=None, chunk_size=None, resume=False
     """
     start_time = time.perf_counter()
     path = Path(out or config.output)
-    store.check_writable(path, config.source, "output" if out is None else "--out")
+    key = "output" if out is None else "--out"
+    store.check_writable(path, config.source, key, (".nc", store.ZARR_SUFFIX))
+    to_zarr = path.suffix == store.ZARR_SUFFIX
+    if to_zarr:
+        store.require_zarr(config.source, key)
+        if shard:
+            raise InputError(
+                config.source,
+                [f"--shard keeps parts for merge, which writes NetCDF: give {key} a .nc path"],
+            )
     with store.output_lock(path, shared=bool(shard)):
         grid = build_grid(config)
-        run = _PartStore(store.parts_dir_for(path), config, grid.n, grid.y0.shape[1])
         stop = stop if stop is not None else StopRequest()
         with open_backend(resources) as backend:
-            _make_folder(run.folder)
             chunk_size = chunk_size or _default_chunk_size(grid.n, backend, shard)
-            owned = chunk_ranges(grid.n, chunk_size, shard or (0, 1))
-            have = _reuse_parts(run.folder, run.chash, owned, run.results, run.y_final,
-                                resume)  # fmt: skip
-            todo = missing_ranges(owned, have)
+            if to_zarr:
+                run = _ZarrStore(zarr_store.ZarrResult(path, grid, chunk_size, resume), grid)
+                owned = run.store.ranges
+                todo = [(a, b) for a, b in owned if not run.store.have[a:b].all()]
+            else:
+                run = _PartStore(store.parts_dir_for(path), config, grid.n, grid.y0.shape[1])
+                _make_folder(run.folder)
+                owned = chunk_ranges(grid.n, chunk_size, shard or (0, 1))
+                have = _reuse_parts(run.folder, run.chash, owned, run.results, run.y_final,
+                                    resume)  # fmt: skip
+                todo = missing_ranges(owned, have)
             total, left = _rows(owned), _rows(todo)
             log.info("%s: computing %d runs in %d chunks on %s", config.name, left, len(todo),
                      backend)  # fmt: skip
@@ -250,6 +264,9 @@ def run_sweep(config, out=None, *, resources=None, chunk_size=None, resume=False
         if shard:
             elapsed = time.perf_counter() - start_time
             return SweepResult(None, run.folder, elapsed, run.saved, total - left)
+        if to_zarr:
+            ds = zarr_store.open_result(path)
+            return SweepResult(ds, path, time.perf_counter() - start_time, run.saved, total - left)
         ds = build_dataset(grid, run.results, run.y_final)
         _write_result(ds, path, f"{run.folder} (use --resume)")
         store.remove_parts(run.folder)
@@ -279,6 +296,30 @@ class _PartStore:
                 "written so far are kept, rerun with --resume once this is fixed"
             ) from None
         self.saved += b - a
+
+
+class _ZarrStore:
+    """The result arrays of a run and the Zarr store each finished chunk is written to."""
+
+    def __init__(self, zarr_result, grid):
+        self.store = zarr_result
+        self.folder = zarr_result.path
+        self.results = np.empty((grid.n, N_RESULTS))
+        self.y_final = np.empty_like(grid.y0)
+
+    @property
+    def saved(self):
+        return self.store.saved
+
+    def save(self, a, b):
+        """Write rows ``a:b`` into the store; a failure is a :class:`RunError`."""
+        try:
+            self.store.save(a, b, self.results[a:b], self.y_final[a:b])
+        except OSError as exc:
+            raise RunError(
+                f"cannot write to {self.folder}: {exc.strerror or exc}; the chunks written so "
+                "far are kept, rerun with --resume once this is fixed"
+            ) from None
 
 
 def _rows(ranges):

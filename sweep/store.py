@@ -56,6 +56,8 @@ PART_FORMAT = 1
 NUMERIC_MODULES = ("kernels.py", "grid.py", "physics.py", "accelerate.py")
 PART_NAME = re.compile(r"^(?P<hash>[0-9a-f]{16})_(?P<start>\d+)-(?P<stop>\d+)_of_(?P<n>\d+)\.npz$")
 TEMP_PREFIX = ".part-"
+#: The suffix of a Zarr directory store (``sweep/zarr_store.py``).
+ZARR_SUFFIX = ".zarr"
 #: A temporary part file: ``.part-<host>-<pid>-<random>.tmp`` (see ``replaced_atomically``).
 TEMP_NAME = re.compile(r"^\.part-(?P<host>.+)-(?P<pid>\d+)-[0-9a-f]+\.tmp$")
 
@@ -357,16 +359,21 @@ def check_writable(path, source="<config>", key="output", suffix=".nc"):
     """Raise :class:`~sweep.errors.InputError` unless a file can be created at ``path``.
 
     ``suffix``: the file type, or a tuple of those allowed (e.g. ``(".png",
-    ".pdf", ".svg")``). Creates missing parent directories and a probe file
-    (removed at once), so the answer is the file system's, not a guess from
-    permission bits (which root ignores).
+    ".pdf", ".svg")``); a ``.zarr`` path is a directory store, which may exist.
+    Creates missing parent directories and a probe file (removed at once), so the
+    answer is the file system's, not a guess from permission bits (which root ignores).
     """
     path = Path(path)
     suffixes = (suffix,) if isinstance(suffix, str) else tuple(suffix)
     allowed = " or ".join(suffixes)
     if path.suffix not in suffixes:
         raise InputError(source, [f"{key} {path} must be a file name ending in {allowed}"])
-    if path.is_dir():
+    if path.suffix == ZARR_SUFFIX:  # a directory store: a folder is what it should be
+        if path.exists() and not path.is_dir():
+            raise InputError(
+                source, [f"{key} {path} is a file; a Zarr store ({ZARR_SUFFIX}) is a directory"]
+            )
+    elif path.is_dir():
         raise InputError(
             source, [f"{key} {path} is a directory; give a file path ending in {allowed}"]
         )
@@ -384,6 +391,19 @@ def check_writable(path, source="<config>", key="output", suffix=".nc"):
         raise InputError(source, [f"{key} {path} cannot be written: {reason}"]) from None
     if path.exists() and not os.access(path, os.W_OK):
         raise InputError(source, [f"{key} {path} exists and is not writable"])
+
+
+def require_zarr(source, key="--out"):
+    """The ``zarr`` module (for ``.zarr`` outputs), or an :class:`InputError` saying
+    how to install it."""
+    try:
+        import zarr
+    except ImportError:
+        raise InputError(
+            source,
+            [f"{key}: Zarr output (.zarr) needs the zarr package: pip install 'rsf-sweep[zarr]'"],
+        ) from None
+    return zarr
 
 
 @contextmanager
