@@ -87,15 +87,23 @@ def build_parser():
     parser.add_argument("--version", action="version", version=f"rsf-sweep {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("examples", help="list the example configs that ship with the package")
-    run = sub.add_parser("run", help="run a sweep config and write its NetCDF result")
+    run = sub.add_parser("run", help="run a sweep config and write its NetCDF (or Zarr) result")
     run.add_argument(
         "config", help="YAML config file, or the name of a packaged example (rsf-sweep examples)"
     )
-    run.add_argument("--out", help="output NetCDF path (default: the config's output)")
+    run.add_argument(
+        "--out",
+        help="output path (default: the config's output): .nc for NetCDF, or .zarr for a Zarr "
+        "store written chunk by chunk, readable while the sweep runs (needs rsf-sweep[zarr])",
+    )
     run.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
     run.add_argument("--chunk-size", type=_positive_int, help="systems per chunk")
     run.add_argument("--quiet", action="store_true", help="no progress output")
-    run.add_argument("--resume", action="store_true", help="reuse finished chunks of this config")
+    run.add_argument(
+        "--resume",
+        action="store_true",
+        help="reuse finished chunks of this config (parts, or the rows of a .zarr store)",
+    )
     where = run.add_mutually_exclusive_group()
     where.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask scheduler")
     where.add_argument(

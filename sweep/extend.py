@@ -13,6 +13,7 @@ Every other run is left as it was, bit for bit.
 """
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 
@@ -22,7 +23,7 @@ from .dataset import derived_fields, read_result, stored_config, utc_now, write_
 from .errors import InputError, RunError
 from .grid import build_grid
 from .runner import integrate_in_memory
-from .store import check_writable
+from .store import ZARR_SUFFIX, check_writable
 from .variables import variables_for
 
 #: Variables from linear theory, not from the run: never recomputed.
@@ -190,6 +191,8 @@ def extend_file(path, t_end=None, out=None, threads=None):
     Returns ``(dataset, n_continued)``; with no undecided run nothing is written
     and ``n_continued`` is 0.
     """
+    if out is None and Path(path).suffix == ZARR_SUFFIX:
+        raise InputError(path, ["extend writes NetCDF: give --out PATH.nc to extend a Zarr store"])
     ds = read_result(path, needs_config=True)
     out = path if out is None else out
     check_writable(out, path, "--out")

@@ -9,13 +9,15 @@ import errno
 import math
 import os
 import sys
+import time
 
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import QUICK, PROVENANCE_ATTRS, reference_file, write_config
+from conftest import PROVENANCE_ATTRS, QUICK, reference_file, write_config
 from hypothesis import given
 from hypothesis import strategies as st
+from test_runner import SLOW, sweep_cli
 
 from sweep import runner, zarr_store
 from sweep.backends import Resources
@@ -119,7 +121,46 @@ def test_cli_writes_a_zarr_store(tmp_path, capsys, quick_reference_file):
     assert int((ds["regime"] >= 0).sum()) == 9
 
 
+def test_plot_and_extend_read_a_complete_store(tmp_path, capsys):
+    """plot reads the store; extend says it writes NetCDF unless given --out x.nc."""
+    out = tmp_path / "q.zarr"
+    assert main(["run", str(QUICK), "--out", str(out), "--quiet"]) == 0
+    png = tmp_path / "q.png"
+    assert main(["plot", str(out), "--out", str(png)]) == 0
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    assert main(["extend", str(out)]) == 2
+    assert "extend writes NetCDF: give --out PATH.nc" in capsys.readouterr().err
+    assert main(["extend", str(out), "--out", str(tmp_path / "e.nc")]) == 0
+    assert "no undecided runs" in capsys.readouterr().out  # quick settles every run
+
+
 # --- readable while running, resumable ------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_sigkill_then_resume_recomputes_only_unfinished_chunks(tmp_path):
+    """kill -9 of the CLI once some chunks are in the store; --resume computes the others
+    and the store equals the NetCDF result. ``SLOW``: 8 runs of about 0.2 s each."""
+    slow_config = tmp_path / "slow.yaml"
+    slow_config.write_text(SLOW)
+    out = tmp_path / "slow.zarr"
+    args = ["run", slow_config, "--out", out, "--chunk-size", "1", "--threads", "1"]
+    proc = sweep_cli(*args, cwd=tmp_path)
+    deadline = time.monotonic() + 120
+    while not (out / "regime" / "c").is_dir() or not any((out / "regime" / "c").iterdir()):
+        assert proc.poll() is None and time.monotonic() < deadline, "no chunk was stored"
+        time.sleep(0.01)
+    proc.kill()
+    proc.communicate(timeout=60)
+    with xr.open_zarr(out) as ds:
+        kept = int((ds["regime"] >= 0).sum())
+    assert 1 <= kept < 8
+    proc = sweep_cli(*args, "--resume", cwd=tmp_path)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    assert f"{kept} of 8 runs are stored" in err
+    assert f"computing {8 - kept} runs in {8 - kept} chunks" in err
+    assert_same_as_netcdf(out, reference_file(load_config(slow_config), tmp_path / "ref.nc"))
 
 
 def test_readable_mid_run_and_resume_completes_it(
