@@ -11,7 +11,9 @@ finished chunk is saved at once as a part file (``sweep/store.py``); with
 ``resume=True`` the rows already saved are read back instead of recomputed.
 The NetCDF is written once every row is known, and the parts are removed only
 after that. ``shard=(i, n_shards)`` computes only the chunks ``k`` with
-``k % n_shards == i`` and leaves them as parts, for job arrays.
+``k % n_shards == i`` and leaves them as parts, for job arrays. An output
+ending in ``.zarr`` is a Zarr store instead (``sweep/zarr_store.py``): created
+full size up front, each chunk written into it as it finishes, no parts.
 """
 
 import logging
@@ -193,7 +195,8 @@ def run_sweep(config, out=None, *, resources=None, chunk_size=None, resume=False
     config : Config
     out : path, optional
         NetCDF output (default: the config's ``output``); parts go to
-        ``<out without .nc>.parts/``.
+        ``<out without .nc>.parts/``. A ``.zarr`` path is a Zarr store filled
+        chunk by chunk (its chunks are the runner's; ``shard`` is refused).
     resources : backends.Resources, optional
         Where the chunks run: numba ``threads`` (default: all cores), or Dask (a
         ``scheduler`` address or ``dask_local`` worker processes).

@@ -51,6 +51,18 @@ def test_local_cluster_gives_identical_results(quick, quick_reference_file, loca
 
 
 @pytest.mark.slow
+def test_local_cluster_fills_a_zarr_store(quick, quick_reference_file, local_client, tmp_path):
+    """Dask tasks finish in any order; each fills its own chunks of the store."""
+    pytest.importorskip("zarr")
+    from test_zarr_store import assert_same_as_netcdf
+
+    out = tmp_path / "r.zarr"
+    runner.run_sweep(quick, out=out, resources=Resources(scheduler=local_client), chunk_size=2,
+                     show_progress=False)  # fmt: skip
+    assert_same_as_netcdf(out, quick_reference_file)
+
+
+@pytest.mark.slow
 def test_workers_load_the_kernel_from_the_cache(local_client):
     """The parent compiles the serial kernel before it submits a task; the workers
     then only load it from numba's cache and never compile it themselves, so no two
