@@ -401,7 +401,10 @@ def require_zarr(source, key="--out"):
     except ImportError:
         raise InputError(
             source,
-            [f"{key}: Zarr output (.zarr) needs the zarr package: pip install 'rsf-sweep[zarr]'"],
+            [
+                f"{key}: reading or writing a Zarr store (.zarr) needs the zarr package: "
+                "pip install 'rsf-sweep[zarr]'"
+            ],
         ) from None
     return zarr
 
