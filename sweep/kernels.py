@@ -26,6 +26,7 @@ QUASI_STATIC, QUASI_DYNAMIC, INERTIAL = 0, 1, 2
 AGING, SLIP = 0, 1
 DOPRI5, RK4, ROSENBROCK = 0, 1, 2
 STEADY, STICK_SLIP, RUNAWAY, UNDECIDED = 0, 1, 2, 3
+CHAIN, RING, ALL = 0, 1, 2  # coupling springs: neighbours of a chain, of a ring, every pair
 # A decaying oscillation is called steady only once it is this small (peak-to-peak
 # ln v/V of every block), i.e. in the linear regime where decay is geometric: see
 # steady_verdict.
@@ -50,8 +51,19 @@ HISTORY = 4
     P_MAX_STEP,  # largest adaptive step (D0/V)
     P_TAU_MAX,  # unsettled runs continue up to this time (D0/V), ≥ P_TAU_END
     P_LIN_GROWTH,  # max Re λ of the linearisation at steady sliding (V/D0)
-) = range(11)
-N_PARAMS = 11
+    P_COUPLING,  # CHAIN | RING | ALL
+) = range(12)
+N_PARAMS = 12
+# Rows whose blocks differ have N_BLOCK_PARAMS × nb more columns after N_PARAMS:
+# column N_PARAMS + k nb + i holds quantity k of block i (B_* below). Without them
+# (p.size == N_PARAMS) every block takes P_A, P_B, P_KAPPA1 and rate factor 1.
+(
+    B_A,  # direct effect of block i
+    B_B,  # evolution effect of block i
+    B_KAPPA1,  # driving stiffness K_i D0/W (D0: the reference D0)
+    B_RATE,  # state-rate factor D0/D0_i
+) = range(4)
+N_BLOCK_PARAMS = 4
 
 # --- entries of the settings array, shared by all systems of a sweep --------
 (
@@ -67,8 +79,9 @@ N_PARAMS = 11
     S_ACCURACY,  # relative accuracy of the extrapolated limit that settles a run
     S_CONFIRM_CYCLES,  # consecutive cycles a verdict must hold to settle a run early
     S_EARLY_EXIT,  # 1: stop as soon as the regime is settled
-) = range(12)
-N_SETTINGS = 12
+    S_SLIP_LNV,  # a block slips (slip events, R_SLIP_PARTICIPATION) while ℓ_i exceeds this
+) = range(13)
+N_SETTINGS = 13
 
 # --- columns of the per-system statistics array -----------------------------
 (
@@ -88,8 +101,10 @@ N_SETTINGS = 12
     R_LNV_MAX_RUN,  # max ln(v/V) over the whole run
     R_N_RECORDED,  # points written to the recording buffers
     R_CONVERGENCE,  # estimated relative distance of the last cycle to its limit
-) = range(16)
-N_RESULTS = 16
+    R_SYNC_ORDER,  # Kuramoto order parameter of the blocks' phases, final window
+    R_SLIP_PARTICIPATION,  # mean fraction of blocks slipping per slip event, final window
+) = range(18)
+N_RESULTS = 18
 
 # Dormand–Prince 5(4) tableau (Hairer, Nørsett & Wanner, Table II.5.2).
 _A21 = 1 / 5
@@ -138,14 +153,20 @@ _RODAS_C = np.array(
 def rhs(y, p, model, law, nb, ev, dydt):
     """Time derivative (per D0/V) of the log-form state ``y`` into ``dydt``.
 
-    ``p`` is one row of the parameter array; ``ev`` is scratch for e^ℓ (length nb).
+    ``p`` is one row of the parameter array (with per-block columns where blocks
+    differ); ``ev`` is scratch for e^ℓ (length nb).
     """
     A = p[P_A]
     B = p[P_B]
     kappa1 = p[P_KAPPA1]
     kappa2 = p[P_KAPPA2]
+    coupling = int(p[P_COUPLING])
+    het = p.size > N_PARAMS
+    total = 0.0  # Σ e^ℓ_j: every pair coupled
     for i in range(nb):
         ev[i] = np.exp(y[i])
+        if coupling == ALL:
+            total += ev[i]
     for i in range(nb):
         lnv = y[i]
         psi = y[nb + i]
@@ -154,11 +175,22 @@ def rhs(y, p, model, law, nb, ev, dydt):
             dpsi = np.exp(-psi) - e
         else:
             dpsi = -e * (lnv + psi)
+        if het:
+            A = p[N_PARAMS + B_A * nb + i]
+            B = p[N_PARAMS + B_B * nb + i]
+            kappa1 = p[N_PARAMS + B_KAPPA1 * nb + i]
+            dpsi *= p[N_PARAMS + B_RATE * nb + i]
         load = kappa1 * (1.0 - e)
-        if i > 0:
-            load += kappa2 * (ev[i - 1] - e)
-        if i < nb - 1:
-            load += kappa2 * (ev[i + 1] - e)
+        if coupling == CHAIN:
+            if i > 0:
+                load += kappa2 * (ev[i - 1] - e)
+            if i < nb - 1:
+                load += kappa2 * (ev[i + 1] - e)
+        elif coupling == RING:
+            load += kappa2 * (ev[i - 1 if i > 0 else nb - 1] - e)
+            load += kappa2 * (ev[i + 1 if i < nb - 1 else 0] - e)
+        else:
+            load += kappa2 * (total - nb * e)
         if model == QUASI_STATIC:
             dlnv = (load - B * dpsi) / A
         elif model == QUASI_DYNAMIC:
@@ -181,6 +213,8 @@ def jacobian(y, f, p, model, law, nb, ev, jac):
     B = p[P_B]
     kappa1 = p[P_KAPPA1]
     kappa2 = p[P_KAPPA2]
+    coupling = int(p[P_COUPLING])
+    het = p.size > N_PARAMS
     jac[:, :] = 0.0
     for i in range(nb):
         ev[i] = np.exp(y[i])
@@ -192,15 +226,27 @@ def jacobian(y, f, p, model, law, nb, ev, jac):
         else:
             dpsi_dlnv = -e * (y[i] + y[nb + i] + 1.0)
             dpsi_dpsi = -e
+        if het:
+            A = p[N_PARAMS + B_A * nb + i]
+            B = p[N_PARAMS + B_B * nb + i]
+            kappa1 = p[N_PARAMS + B_KAPPA1 * nb + i]
+            rate = p[N_PARAMS + B_RATE * nb + i]
+            dpsi_dlnv *= rate
+            dpsi_dpsi *= rate
         jac[nb + i, i] = dpsi_dlnv
         jac[nb + i, nb + i] = dpsi_dpsi
-        # the driving term load − B ψ' of block i: its own ℓ, ψ and its neighbours' ℓ
-        # (open chain), into row ``row`` divided by ``denom``
+        # the driving term load − B ψ' of block i: its own ℓ, ψ and its coupled
+        # neighbours' ℓ, into row ``row`` divided by ``denom``
         dload_self = -kappa1 * e
-        if i > 0:
-            dload_self -= kappa2 * e
-        if i < nb - 1:
-            dload_self -= kappa2 * e
+        if coupling == CHAIN:
+            if i > 0:
+                dload_self -= kappa2 * e
+            if i < nb - 1:
+                dload_self -= kappa2 * e
+        elif coupling == RING:
+            dload_self -= 2.0 * kappa2 * e
+        else:
+            dload_self -= (nb - 1) * kappa2 * e
         if model == INERTIAL:
             row = 2 * nb + i
             denom = 1.0
@@ -216,10 +262,18 @@ def jacobian(y, f, p, model, law, nb, ev, jac):
                 jac[i, i] = -f[i] * p[P_ETA] * e / denom
         jac[row, i] += (dload_self - B * dpsi_dlnv) / denom
         jac[row, nb + i] = -B * dpsi_dpsi / denom
-        if i > 0:
-            jac[row, i - 1] = kappa2 * ev[i - 1] / denom
-        if i < nb - 1:
-            jac[row, i + 1] = kappa2 * ev[i + 1] / denom
+        if coupling == CHAIN:
+            if i > 0:
+                jac[row, i - 1] = kappa2 * ev[i - 1] / denom
+            if i < nb - 1:
+                jac[row, i + 1] = kappa2 * ev[i + 1] / denom
+        elif coupling == RING:
+            jac[row, i - 1 if i > 0 else nb - 1] = kappa2 * ev[i - 1 if i > 0 else nb - 1] / denom
+            jac[row, i + 1 if i < nb - 1 else 0] = kappa2 * ev[i + 1 if i < nb - 1 else 0] / denom
+        else:
+            for j in range(nb):
+                if j != i:
+                    jac[row, j] = kappa2 * ev[j] / denom
 
 
 @jit
