@@ -73,7 +73,9 @@ def test_pattern_is_seeded_and_per_parameter():
     assert not np.array_equal(a["D0"], heterogeneity.spread_pattern(5, "uniform", 4)["D0"])
     with_a = nblock_config(spread={"D0": 0.1, "A": 0.2, "seed": 3})
     without = nblock_config(spread={"D0": 0.1, "seed": 3})
-    d0 = [heterogeneity.block_values(c, grid.physical_parameters(c))["D0"] for c in (with_a, without)]
+    d0 = [
+        heterogeneity.block_values(c, grid.physical_parameters(c))["D0"] for c in (with_a, without)
+    ]
     np.testing.assert_array_equal(d0[0], d0[1])
 
 

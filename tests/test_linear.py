@@ -170,6 +170,8 @@ def test_kernel_rhs_matches_a_laplacian_reference(coupling):
     y = rng.uniform(-1.0, 1.0, 2 * nb)
     v = np.exp(y[:nb])
     dpsi = blk[kernels.B_RATE] * (np.exp(-y[nb:]) - v)
-    load = blk[kernels.B_KAPPA1] * (1 - v) - p[kernels.P_KAPPA2] * linear.laplacian(nb, coupling) @ v
+    load = (
+        blk[kernels.B_KAPPA1] * (1 - v) - p[kernels.P_KAPPA2] * linear.laplacian(nb, coupling) @ v
+    )
     want = np.concatenate([(load - blk[kernels.B_B] * dpsi) / blk[kernels.B_A], dpsi])
     np.testing.assert_allclose(kernel_rhs(y, p, "quasi-static", "aging", nb), want, rtol=1e-12)
