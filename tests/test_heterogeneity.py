@@ -143,3 +143,21 @@ def test_older_configs_have_no_nblock_features():
     """A chain without the new keys keeps its variables (tests/test_bit_identity.py)."""
     assert nblock_config().features == ()
     assert nblock_config(coupling="chain").features == ("nblock",)
+
+
+def test_parts_of_other_couplings_or_blocks_are_not_reused():
+    """The part files' config hash sees the coupling, per-block values and spreads."""
+    from sweep import parts
+
+    base = nblock_config(coupling="ring", spread={"A": 0.1, "seed": 1})
+    variants = [
+        nblock_config(coupling="all", spread={"A": 0.1, "seed": 1}),
+        nblock_config(spread={"A": 0.1, "seed": 1}),
+        nblock_config(coupling="ring", spread={"A": 0.1, "seed": 2}),
+        nblock_config(coupling="ring", spread={"A": 0.1, "seed": 1, "distribution": "normal"}),
+        nblock_config(coupling="ring", spread={"A": 0.2, "seed": 1}),
+        nblock_config(coupling="ring", spread={"A": 0.1, "seed": 1}, parameters={"D0": [1, 2, 1]}),
+        nblock_config(coupling="ring", spread={"A": 0.1, "seed": 1}, initial={"ensemble": 2}),
+    ]
+    hashes = {parts.config_hash(c) for c in variants}
+    assert parts.config_hash(base) not in hashes and len(hashes) == len(variants)
