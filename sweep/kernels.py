@@ -645,21 +645,71 @@ def cycle_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, at
     return -1, conv
 
 
+@jit_inline
+def block_friction(p, nb, i, A, B):
+    """(A_i, B_i) of block i: its per-block columns, or the common ``A``, ``B``."""
+    if p.size > N_PARAMS:
+        return p[N_PARAMS + B_A * nb + i], p[N_PARAMS + B_B * nb + i]
+    return A, B
+
+
 @jit
-def start_window(y, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin):
+def start_window(y, p, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin):
     """Start a cycle's statistics at state ``y``: extremes of ℓ_i and of the friction
-    A ℓ_i + B ψ_i at their current values. Returns (max |ℓ_i − ℓ_0|, mean ℓ_i)."""
+    A_i ℓ_i + B_i ψ_i at their current values. Returns (max |ℓ_i − ℓ_0|, mean ℓ_i)."""
     sync = 0.0
     mbar = 0.0
     for i in range(nb):
         win_lmax[i] = y[i]
         win_lmin[i] = y[i]
-        mu = A * y[i] + B * y[nb + i]
+        a_i, b_i = block_friction(p, nb, i, A, B)
+        mu = a_i * y[i] + b_i * y[nb + i]
         win_mumax[i] = mu
         win_mumin[i] = mu
         sync = max(sync, abs(y[i] - y[0]))
         mbar += y[i] / nb
     return sync, mbar
+
+
+@jit_inline
+def track_slips(y, nb, slip_lnv, flags, acc):
+    """Follow slip events at state ``y``: an event lasts while any ℓ_i exceeds
+    ``slip_lnv``; ``flags[i]`` marks the blocks that slipped during it. When an event
+    ends, its fraction of slipping blocks is added to ``acc[1]`` and ``acc[2]``
+    counts it; ``acc[0]`` is 1 while an event lasts."""
+    slipping = False
+    for i in range(nb):
+        if y[i] > slip_lnv:
+            flags[i] = True
+            slipping = True
+    if slipping:
+        acc[0] = 1.0
+    elif acc[0] > 0.0:
+        count = 0
+        for i in range(nb):
+            if flags[i]:
+                count += 1
+            flags[i] = False
+        acc[0] = 0.0
+        acc[1] += count / nb
+        acc[2] += 1.0
+
+
+@jit
+def kuramoto_order(t_peak_blocks, t_peak, period, nb):
+    """Kuramoto order parameter R = |mean_i exp(iθ_i)| of the blocks' phases at the
+    maximum of ℓ_0 at ``t_peak``: θ_i = 2π (last maximum of ℓ_i − t_peak) / period.
+    NaN if a block had no maximum within the last period."""
+    re = 0.0
+    im = 0.0
+    for i in range(nb):
+        dt = t_peak_blocks[i] - t_peak
+        if not (dt > -period):  # also NaN: never a maximum
+            return np.nan
+        theta = 2.0 * math.pi * dt / period
+        re += math.cos(theta)
+        im += math.sin(theta)
+    return math.sqrt(re * re + im * im) / nb
 
 
 @jit
@@ -684,6 +734,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     accuracy = settings[S_ACCURACY]
     n_confirm = max(1, int(settings[S_CONFIRM_CYCLES]))
     early_exit = settings[S_EARLY_EXIT] > 0.5
+    slip_lnv = settings[S_SLIP_LNV]
     A = p[P_A]
     B = p[P_B]
     tau_end = p[P_TAU_END]
@@ -727,12 +778,18 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     n_agree = 0
     last_verdict = -1
     conv = np.inf
-    win_sync, mbar = start_window(y, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin)
+    win_sync, mbar = start_window(y, p, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin)
     win_mbar_max = mbar
     win_mbar_min = mbar
     last_sync = np.nan
     win_t_peak_last_block = np.nan
     last_phase = np.nan
+    # N-block statistics: each block's last maximum of ℓ (sync order), slip events
+    t_peak_blocks = np.full(nb, np.nan)
+    slip_flags = np.zeros(nb, np.bool_)
+    slip_acc = np.zeros(3)  # in an event (1/0), Σ fractions, events, current cycle
+    last_order = np.nan
+    last_participation = np.nan
 
     lnv_max_run = -np.inf
     for i in range(nb):
@@ -853,6 +910,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
                 win_lmin[i] = min(win_lmin[i], val)
                 lnv_max_run = max(lnv_max_run, val)
                 if rising:
+                    t_peak_blocks[i] = t + theta * h
                     if i == 0:
                         new_peak = True
                         theta_peak = theta
@@ -863,12 +921,13 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             win_lmin[i] = min(win_lmin[i], ynew[i])
             lnv_max_run = max(lnv_max_run, ynew[i])
             # friction A ℓ_i + B ψ_i (relative to steady sliding), extremes interpolated
-            mu0 = A * y[i] + B * y[nb + i]
-            mu = A * ynew[i] + B * ynew[nb + i]
-            dmu0 = A * f[i] + B * f[nb + i]
-            dmu1 = A * fnew[i] + B * fnew[nb + i]
+            a_i, b_i = block_friction(p, nb, i, A, B)
+            mu0 = a_i * y[i] + b_i * y[nb + i]
+            mu = a_i * ynew[i] + b_i * ynew[nb + i]
+            dmu0 = a_i * f[i] + b_i * f[nb + i]
+            dmu1 = a_i * fnew[i] + b_i * fnew[nb + i]
             if (dmu0 > 0.0) == (dmu1 <= 0.0):
-                r5 = A * dense_r5(method, i, h, f, k3, k4, k5, k6, fnew) + B * dense_r5(
+                r5 = a_i * dense_r5(method, i, h, f, k3, k4, k5, k6, fnew) + b_i * dense_r5(
                     method, nb + i, h, f, k3, k4, k5, k6, fnew
                 )
                 theta = dense_extremum(mu0, mu, dmu0, dmu1, h, r5)
@@ -880,6 +939,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             if i > 0:
                 win_sync = max(win_sync, abs(ynew[i] - ynew[0]))
         if nb > 1:
+            track_slips(ynew, nb, slip_lnv, slip_flags, slip_acc)
             m0 = 0.0
             m1 = 0.0
             dm0 = 0.0
@@ -948,9 +1008,14 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
                 if nb > 1 and win_t_peak_last_block == win_t_peak_last_block:
                     lag = (win_t_peak_last_block - t_peak) / period
                     last_phase = lag - math.floor(lag + 0.5)
+                if nb > 1:
+                    last_order = kuramoto_order(t_peak_blocks, t_new_peak, period, nb)
+                    last_participation = slip_acc[1] / slip_acc[2] if slip_acc[2] > 0 else np.nan
+            slip_acc[1] = 0.0
+            slip_acc[2] = 0.0
             t_peak = t_new_peak
             # the new cycle starts at this peak
-            win_sync, mbar = start_window(y, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin)
+            win_sync, mbar = start_window(y, p, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin)
             win_lmax[0] = max(win_lmax[0], peak_value)
             win_t_peak_last_block = np.nan
             win_mbar_max = mbar
@@ -1022,6 +1087,12 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
         n_rec += 1
     result[R_N_RECORDED] = n_rec
     result[R_CONVERGENCE] = conv
+    if use_last:
+        result[R_SYNC_ORDER] = last_order
+        result[R_SLIP_PARTICIPATION] = last_participation
+    else:
+        result[R_SYNC_ORDER] = np.nan
+        result[R_SLIP_PARTICIPATION] = slip_acc[1] / slip_acc[2] if slip_acc[2] > 0 else np.nan
 
 
 @jit
