@@ -63,7 +63,7 @@ def test_critical_stiffness_of_identical_blocks_is_analytic(model_name, coupling
     ex = extras(model_name)
     one = np.ones((1, nb))
     growth, kc, omega = linear.unequal_theory(
-        model_name, coupling, A * one, B * one, 0.04 * one, one, np.array([0.02]),
+        model_name, coupling, A * one, B * one, one, one, np.array([0.02]),
         np.array([ex["eta_hat"]]), np.array([ex["mass_hat"]]), np.array([0.04]),
     )  # fmt: skip
     want = model.critical_kappa(model_name, A, B, **ex)
@@ -86,7 +86,7 @@ def test_uncoupled_unequal_blocks_go_unstable_with_the_weakest():
     ratio = np.array([[1.0, 1.2, 0.9]])
     kappa = np.array([0.05])
     _, kc, _ = linear.unequal_theory(
-        "quasi-static", "chain", a, b, ratio * kappa, rate, np.zeros(1), np.zeros(1),
+        "quasi-static", "chain", a, b, ratio, rate, np.zeros(1), np.zeros(1),
         np.zeros(1), kappa,
     )  # fmt: skip
     assert kc[0] == pytest.approx((rate * (b - a) / ratio).max(), rel=1e-10)
