@@ -794,9 +794,6 @@ def _parse_initial(c, raw, blocks):
     ensemble = c.integer(spec.get("ensemble", 0), "initial.ensemble", 0)
     seed = c.integer(spec.get("seed", 0), "initial.seed", 0)
     amplitude = c.number(spec.get("amplitude", 0.1), "initial.amplitude", low=0.0)
-    if not spec.get("ensemble") and ("seed" in spec or "amplitude" in spec):
-        c.add("initial.seed and initial.amplitude apply to random starts: give initial.ensemble "
-              "(number of starts per grid point, >= 1) too")  # fmt: skip
     return Initial(
         v or (1.0,) * blocks,
         phi or (1.0,) * blocks,

@@ -44,7 +44,6 @@ BAD = [
     ("spread axis of a shared parameter", {"sweep": {"K_W": [0.05], "spread_V": [0.1]}},
      "unknown sweep axis sweep.spread_V"),
     ("negative ensemble", {"initial": {"ensemble": -1}}, "initial.ensemble must be an integer"),
-    ("seed without ensemble", {"initial": {"seed": 3}}, "give initial.ensemble"),
     ("negative amplitude", {"initial": {"ensemble": 2, "amplitude": -0.1}},
      "initial.amplitude must be in [0, inf)"),
 ]  # fmt: skip
