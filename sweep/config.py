@@ -99,7 +99,7 @@ class Initial:
     ``ensemble``: number of random starts per grid point (0: the one start above);
     member m starts from ln(v/V) and ln(Φ/Φss) above plus independent uniform
     offsets in ±``amplitude``, drawn once from ``seed`` (the same M starts at every
-    grid point).
+    grid point); without an ensemble ``seed`` and ``amplitude`` are not used.
     """
 
     v_over_V: tuple
