@@ -14,7 +14,7 @@ value stored as the parameter's coordinate). A swept K_W with a K_W spread: the
 spread multiplies the swept value, so ``critical_K_W`` is that common K_W at onset.
 
 Plain numpy; the kernels see the results as per-block parameter columns
-(``grid.system_arrays``).
+(``grid.build_grid``).
 """
 
 import numpy as np

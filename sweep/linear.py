@@ -11,7 +11,7 @@ laws give ψ_i' = −r_i (ℓ_i + ψ_i))::
                               z_i' = −κ1_i ℓ_i − κ2 Σ_j L_ij ℓ_j + B_i r_i (ℓ_i + ψ_i) − A_i z_i/M̂
 
 with L the coupling graph's Laplacian. Identical blocks keep the analytic normal
-modes of ``sweep/model.py``; for unequal ones the eigenvalues of this Jacobian
+modes of ``sweep/physics.py``; for unequal ones the eigenvalues of this Jacobian
 give the growth rate, and the critical stiffness is where the largest real part
 crosses zero as the common K_W varies with the per-block ratios K_i/K fixed.
 """
@@ -20,7 +20,7 @@ import functools
 
 import numpy as np
 
-from . import heterogeneity, model
+from . import heterogeneity, physics
 
 #: Critical-stiffness search: from an estimate, steps of this factor up to the first
 #: stable κ and down to the first unstable one, then the Illinois variant of regula
@@ -81,7 +81,7 @@ def steady_jacobian(model_name, A, B, kappa1, rate, kappa2, lap, eta_hat=0.0, ma
         jac[..., :nb, :nb] = drive_l / denom[..., :, None]
         jac[..., :nb, nb : 2 * nb] = drive_psi / denom[..., :, None]
     else:
-        raise ValueError(f"model must be one of {model.MODELS}, got {model_name!r}")
+        raise ValueError(f"model must be one of {physics.MODELS}, got {model_name!r}")
     return jac
 
 
@@ -157,7 +157,7 @@ def _critical(model_name, coupling, nb, key):
         )
 
     # each block on its own, at its own rate: the mean of their critical κ
-    own = model.critical_kappa(model_name, A, B, eta_hat, mass_hat) * rate / ratio
+    own = physics.critical_kappa(model_name, A, B, eta_hat, mass_hat) * rate / ratio
     estimate = float(np.mean(own)) if np.mean(own) > 0.0 else 1.0
     kc = critical_scale(lambda kappa: largest(kappa).real, estimate)
     return kc, (abs(largest(kc).imag) if kc == kc else np.nan)
@@ -199,22 +199,22 @@ def theory(config, phys):
 
     Returns a dict of arrays: ``growth_rate`` (max Re λ), ``kappa_c`` (critical
     common κ = Kc D0/W) and ``omega`` (|Im λ| at onset). Systems whose blocks are
-    identical use the analytic modes of ``sweep/model.py``; the others the
+    identical use the analytic modes of ``sweep/physics.py``; the others the
     eigenvalues of :func:`steady_jacobian`.
     """
-    dl = model.dimensionless(
+    dl = physics.dimensionless(
         phys["A"], phys["B"], phys["D0"], phys["V"], phys["K_W"], phys["k2_W"],
         phys["eta_W"], phys["m_W"],
     )  # fmt: skip
     args = (config.model, dl["A"], dl["B"], dl["eta_hat"], dl["mass_hat"])
-    growth = model.linear_growth_rate(
+    growth = physics.linear_growth_rate(
         config.model, config.blocks, dl["A"], dl["B"], dl["kappa1"], dl["kappa2"],
         dl["eta_hat"], dl["mass_hat"], config.coupling,
     )  # fmt: skip
     out = {
         "growth_rate": growth,
-        "kappa_c": model.critical_kappa(*args),
-        "omega": model.onset_angular_frequency(*args),
+        "kappa_c": physics.critical_kappa(*args),
+        "omega": physics.onset_angular_frequency(*args),
     }
     if not config.heterogeneous:
         return out
