@@ -26,6 +26,7 @@ QUASI_STATIC, QUASI_DYNAMIC, INERTIAL = 0, 1, 2
 AGING, SLIP = 0, 1
 DOPRI5, RK4, ROSENBROCK = 0, 1, 2
 STEADY, STICK_SLIP, RUNAWAY, UNDECIDED = 0, 1, 2, 3
+CHAIN, RING, ALL = 0, 1, 2  # coupling springs: neighbours of a chain, of a ring, every pair
 # A decaying oscillation is called steady only once it is this small (peak-to-peak
 # ln v/V of every block), i.e. in the linear regime where decay is geometric: see
 # steady_verdict.
@@ -50,8 +51,19 @@ HISTORY = 4
     P_MAX_STEP,  # largest adaptive step (D0/V)
     P_TAU_MAX,  # unsettled runs continue up to this time (D0/V), ≥ P_TAU_END
     P_LIN_GROWTH,  # max Re λ of the linearisation at steady sliding (V/D0)
-) = range(11)
-N_PARAMS = 11
+    P_COUPLING,  # CHAIN | RING | ALL
+) = range(12)
+N_PARAMS = 12
+# Rows whose blocks differ have N_BLOCK_PARAMS × nb more columns after N_PARAMS:
+# column N_PARAMS + k nb + i holds quantity k of block i (B_* below). Without them
+# (p.size == N_PARAMS) every block takes P_A, P_B, P_KAPPA1 and rate factor 1.
+(
+    B_A,  # direct effect of block i
+    B_B,  # evolution effect of block i
+    B_KAPPA1,  # driving stiffness K_i D0/W (D0: the reference D0)
+    B_RATE,  # state-rate factor D0/D0_i
+) = range(4)
+N_BLOCK_PARAMS = 4
 
 # --- entries of the settings array, shared by all systems of a sweep --------
 (
@@ -67,8 +79,9 @@ N_PARAMS = 11
     S_ACCURACY,  # relative accuracy of the extrapolated limit that settles a run
     S_CONFIRM_CYCLES,  # consecutive cycles a verdict must hold to settle a run early
     S_EARLY_EXIT,  # 1: stop as soon as the regime is settled
-) = range(12)
-N_SETTINGS = 12
+    S_SLIP_LNV,  # a block slips (slip events, R_SLIP_PARTICIPATION) while ℓ_i exceeds this
+) = range(13)
+N_SETTINGS = 13
 
 # --- columns of the per-system statistics array -----------------------------
 (
@@ -88,8 +101,10 @@ N_SETTINGS = 12
     R_LNV_MAX_RUN,  # max ln(v/V) over the whole run
     R_N_RECORDED,  # points written to the recording buffers
     R_CONVERGENCE,  # estimated relative distance of the last cycle to its limit
-) = range(16)
-N_RESULTS = 16
+    R_SYNC_ORDER,  # Kuramoto order parameter of the blocks' phases, final window
+    R_SLIP_PARTICIPATION,  # mean fraction of blocks slipping per slip event, final window
+) = range(18)
+N_RESULTS = 18
 
 # Outcomes of a step's runaway test besides the index of the block that crossed
 # the cap (runaway_index).
@@ -97,7 +112,8 @@ NO_RUNAWAY, NOT_FINITE = -1, -2
 
 # --- rows of a cycle's per-block statistics (win, last in integrate_system) --
 W_LMAX, W_LMIN, W_MUMAX, W_MUMIN = range(4)  # extremes of ℓ_i and of friction A ℓ_i + B ψ_i
-N_WINDOW = 4
+W_T_PEAK = 4  # time of block i's last maximum of ℓ_i in the cycle (D0/V)
+N_WINDOW = 5
 
 # --- entries of the scalar cycle state ``cs`` of integrate_system ------------
 (
@@ -118,8 +134,14 @@ N_WINDOW = 4
     C_LAST_SYNC,  # max |ℓ_i − ℓ_0| in the last completed cycle
     C_LAST_PHASE,  # phase lag of the last block in the last completed cycle
     C_LNV_MAX_RUN,  # max ℓ_i over the whole run
-) = range(17)
-N_CYCLE_STATE = 17
+    C_LAST_ORDER,  # Kuramoto order parameter of the last completed cycle
+    C_LAST_PARTICIPATION,  # mean fraction of blocks per slip event, last completed cycle
+    C_SLIPPING,  # 1 while some block slips (ℓ_i > S_SLIP_LNV) after the current step
+    C_IN_EVENT,  # 1 while a slip event lasts
+    C_SLIP_SUM,  # Σ fractions of slipping blocks of the events ended in the current cycle
+    C_SLIP_EVENTS,  # number of those events
+) = range(23)
+N_CYCLE_STATE = 23
 
 # Dormand–Prince 5(4) tableau (Hairer, Nørsett & Wanner, Table II.5.2).
 _A21 = 1 / 5
@@ -168,14 +190,20 @@ _RODAS_C = np.array(
 def rhs(y, p, model, law, nb, ev, dydt):
     """Time derivative (per D0/V) of the log-form state ``y`` into ``dydt``.
 
-    ``p`` is one row of the parameter array; ``ev`` is scratch for e^ℓ (length nb).
+    ``p`` is one row of the parameter array (with per-block columns where blocks
+    differ); ``ev`` is scratch for e^ℓ (length nb).
     """
     A = p[P_A]
     B = p[P_B]
     kappa1 = p[P_KAPPA1]
     kappa2 = p[P_KAPPA2]
+    coupling = int(p[P_COUPLING])
+    het = p.size > N_PARAMS
+    total = 0.0  # Σ e^ℓ_j: every pair coupled
     for i in range(nb):
         ev[i] = np.exp(y[i])
+        if coupling == ALL:
+            total += ev[i]
     for i in range(nb):
         lnv = y[i]
         psi = y[nb + i]
@@ -184,11 +212,22 @@ def rhs(y, p, model, law, nb, ev, dydt):
             dpsi = np.exp(-psi) - e
         else:
             dpsi = -e * (lnv + psi)
+        if het:
+            A = p[N_PARAMS + B_A * nb + i]
+            B = p[N_PARAMS + B_B * nb + i]
+            kappa1 = p[N_PARAMS + B_KAPPA1 * nb + i]
+            dpsi *= p[N_PARAMS + B_RATE * nb + i]
         load = kappa1 * (1.0 - e)
-        if i > 0:
-            load += kappa2 * (ev[i - 1] - e)
-        if i < nb - 1:
-            load += kappa2 * (ev[i + 1] - e)
+        if coupling == CHAIN:
+            if i > 0:
+                load += kappa2 * (ev[i - 1] - e)
+            if i < nb - 1:
+                load += kappa2 * (ev[i + 1] - e)
+        elif coupling == RING:
+            load += kappa2 * (ev[i - 1 if i > 0 else nb - 1] - e)
+            load += kappa2 * (ev[i + 1 if i < nb - 1 else 0] - e)
+        else:
+            load += kappa2 * (total - nb * e)
         if model == QUASI_STATIC:
             dlnv = (load - B * dpsi) / A
         elif model == QUASI_DYNAMIC:
@@ -211,6 +250,8 @@ def jacobian(y, f, p, model, law, nb, ev, jac):
     B = p[P_B]
     kappa1 = p[P_KAPPA1]
     kappa2 = p[P_KAPPA2]
+    coupling = int(p[P_COUPLING])
+    het = p.size > N_PARAMS
     jac[:, :] = 0.0
     for i in range(nb):
         ev[i] = np.exp(y[i])
@@ -222,15 +263,27 @@ def jacobian(y, f, p, model, law, nb, ev, jac):
         else:
             dpsi_dlnv = -e * (y[i] + y[nb + i] + 1.0)
             dpsi_dpsi = -e
+        if het:
+            A = p[N_PARAMS + B_A * nb + i]
+            B = p[N_PARAMS + B_B * nb + i]
+            kappa1 = p[N_PARAMS + B_KAPPA1 * nb + i]
+            rate = p[N_PARAMS + B_RATE * nb + i]
+            dpsi_dlnv *= rate
+            dpsi_dpsi *= rate
         jac[nb + i, i] = dpsi_dlnv
         jac[nb + i, nb + i] = dpsi_dpsi
-        # the driving term load − B ψ' of block i: its own ℓ, ψ and its neighbours' ℓ
-        # (open chain), into row ``row`` divided by ``denom``
+        # the driving term load − B ψ' of block i: its own ℓ, ψ and its coupled
+        # neighbours' ℓ, into row ``row`` divided by ``denom``
         dload_self = -kappa1 * e
-        if i > 0:
-            dload_self -= kappa2 * e
-        if i < nb - 1:
-            dload_self -= kappa2 * e
+        if coupling == CHAIN:
+            if i > 0:
+                dload_self -= kappa2 * e
+            if i < nb - 1:
+                dload_self -= kappa2 * e
+        elif coupling == RING:
+            dload_self -= 2.0 * kappa2 * e
+        else:
+            dload_self -= (nb - 1) * kappa2 * e
         if model == INERTIAL:
             row = 2 * nb + i
             denom = 1.0
@@ -246,10 +299,18 @@ def jacobian(y, f, p, model, law, nb, ev, jac):
                 jac[i, i] = -f[i] * p[P_ETA] * e / denom
         jac[row, i] += (dload_self - B * dpsi_dlnv) / denom
         jac[row, nb + i] = -B * dpsi_dpsi / denom
-        if i > 0:
-            jac[row, i - 1] = kappa2 * ev[i - 1] / denom
-        if i < nb - 1:
-            jac[row, i + 1] = kappa2 * ev[i + 1] / denom
+        if coupling == CHAIN:
+            if i > 0:
+                jac[row, i - 1] = kappa2 * ev[i - 1] / denom
+            if i < nb - 1:
+                jac[row, i + 1] = kappa2 * ev[i + 1] / denom
+        elif coupling == RING:
+            jac[row, i - 1 if i > 0 else nb - 1] = kappa2 * ev[i - 1 if i > 0 else nb - 1] / denom
+            jac[row, i + 1 if i < nb - 1 else 0] = kappa2 * ev[i + 1 if i < nb - 1 else 0] / denom
+        else:
+            for j in range(nb):
+                if j != i:
+                    jac[row, j] = kappa2 * ev[j] / denom
 
 
 @jit
@@ -414,7 +475,7 @@ def dense_r5(method, j, h, f, k3, k4, k5, k6, fnew):
     return h * (_D1 * f[j] + _D3 * k3[j] + _D4 * k4[j] + _D5 * k5[j] + _D6 * k6[j] + _D7 * fnew[j])
 
 
-@jit_inline
+@jit
 def dense_value(y0, y1, d0, d1, h, r5, theta):
     """Interpolant at fraction ``theta`` of a step of size h from (y0, slope d0) to
     (y1, slope d1): DOPRI5's continuous extension (order 4) with its coefficient
@@ -446,7 +507,7 @@ def dense_slope(y0, y1, d0, d1, h, r5, theta):
     )
 
 
-@jit_inline
+@jit
 def dense_extremum(y0, y1, d0, d1, h, r5):
     """Fraction θ ∈ [0, 1] of the step where the interpolant's slope vanishes, given
     slopes d0 and d1 of opposite sign (bisection, 50 halvings)."""
@@ -681,39 +742,56 @@ def runaway_index(ynew, fnew, nb, lnv_cap):
     return out
 
 
+@jit_inline
+def block_friction(p, nb, i, A, B):
+    """(A_i, B_i) of block i: its per-block columns, or the common ``A``, ``B``."""
+    if p.size > N_PARAMS:
+        return p[N_PARAMS + B_A * nb + i], p[N_PARAMS + B_B * nb + i]
+    return A, B
+
+
 @jit
-def start_cycle(y, nb, A, B, win, cs):
+def start_cycle(y, p, nb, A, B, win, cs):
     """Start a cycle's statistics at state ``y``: extremes of ℓ_i and of the friction
-    A ℓ_i + B ψ_i, the synchronisation error and mean ℓ at their current values."""
+    A_i ℓ_i + B_i ψ_i, the synchronisation error and mean ℓ at their current values;
+    no block maximum and no slip event ended yet."""
     sync = 0.0
     mbar = 0.0
     for i in range(nb):
         win[W_LMAX, i] = y[i]
         win[W_LMIN, i] = y[i]
-        mu = A * y[i] + B * y[nb + i]
+        a_i, b_i = block_friction(p, nb, i, A, B)
+        mu = a_i * y[i] + b_i * y[nb + i]
         win[W_MUMAX, i] = mu
         win[W_MUMIN, i] = mu
+        win[W_T_PEAK, i] = np.nan
         sync = max(sync, abs(y[i] - y[0]))
         mbar += y[i] / nb
     cs[C_WIN_SYNC] = sync
     cs[C_WIN_MBAR_MAX] = mbar
     cs[C_WIN_MBAR_MIN] = mbar
     cs[C_WIN_T_PEAK_LAST] = np.nan
+    cs[C_SLIP_SUM] = 0.0
+    cs[C_SLIP_EVENTS] = 0.0
 
 
 @jit_inline
-def update_cycle(method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, nb, A, B, win, cs):
+def update_cycle(
+    method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, p, nb, A, B, win, cs, slipped, slip_lnv
+):
     """Fold the step from ``t`` to ``t + h`` into the current cycle's statistics.
 
     Extremes of every block's ℓ and friction are located inside the step with
-    the dense output. Returns ``(new_peak, theta)``: whether
-    ℓ_0 had a maximum in the step (its value goes to ``cs[C_PEAK_VALUE]``) and
-    where, as a fraction of the step.
+    the dense output. Blocks with ℓ_i > ``slip_lnv`` after the step are marked in
+    ``slipped`` (``cs[C_SLIPPING]``: whether any is). Returns ``(new_peak, theta)``:
+    whether ℓ_0 had a maximum in the step (its value goes to ``cs[C_PEAK_VALUE]``)
+    and where, as a fraction of the step.
     """
     new_peak = False
     theta_peak = 0.0
     lnv_max_run = cs[C_LNV_MAX_RUN]
     win_sync = cs[C_WIN_SYNC]
+    slipping = 0.0
     for i in range(nb):
         rising = f[i] > 0.0
         falling_now = fnew[i] <= 0.0
@@ -725,6 +803,7 @@ def update_cycle(method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, nb, A, B, win, 
             win[W_LMIN, i] = min(win[W_LMIN, i], val)
             lnv_max_run = max(lnv_max_run, val)
             if rising:
+                win[W_T_PEAK, i] = t + theta * h
                 if i == 0:
                     new_peak = True
                     theta_peak = theta
@@ -734,13 +813,17 @@ def update_cycle(method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, nb, A, B, win, 
         win[W_LMAX, i] = max(win[W_LMAX, i], ynew[i])
         win[W_LMIN, i] = min(win[W_LMIN, i], ynew[i])
         lnv_max_run = max(lnv_max_run, ynew[i])
-        # friction A ℓ_i + B ψ_i (relative to steady sliding), extremes interpolated
-        mu0 = A * y[i] + B * y[nb + i]
-        mu = A * ynew[i] + B * ynew[nb + i]
-        dmu0 = A * f[i] + B * f[nb + i]
-        dmu1 = A * fnew[i] + B * fnew[nb + i]
+        if ynew[i] > slip_lnv:
+            slipped[i] = 1.0
+            slipping = 1.0
+        # friction A_i ℓ_i + B_i ψ_i (relative to steady sliding), extremes interpolated
+        a_i, b_i = block_friction(p, nb, i, A, B)
+        mu0 = a_i * y[i] + b_i * y[nb + i]
+        mu = a_i * ynew[i] + b_i * ynew[nb + i]
+        dmu0 = a_i * f[i] + b_i * f[nb + i]
+        dmu1 = a_i * fnew[i] + b_i * fnew[nb + i]
         if (dmu0 > 0.0) == (dmu1 <= 0.0):
-            r5_mu = A * dense_r5(method, i, h, f, k3, k4, k5, k6, fnew) + B * dense_r5(
+            r5_mu = a_i * dense_r5(method, i, h, f, k3, k4, k5, k6, fnew) + b_i * dense_r5(
                 method, nb + i, h, f, k3, k4, k5, k6, fnew
             )
             theta = dense_extremum(mu0, mu, dmu0, dmu1, h, r5_mu)
@@ -753,7 +836,35 @@ def update_cycle(method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, nb, A, B, win, 
             win_sync = max(win_sync, abs(ynew[i] - ynew[0]))
     cs[C_LNV_MAX_RUN] = lnv_max_run
     cs[C_WIN_SYNC] = win_sync
+    cs[C_SLIPPING] = slipping
     return new_peak, theta_peak
+
+
+@jit
+def end_slip_event(nb, slipped, cs):
+    """A slip event ended (no block slips any more): add the fraction of blocks that
+    slipped during it to the current cycle's sum and clear the marks."""
+    count = 0.0
+    for i in range(nb):
+        count += slipped[i]
+        slipped[i] = 0.0
+    cs[C_SLIP_SUM] += count / nb
+    cs[C_SLIP_EVENTS] += 1.0
+    cs[C_IN_EVENT] = 0.0
+
+
+@jit
+def kuramoto_order(t_peak_blocks, t_peak, period, nb):
+    """Kuramoto order parameter R = |mean_i exp(iθ_i)| of the blocks' phases at the
+    maximum of ℓ_0 at ``t_peak``: θ_i = 2π (last maximum of ℓ_i − t_peak) / period.
+    NaN if a block had no maximum in the cycle."""
+    re = 0.0
+    im = 0.0
+    for i in range(nb):
+        theta = 2.0 * math.pi * (t_peak_blocks[i] - t_peak) / period
+        re += math.cos(theta)
+        im += math.sin(theta)
+    return math.sqrt(re * re + im * im) / nb  # NaN from a block without a maximum
 
 
 @jit
@@ -806,6 +917,9 @@ def close_cycle(t_peak, nb, win, last, hist, cs, accuracy, steady_amp, lin_growt
     for k in range(N_WINDOW):
         for i in range(nb):
             last[k, i] = win[k, i]
+    cs[C_LAST_ORDER] = kuramoto_order(win[W_T_PEAK], t_peak, period, nb)
+    events = cs[C_SLIP_EVENTS]
+    cs[C_LAST_PARTICIPATION] = cs[C_SLIP_SUM] / events if events > 0 else np.nan
     cs[C_LAST_SYNC] = cs[C_WIN_SYNC]
     t_last = cs[C_WIN_T_PEAK_LAST]
     if nb > 1 and t_last == t_last:
@@ -862,6 +976,12 @@ def write_result(result, regime, t, n_steps, n_rejected, tau_runaway, nb, win, l
     result[R_LNV_MAX_RUN] = cs[C_LNV_MAX_RUN]
     steady_or_runaway = regime == STEADY or regime == RUNAWAY
     result[R_CONVERGENCE] = np.nan if steady_or_runaway else cs[C_CONV]
+    events = cs[C_SLIP_EVENTS]
+    result[R_SYNC_ORDER] = cs[C_LAST_ORDER] if use_last else np.nan
+    if use_last:
+        result[R_SLIP_PARTICIPATION] = cs[C_LAST_PARTICIPATION]
+    else:
+        result[R_SLIP_PARTICIPATION] = cs[C_SLIP_SUM] / events if events > 0 else np.nan
 
 
 @jit
@@ -920,6 +1040,8 @@ def new_cycle_state(y, nb):
     cs[C_N_AGREE] = 0.0
     cs[C_VERDICT] = -1.0
     cs[C_CONV] = np.inf
+    cs[C_SLIPPING] = 0.0
+    cs[C_IN_EVENT] = 0.0
     lnv_max_run = -np.inf
     for i in range(nb):
         lnv_max_run = max(lnv_max_run, y[i])
@@ -949,6 +1071,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     accuracy = settings[S_ACCURACY]
     n_confirm = max(1, int(settings[S_CONFIRM_CYCLES]))
     early_exit = settings[S_EARLY_EXIT] > 0.5
+    slip_lnv = settings[S_SLIP_LNV]
     A = p[P_A]
     B = p[P_B]
     tau_end = p[P_TAU_END]
@@ -976,7 +1099,8 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     last = np.full((N_WINDOW, nb), np.nan)
     hist = np.zeros((2 * nb + 2, HISTORY))
     cs = new_cycle_state(y, nb)
-    start_cycle(y, nb, A, B, win, cs)
+    start_cycle(y, p, nb, A, B, win, cs)
+    slipped = np.zeros(nb)  # 1: block i slipped during the current slip event
 
     n_rec = record_start(y, rec_t, rec_y)
 
@@ -1033,8 +1157,13 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             break
 
         new_peak, theta_peak = update_cycle(
-            method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, nb, A, B, win, cs
-        )
+            method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, p, nb, A, B, win, cs, slipped,
+            slip_lnv,
+        )  # fmt: skip
+        if cs[C_SLIPPING] > 0.0:
+            cs[C_IN_EVENT] = 1.0
+        elif cs[C_IN_EVENT] > 0.0:
+            end_slip_event(nb, slipped, cs)
         if nb > 1:  # extremes of the mean ℓ, written out here (see accelerate.py: an
             # inlined helper with a branch around its loops refcounts every step)
             m0 = 0.0
@@ -1076,7 +1205,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
                 )  # fmt: skip
             cs[C_T_PEAK] = t_new_peak
             # the new cycle starts at this peak
-            start_cycle(y, nb, A, B, win, cs)
+            start_cycle(y, p, nb, A, B, win, cs)
             win[W_LMAX, 0] = max(win[W_LMAX, 0], cs[C_PEAK_VALUE])
             if early_exit and cs[C_VERDICT] >= 0 and cs[C_N_AGREE] >= n_confirm:
                 regime = int(cs[C_VERDICT])

@@ -30,11 +30,12 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+import xarray as xr
 
-from .dataset import dataset_from_fields, derived_fields
+from .dataset import data_variables, derived_fields, parameter_coords, provenance
 from .errors import InputError
+from .kernels import N_RESULTS
 from .store import config_hash, require_zarr
-from .variables import variables_for
 
 log = logging.getLogger(__name__)
 
@@ -80,14 +81,16 @@ class ZarrResult:
         self.path = Path(path)
         self.grid = grid
         self.zarr = require_zarr(grid.config.source)
+        shape, members = grid.config.shape, grid.config.members
         if self.path.exists():
-            chunks = self._reopen(resume)
+            chunks = self._reopen(resume)[: len(shape)]
         else:
-            chunks = chunk_shape(grid.config.shape, chunk_rows)
+            chunks = chunk_shape(shape, max(1, chunk_rows // members))
             self._create(chunks, command)
         self.group = self.zarr.open_group(self.path, mode="r+")
-        self.regions = {a: region for a, _, region in chunk_regions(grid.config.shape, chunks)}
-        self.ranges = [(a, b) for a, b, _ in chunk_regions(grid.config.shape, chunks)]
+        regions = chunk_regions(shape, chunks)  # of grid points; a run per member of each
+        self.regions = {a * members: region for a, _, region in regions}
+        self.ranges = [(a * members, b * members) for a, b, _ in regions]
         self.have = np.asarray(self.group["regime"][...]).reshape(-1) != PENDING
         self.saved = 0
         if resume:
@@ -119,23 +122,35 @@ class ZarrResult:
         return chunks
 
     def _create(self, chunks, command):
-        """Write the full-size store (fill values only) beside ``path``, then rename it."""
+        """Write the full-size store (fill values only) beside ``path``, then rename it.
+
+        ``chunks``: the chunk shape over the grid points; trailing dimensions (member,
+        block, regime_name) are whole in every chunk.
+        """
         config = self.grid.config
-        n, nb = self.grid.n, config.blocks
-        fields, encoding = {}, {}
-        for var in variables_for(nb, config.model):
-            fill = np.nan if var.dtype.startswith("float") else PENDING
-            rows = (n, nb) if var.per_block else (n,)
-            fields[var.name] = np.broadcast_to(np.array(fill, dtype=var.dtype), rows)
-            encoding[var.name] = {"chunks": chunks + ((nb,) if var.per_block else ())}
-            if fill == PENDING:
-                encoding[var.name]["fill_value"] = PENDING
-        ds = dataset_from_fields(config, fields, command)
-        ds.attrs.update(config_hash=config_hash(config), pending=PENDING_NOTE)
+        one_point = {name: np.full(shape, PENDING, dtype)
+                     for name, (shape, dtype) in _field_shapes(self.grid).items()}  # fmt: skip
+        data_vars, encoding = {}, {}
+        for name, (dims, data, attrs) in data_variables(
+            config, one_point, (1,) * len(config.shape)
+        ).items():
+            fill = np.nan if data.dtype.kind == "f" else PENDING
+            trailing = data.shape[len(config.shape) :]
+            full = np.broadcast_to(np.array(fill, data.dtype), config.shape + trailing)
+            data_vars[name] = (dims, full, attrs)
+            encoding[name] = {"chunks": chunks + trailing}
+            if data.dtype.kind != "f":
+                encoding[name]["fill_value"] = PENDING
+        attrs = {**provenance(config, command), "config_hash": config_hash(config),
+                 "pending": PENDING_NOTE}  # fmt: skip
+        ds = xr.Dataset(data_vars, coords=parameter_coords(config), attrs=attrs)
         tmp = Path(tempfile.mkdtemp(dir=self.path.parent, prefix=f".{self.path.name}."))
         try:
-            with warnings.catch_warnings():  # consolidated metadata is not yet in the v3 spec
+            with warnings.catch_warnings():
+                # consolidated metadata and fixed-length strings (the regime_name
+                # coordinate of ensembles) are not in the v3 spec yet; zarr-python reads both
                 warnings.filterwarnings("ignore", message="Consolidated metadata")
+                warnings.filterwarnings("ignore", message=".*does not have a Zarr V3 spec")
                 ds.to_zarr(tmp, mode="w", encoding=encoding, consolidated=True, zarr_format=3)
             os.rename(tmp, self.path)
         except BaseException:
@@ -146,17 +161,22 @@ class ZarrResult:
         """Write rows ``a:b`` (one chunk of :attr:`ranges`) from the kernels' ``results`` and
         ``y_final`` for those rows; ``regime`` last, so the chunk counts as done only then."""
         region = self.regions[a]
-        shape = tuple(r.stop - r.start for r in region)
         fields = derived_fields(self.grid.rows(slice(a, b)), results, y_final)
-        schema = variables_for(self.grid.config.blocks, self.grid.config.model)
-        for var in sorted(schema, key=lambda v: v.name == "regime"):
-            data = fields[var.name].astype(var.dtype, copy=False)
-            if var.per_block:
-                self.group[var.name][region + (slice(None),)] = data.reshape(shape + (-1,))
-            else:
-                self.group[var.name][region] = data.reshape(shape)
+        shape = tuple(r.stop - r.start for r in region)
+        data_vars = data_variables(self.grid.config, fields, shape)
+        for name in sorted(data_vars, key=lambda name: name == "regime"):
+            data = data_vars[name][1]
+            self.group[name][region + (slice(None),) * (data.ndim - len(region))] = data
         self.have[a:b] = True
         self.saved += b - a
+
+
+def _field_shapes(grid):
+    """Shape and dtype of every flat field of one grid point (all its members):
+    ``derived_fields`` of the grid's first rows."""
+    m = grid.config.members
+    fields = derived_fields(grid.rows(slice(0, m)), np.zeros((m, N_RESULTS)), grid.y0[:m])
+    return {name: (f.shape, f.dtype) for name, f in fields.items()}
 
 
 def open_result(path):

@@ -17,6 +17,7 @@ import xarray as xr
 from conftest import PROVENANCE_ATTRS, QUICK, reference_file, write_config
 from hypothesis import given
 from hypothesis import strategies as st
+from test_nblock import nblock
 from test_runner import SLOW, sweep_cli
 
 from sweep import runner, zarr_store
@@ -108,6 +109,25 @@ def test_two_axes_equal_netcdf(tmp_path, chunk_size):
     out = tmp_path / "two.zarr"
     runner.run_sweep(config, out=out, chunk_size=chunk_size, show_progress=False)
     assert xr.open_zarr(out)["regime"].encoding["chunks"] == {2: (1, 2), 6: (2, 3)}[chunk_size]
+    assert_same_as_netcdf(out, reference)
+
+
+@pytest.mark.parametrize("chunk_size", [3, 7])
+def test_ensemble_of_unequal_blocks_equals_netcdf(tmp_path, chunk_size):
+    """Three unequal blocks in a ring, an ensemble of 3 per point: a chunk holds every
+    member of its points (3 rows: one point; 7 rows: two points), so regime_fraction is
+    counted per chunk."""
+    config = load_config(nblock(3, "ring", parameters={"D0": [1.0, 1.3, 0.8]},
+                                sweep={"K_W": [0.046, 0.049, 0.054]},
+                                initial={"ensemble": 3, "seed": 0},
+                                integrator={"t_end": 200.0}))  # fmt: skip
+    reference = reference_file(config, tmp_path / "reference.nc")
+    out = tmp_path / "e.zarr"
+    result = runner.run_sweep(config, out=out, chunk_size=chunk_size, show_progress=False)
+    assert result.computed == 9
+    with xr.open_zarr(out) as ds:
+        assert ds["regime"].encoding["chunks"] == ({3: 1, 7: 2}[chunk_size], 3)
+        assert {"regime_fraction", "D0_block", "sync_order"} <= set(ds.data_vars)
     assert_same_as_netcdf(out, reference)
 
 
