@@ -7,9 +7,11 @@ shape, every coordinate and attribute of the NetCDF result, and consolidated
 metadata. Nothing but data chunks is written after that, so ``xr.open_zarr``
 reads it at any time during the run.
 
-Its arrays are chunked so that each Zarr chunk holds a contiguous range of rows
-of the flattened (C-ordered) grid: chunk shape ``(1, …, 1, c, n_{k+1}, …)``.
-Those row ranges are the runner's chunks, so every finished chunk fills whole
+Its arrays are chunked so that each Zarr chunk holds a contiguous range of
+points of the flattened (C-ordered) grid: chunk shape ``(1, …, 1, c, n_{k+1},
+…)`` over the sweep axes, trailing dimensions (member, block, regime_name)
+whole. Those points' runs (every ensemble member of each: regime_fraction is
+counted per chunk) are the runner's chunks, so every finished chunk fills whole
 Zarr chunks (no chunk is written twice or by two writers). Each Zarr chunk file
 is written atomically (zarr's local store renames a temporary file), and
 ``regime`` is written last: a chunk counts as done once its regime is stored.
@@ -49,8 +51,8 @@ PENDING_NOTE = (
 
 
 def chunk_shape(shape, rows):
-    """Zarr chunk shape for a grid of ``shape`` whose chunks are contiguous row ranges of
-    about ``rows`` systems each: ``(1, …, 1, c, shape[k+1], …)``, ``c`` as even as can be."""
+    """Zarr chunk shape for a grid of ``shape`` whose chunks are contiguous ranges of about
+    ``rows`` points each: ``(1, …, 1, c, shape[k+1], …)``, ``c`` as even as can be."""
     k = next(k for k in range(len(shape)) if math.prod(shape[k + 1 :]) <= rows)
     per_chunk = max(1, rows // math.prod(shape[k + 1 :]))
     splits = math.ceil(shape[k] / per_chunk)
@@ -58,8 +60,8 @@ def chunk_shape(shape, rows):
 
 
 def chunk_regions(shape, chunks):
-    """``(start, stop, region)`` of every chunk in C order: its rows of the flattened grid
-    and its region (a tuple of slices). ``chunks`` as from :func:`chunk_shape`."""
+    """``(start, stop, region)`` of every chunk in C order: its points of the flattened
+    grid and its region (a tuple of slices). ``chunks`` as from :func:`chunk_shape`."""
     out = []
     for origin in itertools.product(*(range(0, s, c) for s, c in zip(shape, chunks, strict=True))):
         region = tuple(
