@@ -96,7 +96,7 @@ def build_parser():
         help="output path (default: the config's output): .nc for NetCDF, or .zarr for a Zarr "
         "store written chunk by chunk, readable while the sweep runs (needs rsf-sweep[zarr])",
     )
-    run.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
+    run.add_argument("--threads", type=_threads, help="threads (default: all cores)")
     run.add_argument("--chunk-size", type=_positive_int, help="systems per chunk")
     run.add_argument("--quiet", action="store_true", help="no progress output")
     run.add_argument(
@@ -139,7 +139,7 @@ def add_check_commands(sub):
         help="new end time, in the config's t_unit (default: 4x the time undecided runs reached)",
     )  # fmt: skip
     ext.add_argument("--out", help="output NetCDF (default: replace RESULT)")
-    ext.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
+    ext.add_argument("--threads", type=_threads, help="threads (default: all cores)")
     aud = sub.add_parser(
         "audit",
         help="rerun a sample of a result's points for longer and compare the regimes",
@@ -162,7 +162,7 @@ def add_check_commands(sub):
         help="end time of the reruns, in the config's t_unit (default: 10x the file's)",
     )  # fmt: skip
     aud.add_argument("--seed", type=int, default=0, help="seed of the random sample (default 0)")
-    aud.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
+    aud.add_argument("--threads", type=_threads, help="threads (default: all cores)")
 
 
 def _assignment(text):
@@ -241,7 +241,7 @@ def add_figure_commands(sub):
         "--format", choices=("png", "pdf", "svg"), default="png", help="file type (default png)"
     )
     _add_dpi(figs)
-    figs.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
+    figs.add_argument("--threads", type=_threads, help="threads (default: all cores)")
 
 
 def summary_lines(ds):
@@ -265,7 +265,7 @@ def cmd_run(args):
 
     config = load_config(args.config)
     if args.threads and (args.scheduler or args.dask_local):
-        print("error: --threads is for numba threads; Dask workers own theirs", file=sys.stderr)
+        print("error: --threads is for local threads; Dask workers own theirs", file=sys.stderr)
         return EXIT_BAD_INPUT
     try:
         with stop_on_signals() as stop:
