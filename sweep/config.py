@@ -17,8 +17,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import yaml
 
+from .heterogeneity import DISTRIBUTIONS, PER_BLOCK, SPREAD_PREFIX, spread_pattern
 from .model import MODELS, PARAMETERS, STATE_LAWS, interval_text
 
 METHODS = ("dopri5", "rk4", "rosenbrock")
@@ -29,13 +31,18 @@ METHODS = ("dopri5", "rk4", "rosenbrock")
 #: the linearly implicit rosenbrock stepper needs ~1e3 steps per cycle.
 DEFAULT_METHODS = {"inertial": "rosenbrock"}
 TIME_UNITS = ("D0/V", "s")
+#: Which blocks a coupling spring k2 joins: neighbours in an open chain, neighbours
+#: in a closed ring, or every pair.
+COUPLINGS = ("chain", "ring", "all")
 TOP_LEVEL_KEYS = (
     "name",
     "description",
     "blocks",
+    "coupling",
     "model",
     "state_law",
     "parameters",
+    "spread",
     "sweep",
     "initial",
     "integrator",
@@ -89,10 +96,34 @@ class Initial:
 
     ``v_over_V``: slip velocity / load-point velocity; ``phi_over_phi_ss``: state
     Φ / its steady value D0/V. The spring stretch follows from force balance.
+    ``ensemble``: number of random starts per grid point (0: the one start above);
+    member m starts from ln(v/V) and ln(Φ/Φss) above plus independent uniform
+    offsets in ±``amplitude``, drawn once from ``seed`` (the same M starts at every
+    grid point).
     """
 
     v_over_V: tuple
     phi_over_phi_ss: tuple
+    ensemble: int = 0
+    seed: int = 0
+    amplitude: float = 0.1
+
+
+@dataclass(frozen=True)
+class Spread:
+    """Seeded relative spread of per-block values (``sweep/heterogeneity.py``).
+
+    ``sizes``: ((name, s), ...) for fixed spread sizes (swept ones are axes
+    ``spread_<name>``); ``distribution``: uniform (ξ in (−1, 1)) or normal.
+    """
+
+    sizes: tuple = ()
+    distribution: str = "uniform"
+    seed: int = 0
+
+    @property
+    def sizes_dict(self):
+        return dict(self.sizes)
 
 
 @dataclass(frozen=True)
@@ -129,6 +160,8 @@ class Classification:
     cycles that verdict must hold before a run stops early. ``max_t_end``: runs
     still unsettled at ``integrator.t_end`` go on up to this time (same unit;
     ``None``: ten times ``t_end``). ``early_exit``: stop each run once settled.
+    ``slip_v_over_V``: a block slips (for ``slip_participation``) while its v/V
+    exceeds this.
     """
 
     v_cap_over_V: float = 1e6
@@ -137,6 +170,7 @@ class Classification:
     confirm_cycles: int = 2
     max_t_end: float = None
     early_exit: bool = True
+    slip_v_over_V: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -156,6 +190,46 @@ class Config:
     classification: Classification
     output: str
     description: str = ""
+    # chain | ring | all; None: not given (an open chain, without the N-block outputs)
+    coupling_key: str = None
+    block_parameters: tuple = ()  # ((name, (value per block, ...)), ...), physical units
+    spread: Spread = Spread()
+
+    @property
+    def coupling(self):
+        """Which blocks the coupling springs join: chain (default), ring or all."""
+        return self.coupling_key or "chain"
+
+    @property
+    def heterogeneous(self):
+        """Whether blocks may differ: a per-block list, or a fixed or swept spread."""
+        return bool(self.block_parameters or self.spread.sizes) or any(
+            a.name.startswith(SPREAD_PREFIX) for a in self.axes
+        )
+
+    @property
+    def nblock_outputs(self):
+        """Whether results carry the N-block outputs (sync_order, slip_participation,
+        per-block parameters): for configs that name a coupling, per-block values or
+        an ensemble; older two- and three-block configs keep their variables."""
+        return self.blocks > 1 and (
+            self.coupling_key is not None or self.heterogeneous or self.members > 1
+        )
+
+    @property
+    def features(self):
+        """Which optional output groups a result has (``variables.Variable.feature``)."""
+        flags = (
+            ("nblock", self.nblock_outputs),
+            ("heterogeneous", self.heterogeneous),
+            ("ensemble", self.initial.ensemble > 0),
+        )
+        return tuple(name for name, on in flags if on)
+
+    @property
+    def members(self):
+        """Runs per grid point (the ensemble size, or 1)."""
+        return max(1, self.initial.ensemble)
 
     @property
     def fixed(self):
@@ -166,6 +240,11 @@ class Config:
     def shape(self):
         """Grid shape: the length of each sweep axis, in order."""
         return tuple(len(a.values) for a in self.axes)
+
+    @property
+    def run_shape(self):
+        """Shape of the runs: the grid, then the ensemble members (if any)."""
+        return self.shape + ((self.members,) if self.initial.ensemble else ())
 
 
 def _numeric(text):
@@ -343,6 +422,7 @@ def _validate(raw, text, source):
         c.add("missing key blocks (number of blocks: 1, 2, or more for an open chain)")
     blocks = c.integer(raw.get("blocks", 1), "blocks", 1) or 1
     model = c.choice(raw.get("model", "quasi-static"), "model", MODELS) or "quasi-static"
+    coupling = _parse_coupling(c, raw, blocks)
     law = c.choice(raw.get("state_law", "aging"), "state_law", STATE_LAWS) or "aging"
 
     axes = _parse_sweep(c, raw)
@@ -350,10 +430,13 @@ def _validate(raw, text, source):
     # again as a missing parameter
     spec = raw.get("sweep")
     swept = {name for name in spec if name in PARAMETERS} if isinstance(spec, dict) else set()
-    params = _parse_parameters(c, raw, blocks, model, swept)
+    params, lists = _parse_parameters(c, raw, blocks, model, swept)
+    spread = _parse_spread(c, raw, blocks, lists, axes)
     if model == "inertial":
         _check_mass(c, params, axes)
     initial = _parse_initial(c, raw, blocks)
+    if not c.problems:
+        _check_spread_values(c, params, spread, axes, blocks)
     integrator = _parse_integrator(c, raw, model)
     classification = _parse_classification(c, raw, integrator.t_end)
     output = raw.get("output", f"results/{name}.nc")
@@ -376,6 +459,9 @@ def _validate(raw, text, source):
         classification=classification,
         output=output,
         description=description,
+        coupling_key=coupling,
+        block_parameters=tuple(lists.items()),
+        spread=spread,
     )
 
 
@@ -391,7 +477,10 @@ def config_mapping(config):
         "blocks": config.blocks,
         "model": config.model,
         "state_law": config.state_law,
-        "parameters": dict(config.parameters),
+        "parameters": {
+            **dict(config.parameters),
+            **{k: list(v) for k, v in config.block_parameters},
+        },
         "sweep": {a.name: list(a.values) for a in config.axes},
         "initial": {
             "v_over_V": list(config.initial.v_over_V),
@@ -400,6 +489,14 @@ def config_mapping(config):
         "integrator": dataclasses.asdict(config.integrator),
         "classification": dataclasses.asdict(config.classification),
     }
+    if config.coupling_key is not None:
+        raw["coupling"] = config.coupling_key
+    sp = config.spread
+    if sp.sizes or sp != Spread():
+        raw["spread"] = {**sp.sizes_dict, "distribution": sp.distribution, "seed": sp.seed}
+    if config.initial.ensemble:
+        ini = config.initial
+        raw["initial"].update(ensemble=ini.ensemble, seed=ini.seed, amplitude=ini.amplitude)
     if config.output != f"results/{config.name}.nc":
         raw["output"] = config.output
     return raw
@@ -469,10 +566,19 @@ def _parse_sweep(c, raw):
     if not sweep and isinstance(raw["sweep"], dict):
         c.add("sweep must name at least one axis")
     axes = []
+    spread_axes = [SPREAD_PREFIX + n for n in PER_BLOCK]
     for name, spec in sweep.items():
         key = f"sweep.{name}"
+        if name in spread_axes:
+            values = _axis_values(c, spec, key)
+            if values is not None and all(
+                c.number(v, f"{key}[{i}]", low=0.0) is not None for i, v in enumerate(values)
+            ):
+                axes.append(Axis(name, tuple(float(v) for v in values)))
+            continue
         if name not in PARAMETERS:
-            c.add(f"unknown sweep axis {key}; allowed: {', '.join(PARAMETERS)}")
+            allowed = ", ".join((*PARAMETERS, *spread_axes))
+            c.add(f"unknown sweep axis {key}; allowed: {allowed}")
             continue
         values = _axis_values(c, spec, key)
         if values is None:
@@ -544,8 +650,14 @@ def _parse_parameters(c, raw, blocks, model, swept):
     given = c.mapping(raw.get("parameters", {}), "parameters")
     c.unknown(given, "parameters", tuple(PARAMETERS))
     params = {}
+    lists = {}
     for name, value in given.items():
-        if name in PARAMETERS:
+        if name in PER_BLOCK and isinstance(value, list):
+            values = _block_list(c, name, value, blocks)
+            if values is not None:
+                lists[name] = values
+                params[name] = math.fsum(values) / blocks  # the common value: the mean
+        elif name in PARAMETERS:
             v = c.parameter(name, value, f"parameters.{name}")
             if v is not None:
                 params[name] = v
@@ -571,7 +683,85 @@ def _parse_parameters(c, raw, blocks, model, swept):
         c.add("parameters.k2_W (coupling spring) needs blocks >= 2")
     for name in swept & set(given):
         c.add(f"parameters.{name} is also a sweep axis; give it in one place only")
-    return params
+    return params, lists
+
+
+def _block_list(c, name, value, blocks):
+    """A list of per-block values of parameter ``name`` → tuple, or None after a problem."""
+    key = f"parameters.{name}"
+    if len(value) != blocks:
+        c.add(f"{key} must be one number or a list of {blocks} (one per block), got {value!r}")
+        return None
+    out = [c.parameter(name, v, f"{key}[{i}]") for i, v in enumerate(value)]
+    return None if None in out else tuple(out)
+
+
+def _parse_coupling(c, raw, blocks):
+    """The ``coupling`` key (None when not given: an open chain)."""
+    if "coupling" not in raw:
+        return None
+    coupling = c.choice(raw["coupling"], "coupling", COUPLINGS)
+    if coupling == "ring" and blocks < 3:
+        c.add(f"coupling ring needs blocks >= 3 (a ring of {blocks} is a chain); got blocks "
+              f"{blocks}")  # fmt: skip
+    elif coupling is not None and coupling != "chain" and blocks < 2:
+        c.add(f"coupling {coupling} needs blocks >= 2, got blocks {blocks}")
+    return coupling
+
+
+def _parse_spread(c, raw, blocks, lists, axes):
+    """The ``spread`` section: relative spread sizes of per-block values, distribution, seed."""
+    swept = {a.name[len(SPREAD_PREFIX) :] for a in axes if a.name.startswith(SPREAD_PREFIX)}
+    if swept and blocks < 2:
+        c.add(f"sweep.spread_{sorted(swept)[0]} (a spread between blocks) needs blocks >= 2")
+    for name in sorted(swept & set(lists)):
+        c.add(f"sweep.spread_{name} and a list parameters.{name}: give per-block values one way")
+    if "spread" not in raw:
+        return Spread()
+    spec = c.mapping(raw["spread"], "spread")
+    c.unknown(spec, "spread", (*PER_BLOCK, "distribution", "seed"))
+    if blocks < 2:
+        c.add("spread (per-block values) needs blocks >= 2")
+    sizes = {}
+    for name in PER_BLOCK:
+        if name not in spec:
+            continue
+        key = f"spread.{name}"
+        s = c.number(spec[name], key, low=0.0)
+        if name in lists:
+            c.add(f"{key} and a list parameters.{name}: give per-block values one way")
+        elif name in swept:
+            c.add(f"{key} is also a sweep axis (sweep.spread_{name}); give it in one place only")
+        elif s is not None:
+            sizes[name] = s
+    dist = c.choice(spec.get("distribution", "uniform"), "spread.distribution", DISTRIBUTIONS)
+    seed = c.integer(spec.get("seed", 0), "spread.seed", 0)
+    return Spread(tuple(sizes.items()), dist or "uniform", 0 if seed is None else seed)
+
+
+def _check_spread_values(c, params, spread, axes, blocks):
+    """Every per-block value a spread makes stays in its parameter's interval.
+
+    The factor 1 + s ξ_i is checked at the largest spread size of the sweep, against
+    the interval of the parameter (e.g. D0 in (0, inf)).
+    """
+    xi = spread_pattern(blocks, spread.distribution, spread.seed)
+    largest = dict(spread.sizes)
+    for a in axes:
+        if a.name.startswith(SPREAD_PREFIX):
+            largest[a.name[len(SPREAD_PREFIX) :]] = max(a.values)
+    for name, s in largest.items():
+        factors = 1.0 + s * xi[name]
+        i = int(np.argmin(factors))
+        info = PARAMETERS[name]
+        if factors[i] < 0.0 or (info.low_open and factors[i] <= 0.0):
+            where = (f"sweep.spread_{name}" if name not in spread.sizes_dict else
+                     f"spread.{name}")  # fmt: skip
+            c.add(
+                f"{where} = {s:g} makes {name} of block {i} leave {interval_text(name)}: its "
+                f"factor 1 + s*xi = {factors[i]:.3g} (xi = {xi[name][i]:.3g}, {spread.distribution}"
+                f" pattern of seed {spread.seed}); use a smaller spread or another seed"
+            )
 
 
 def _check_mass(c, params, axes):
@@ -598,10 +788,22 @@ def _per_block(c, value, key, blocks):
 
 def _parse_initial(c, raw, blocks):
     spec = c.mapping(raw.get("initial", {}), "initial")
-    c.unknown(spec, "initial", ("v_over_V", "phi_over_phi_ss"))
+    c.unknown(spec, "initial", ("v_over_V", "phi_over_phi_ss", "ensemble", "seed", "amplitude"))
     v = _per_block(c, spec.get("v_over_V", 1.0), "initial.v_over_V", blocks)
     phi = _per_block(c, spec.get("phi_over_phi_ss", 1.01), "initial.phi_over_phi_ss", blocks)
-    return Initial(v or (1.0,) * blocks, phi or (1.0,) * blocks)
+    ensemble = c.integer(spec.get("ensemble", 0), "initial.ensemble", 0)
+    seed = c.integer(spec.get("seed", 0), "initial.seed", 0)
+    amplitude = c.number(spec.get("amplitude", 0.1), "initial.amplitude", low=0.0)
+    if not spec.get("ensemble") and ("seed" in spec or "amplitude" in spec):
+        c.add("initial.seed and initial.amplitude apply to random starts: give initial.ensemble "
+              "(number of starts per grid point, >= 1) too")  # fmt: skip
+    return Initial(
+        v or (1.0,) * blocks,
+        phi or (1.0,) * blocks,
+        ensemble or 0,
+        seed or 0,
+        0.1 if amplitude is None else amplitude,
+    )
 
 
 def _parse_integrator(c, raw, model):
@@ -671,9 +873,10 @@ def _parse_classification(c, raw, t_end):
     if not isinstance(early, bool):
         c.add(f"{key}early_exit must be true or false, got {early!r}")
         early = None
-    if None in (cap, amp, accuracy, cycles, early) or not max_ok:
+    slip = c.number(spec.get("slip_v_over_V", d.slip_v_over_V), key + "slip_v_over_V", 0.0, True)
+    if None in (cap, amp, accuracy, cycles, early, slip) or not max_ok:
         return d
-    return Classification(cap, amp, accuracy, cycles, max_t_end, early)
+    return Classification(cap, amp, accuracy, cycles, max_t_end, early, slip)
 
 
 def check_writable(path, source="<config>", key="output", suffix=".nc"):

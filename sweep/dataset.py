@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from . import __version__, model
+from . import __version__, heterogeneity, linear
 from .atomic import replaced_atomically
 from .config import ConfigError, parse_config
 from .model import PARAMETERS
@@ -33,18 +33,8 @@ def derived_fields(config, phys, results, y_final, time_unit):
     V = phys["V"]
     regime = r[:, kernels.R_REGIME].astype(np.int8)
     period = r[:, kernels.R_PERIOD] * time_unit
-    dl = model.dimensionless(
-        phys["A"], phys["B"], phys["D0"], phys["V"], phys["K_W"], phys["k2_W"],
-        phys["eta_W"], phys["m_W"],
-    )  # fmt: skip
-    growth = model.linear_growth_rate(
-        config.model, nb, dl["A"], dl["B"], dl["kappa1"], dl["kappa2"], dl["eta_hat"],
-        dl["mass_hat"],
-    )  # fmt: skip
-    kc = model.critical_kappa(config.model, dl["A"], dl["B"], dl["eta_hat"], dl["mass_hat"])
-    omega = model.onset_angular_frequency(
-        config.model, dl["A"], dl["B"], dl["eta_hat"], dl["mass_hat"]
-    )
+    lin = linear.theory(config, phys)
+    growth, kc, omega = lin["growth_rate"], lin["kappa_c"], lin["omega"]
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         fields = {
             "regime": regime,
@@ -74,7 +64,18 @@ def derived_fields(config, phys, results, y_final, time_unit):
         }
     if config.model == "inertial":
         fields["inertial_force_final"] = y_final[:, 2 * nb : 3 * nb]
+    if config.nblock_outputs:
+        fields["sync_order"] = r[:, kernels.R_SYNC_ORDER]
+        fields["slip_participation"] = r[:, kernels.R_SLIP_PARTICIPATION]
+    if config.heterogeneous:
+        for name, values in heterogeneity.block_values(config, phys).items():
+            fields[f"{name}_block"] = values
     return fields
+
+
+def regime_fractions(regime):
+    """Fraction of the members (last axis of ``regime``) in each regime: axis ``regime`` last."""
+    return np.stack([(regime == k).mean(axis=-1) for k in range(len(REGIMES))], axis=-1)
 
 
 #: CF citation of the model this package implements (the seed paper; no journal,
@@ -87,7 +88,11 @@ REFERENCES = (
 
 
 def parameter_attrs(name):
-    """CF attributes (``units``, ``long_name``) of the coordinate of model parameter ``name``."""
+    """CF attributes (``units``, ``long_name``) of the coordinate of model parameter ``name``
+    or of a spread axis ``spread_<name>``."""
+    if name.startswith(heterogeneity.SPREAD_PREFIX):
+        of = name[len(heterogeneity.SPREAD_PREFIX) :]
+        return {"units": "1", "long_name": f"relative spread of {of} between blocks"}
     return {"units": PARAMETERS[name].units, "long_name": PARAMETERS[name].long_name}
 
 
@@ -100,8 +105,15 @@ def parameter_coords(config):
     coords["block"] = (
         "block",
         np.arange(config.blocks, dtype=np.int32),
-        {"long_name": "block index in the chain", "units": "1"},
+        {"long_name": "block index", "units": "1"},
     )
+    if config.initial.ensemble:
+        coords["member"] = (
+            "member",
+            np.arange(config.members, dtype=np.int32),
+            {"long_name": "member of the initial-condition ensemble", "units": "1"},
+        )
+        coords["regime_name"] = ("regime_name", np.array(REGIMES), {"long_name": "regime"})
     return coords
 
 
@@ -123,26 +135,39 @@ def build_dataset(config, phys, results, y_final, time_unit, command="run"):
 
     ``command``: what made it, for ``history`` (see :func:`provenance`).
     """
-    shape = config.shape
     dims = tuple(a.name for a in config.axes)
+    ensemble = config.initial.ensemble > 0
+    run_dims = dims + (("member",) if ensemble else ())
     coords = parameter_coords(config)
     fields = derived_fields(config, phys, results, y_final, time_unit)
     data_vars = {}
-    for var in variables_for(config.blocks, config.model):
+    for var in variables_for(config.blocks, config.model, config.features):
         attrs = {"units": var.units, "long_name": var.long_name}
         if var.description:
             attrs["description"] = var.description
-        if var.per_block:
-            data = fields[var.name].reshape(shape + (config.blocks,))
-            data_vars[var.name] = (dims + ("block",), data.astype(var.dtype), attrs)
+        if var.per_regime:
+            regime = fields["regime"].reshape(config.run_shape)
+            data, var_dims = regime_fractions(regime), dims + ("regime_name",)
         else:
-            data = fields[var.name].reshape(shape)
-            data_vars[var.name] = (dims, data.astype(var.dtype), attrs)
+            block = (config.blocks,) if var.per_block else ()
+            data = fields[var.name].reshape(config.run_shape + block)
+            var_dims = run_dims + (("block",) if var.per_block else ())
+            if ensemble and not var.per_member:  # the same for every member: the first
+                data = data[(..., 0) + (slice(None),) * len(block)]
+                var_dims = dims + var_dims[len(run_dims) :]
+        data_vars[var.name] = (var_dims, data.astype(var.dtype), attrs)
     regime_attrs = data_vars["regime"][2]
     regime_attrs["flag_values"] = np.arange(len(REGIMES), dtype=np.int8)
     regime_attrs["flag_meanings"] = " ".join(REGIMES)
     regime_attrs.pop("units")
     return xr.Dataset(data_vars, coords=coords, attrs=provenance(config, command))
+
+
+COUPLING_TEXT = {
+    "chain": "open chain, coupling spring k2 between neighbouring blocks",
+    "ring": "ring, coupling spring k2 between neighbouring blocks and between the last and first",
+    "all": "all pairs, coupling spring k2 between every pair of blocks",
+}
 
 
 def provenance(config, command="run"):
@@ -172,7 +197,7 @@ def provenance(config, command="run"):
         "model": config.model,
         "state_law": config.state_law,
         "blocks": np.int32(config.blocks),
-        "coupling": "open chain, coupling spring k2 between neighbouring blocks",
+        "coupling": COUPLING_TEXT[config.coupling],
         "sweep_axes": " ".join(a.name for a in config.axes),
         "time_unit_note": "the dynamics scale with D0/V; times are stored in s",
         "initial_v_over_V": np.asarray(config.initial.v_over_V, float),
@@ -193,13 +218,30 @@ def provenance(config, command="run"):
             10.0 * integ.t_end if cls.max_t_end is None else cls.max_t_end
         ),
         "classification_early_exit": np.int8(cls.early_exit),
+        "classification_slip_v_over_V": cls.slip_v_over_V,
         "package_version": __version__,
         "numba_version": numba.__version__,
         "numpy_version": np.__version__,
         "xarray_version": xr.__version__,
+        **extra_provenance(config),
         "config_path": config.source,
         "config_text": config.text,
     }
+    return attrs
+
+
+def extra_provenance(config):
+    """Attributes of the N-block options a config uses: spread pattern, ensemble."""
+    attrs = {}
+    if config.heterogeneous:
+        attrs["spread_distribution"] = config.spread.distribution
+        attrs["spread_seed"] = np.int32(config.spread.seed)
+        for name, s in config.spread.sizes:
+            attrs[f"spread_{name}"] = s
+    if config.initial.ensemble:
+        ini = config.initial
+        attrs.update(initial_ensemble=np.int32(ini.ensemble), initial_seed=np.int32(ini.seed),
+                     initial_amplitude=ini.amplitude)  # fmt: skip
     return attrs
 
 
@@ -250,11 +292,11 @@ def stored_config(ds, source):
         config = parse_config(ds.attrs["config_text"], f"{source} (config_text)")
     except ConfigError as exc:
         raise ConfigError(source, [f"stored config_text: {p}" for p in exc.problems]) from None
-    dims = tuple(a.name for a in config.axes)
-    if ds["regime"].dims != dims or ds["regime"].shape != config.shape:
+    dims = tuple(a.name for a in config.axes) + (("member",) if config.initial.ensemble else ())
+    if ds["regime"].dims != dims or ds["regime"].shape != config.run_shape:
         raise ConfigError(
             source,
             [f"regime has dims {dict(ds['regime'].sizes)}, but the stored config sweeps "
-             f"{dict(zip(dims, config.shape, strict=True))}"],
+             f"{dict(zip(dims, config.run_shape, strict=True))}"],
         )  # fmt: skip
     return dataclasses.replace(config, source=ds.attrs.get("config_path", str(source)))

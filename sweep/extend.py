@@ -18,7 +18,14 @@ import numpy as np
 
 from . import kernels
 from .config import ConfigError, check_writable, config_mapping, parse_config
-from .dataset import derived_fields, read_result, stored_config, utc_now, write_netcdf
+from .dataset import (
+    derived_fields,
+    read_result,
+    regime_fractions,
+    stored_config,
+    utc_now,
+    write_netcdf,
+)
 from .grid import physical_parameters, system_arrays
 from .runner import RunError, integrate_chunks
 from .variables import variables_for
@@ -147,8 +154,8 @@ def extend_result(result, t_end=None, threads=None, source=None):
     phys_rows = {name: values[rows] for name, values in phys.items()}
     fields = derived_fields(longer, phys_rows, results, y_final, time_unit[rows])
     out = ds.copy(deep=True)
-    for var in variables_for(config.blocks, config.model):
-        if var.name in LINEAR_THEORY:
+    for var in variables_for(config.blocks, config.model, config.features):
+        if var.name in LINEAR_THEORY or not var.per_member:
             continue
         da = out[var.name]
         flat = da.values.reshape((n, -1) if var.per_block else n).copy()
@@ -159,6 +166,8 @@ def extend_result(result, t_end=None, threads=None, source=None):
             new = new + flat[rows]
         flat[rows] = new
         out[var.name] = da.copy(data=flat.reshape(da.shape))
+    if "regime_fraction" in out:
+        out["regime_fraction"].values[...] = regime_fractions(out["regime"].values)
     out.attrs.update(
         integrator_t_end=longer.integrator.t_end,
         config_text=longer.text,

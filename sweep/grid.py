@@ -1,16 +1,22 @@
 """From a validated config to the arrays the kernels take.
 
 The grid is the Cartesian product of the sweep axes, flattened in C order (the
-last axis varies fastest). Every grid point is one system; its physical
-parameters become one row of dimensionless parameters (``kernels.P_*``) and its
+last axis varies fastest); with an initial-condition ensemble each grid point is
+repeated for its members (the fastest index of all). Every run is one system; its
+physical parameters become one row of dimensionless parameters (``kernels.P_*``,
+followed by per-block columns ``kernels.block_column`` when blocks differ) and its
 initial perturbation one row of initial state.
+
+Per-block parameters are made dimensionless with one reference D0 (the common
+value, ``sweep/heterogeneity.py``): κ1_i = K_i D0/W, and block i's state evolves
+at the rate factor D0/D0_i (ψ_i' = (D0/D0_i)(e^(−ψ_i) − e^ℓ_i)).
 """
 
 import math
 
 import numpy as np
 
-from . import kernels, model
+from . import heterogeneity, kernels, linear, model
 
 MODEL_CODES = {
     "quasi-static": kernels.QUASI_STATIC,
@@ -18,6 +24,7 @@ MODEL_CODES = {
     "inertial": kernels.INERTIAL,
 }
 LAW_CODES = {"aging": kernels.AGING, "slip": kernels.SLIP}
+COUPLING_CODES = {"chain": kernels.CHAIN, "ring": kernels.RING, "all": kernels.ALL}
 METHOD_CODES = {"dopri5": kernels.DOPRI5, "rk4": kernels.RK4, "rosenbrock": kernels.ROSENBROCK}
 
 
@@ -26,11 +33,16 @@ def physical_parameters(config):
 
     Parameters a config leaves out default to zero (k2_W, eta_W, m_W); the
     reference V0 is derived from Phi0 (V0 = D0/Phi0) or the other way round.
+    Swept spread sizes appear as ``spread_<name>``; per-block lists by their common
+    value (the mean). With an ensemble every grid point is repeated per member.
     """
     shape = config.shape
     n = math.prod(shape)
     mesh = np.meshgrid(*(np.asarray(a.values) for a in config.axes), indexing="ij")
     values = {a.name: m.reshape(n) for a, m in zip(config.axes, mesh, strict=True)}
+    if config.initial.ensemble:
+        values = {k: np.repeat(v, config.members) for k, v in values.items()}
+        n *= config.members
     for name, value in config.parameters:
         values[name] = np.full(n, value)
     for name in ("k2_W", "eta_W", "m_W"):
@@ -58,6 +70,7 @@ def settings_array(config):
     s[kernels.S_ACCURACY] = cls.accuracy
     s[kernels.S_CONFIRM_CYCLES] = cls.confirm_cycles
     s[kernels.S_EARLY_EXIT] = 1.0 if cls.early_exit else 0.0
+    s[kernels.S_SLIP_LNV] = math.log(cls.slip_v_over_V)
     return s
 
 
@@ -74,9 +87,11 @@ def system_arrays(config, phys=None):
         phys["eta_W"], phys["m_W"],
     )  # fmt: skip
     n = phys["A"].size
+    nb = config.blocks
     integ = config.integrator
     to_tau = 1.0 / dl["time_unit"] if integ.t_unit == "s" else np.ones(n)
-    params = np.empty((n, kernels.N_PARAMS))
+    width = kernels.N_PARAMS + (kernels.N_BLOCK_PARAMS * nb if config.heterogeneous else 0)
+    params = np.empty((n, width))
     params[:, kernels.P_A] = dl["A"]
     params[:, kernels.P_B] = dl["B"]
     params[:, kernels.P_KAPPA1] = dl["kappa1"]
@@ -89,13 +104,24 @@ def system_arrays(config, phys=None):
     max_t_end = config.classification.max_t_end
     max_t_end = 10.0 * integ.t_end if max_t_end is None else max_t_end
     params[:, kernels.P_TAU_MAX] = max_t_end * to_tau
-    params[:, kernels.P_LIN_GROWTH] = model.linear_growth_rate(
-        config.model, config.blocks, dl["A"], dl["B"], dl["kappa1"], dl["kappa2"],
-        dl["eta_hat"], dl["mass_hat"],
-    )  # fmt: skip
+    params[:, kernels.P_COUPLING] = COUPLING_CODES[config.coupling]
+    if config.heterogeneous:
+        blocks = block_parameters(config, phys)
+        for k, values in enumerate(blocks):
+            start = kernels.N_PARAMS + k * nb
+            params[:, start : start + nb] = values
+    params[:, kernels.P_LIN_GROWTH] = linear.theory(config, phys)["growth_rate"]
     settings = settings_array(config)
     y0 = initial_state(config, n)
     return params, y0, settings, dl["time_unit"]
+
+
+def block_parameters(config, phys):
+    """Dimensionless per-block columns: (A_i, B_i, κ1_i, D0/D0_i), each (n, blocks),
+    in the order of ``kernels.B_*``."""
+    values = heterogeneity.block_values(config, phys)
+    D0 = phys["D0"][:, None]
+    return (values["A"], values["B"], values["K_W"] * D0, D0 / values["D0"])
 
 
 def initial_state(config, n_systems):
@@ -103,11 +129,24 @@ def initial_state(config, n_systems):
 
     ℓ_i = ln(v_i/V), ψ_i = ln(Φ_i/Φss); for the inertial model the spring force
     starts in balance with friction: inertial force z_i = 0 (zero acceleration).
+    With an ensemble, member m adds the m-th of the random offsets
+    (:func:`ensemble_offsets`) at every grid point.
     """
     nb = config.blocks
     lnv = np.log(np.asarray(config.initial.v_over_V, float))
     psi = np.log(np.asarray(config.initial.phi_over_phi_ss, float))
     columns = [np.broadcast_to(lnv, (n_systems, nb)), np.broadcast_to(psi, (n_systems, nb))]
+    if config.initial.ensemble:
+        offsets = np.tile(ensemble_offsets(config), (n_systems // config.members, 1))
+        columns = [columns[0] + offsets[:, :nb], columns[1] + offsets[:, nb:]]
     if config.model == "inertial":
         columns.append(np.zeros((n_systems, nb)))
     return np.ascontiguousarray(np.concatenate(columns, axis=1))
+
+
+def ensemble_offsets(config):
+    """Random offsets (members, 2 blocks) of (ln v/V, ln Φ/Φss), uniform in ±amplitude,
+    drawn once from ``initial.seed``: the same starts at every grid point."""
+    ini = config.initial
+    rng = np.random.default_rng(ini.seed)
+    return rng.uniform(-ini.amplitude, ini.amplitude, (config.members, 2 * config.blocks))

@@ -26,6 +26,7 @@ QUASI_STATIC, QUASI_DYNAMIC, INERTIAL = 0, 1, 2
 AGING, SLIP = 0, 1
 DOPRI5, RK4, ROSENBROCK = 0, 1, 2
 STEADY, STICK_SLIP, RUNAWAY, UNDECIDED = 0, 1, 2, 3
+CHAIN, RING, ALL = 0, 1, 2  # coupling springs: neighbours of a chain, of a ring, every pair
 # A decaying oscillation is called steady only once it is this small (peak-to-peak
 # ln v/V of every block), i.e. in the linear regime where decay is geometric: see
 # steady_verdict.
@@ -50,8 +51,19 @@ HISTORY = 4
     P_MAX_STEP,  # largest adaptive step (D0/V)
     P_TAU_MAX,  # unsettled runs continue up to this time (D0/V), ≥ P_TAU_END
     P_LIN_GROWTH,  # max Re λ of the linearisation at steady sliding (V/D0)
-) = range(11)
-N_PARAMS = 11
+    P_COUPLING,  # CHAIN | RING | ALL
+) = range(12)
+N_PARAMS = 12
+# Rows whose blocks differ have N_BLOCK_PARAMS × nb more columns after N_PARAMS:
+# column N_PARAMS + k nb + i holds quantity k of block i (B_* below). Without them
+# (p.size == N_PARAMS) every block takes P_A, P_B, P_KAPPA1 and rate factor 1.
+(
+    B_A,  # direct effect of block i
+    B_B,  # evolution effect of block i
+    B_KAPPA1,  # driving stiffness K_i D0/W (D0: the reference D0)
+    B_RATE,  # state-rate factor D0/D0_i
+) = range(4)
+N_BLOCK_PARAMS = 4
 
 # --- entries of the settings array, shared by all systems of a sweep --------
 (
@@ -67,8 +79,9 @@ N_PARAMS = 11
     S_ACCURACY,  # relative accuracy of the extrapolated limit that settles a run
     S_CONFIRM_CYCLES,  # consecutive cycles a verdict must hold to settle a run early
     S_EARLY_EXIT,  # 1: stop as soon as the regime is settled
-) = range(12)
-N_SETTINGS = 12
+    S_SLIP_LNV,  # a block slips (slip events, R_SLIP_PARTICIPATION) while ℓ_i exceeds this
+) = range(13)
+N_SETTINGS = 13
 
 # --- columns of the per-system statistics array -----------------------------
 (
@@ -88,8 +101,10 @@ N_SETTINGS = 12
     R_LNV_MAX_RUN,  # max ln(v/V) over the whole run
     R_N_RECORDED,  # points written to the recording buffers
     R_CONVERGENCE,  # estimated relative distance of the last cycle to its limit
-) = range(16)
-N_RESULTS = 16
+    R_SYNC_ORDER,  # Kuramoto order parameter of the blocks' phases, final window
+    R_SLIP_PARTICIPATION,  # mean fraction of blocks slipping per slip event, final window
+) = range(18)
+N_RESULTS = 18
 
 # Dormand–Prince 5(4) tableau (Hairer, Nørsett & Wanner, Table II.5.2).
 _A21 = 1 / 5
@@ -138,14 +153,20 @@ _RODAS_C = np.array(
 def rhs(y, p, model, law, nb, ev, dydt):
     """Time derivative (per D0/V) of the log-form state ``y`` into ``dydt``.
 
-    ``p`` is one row of the parameter array; ``ev`` is scratch for e^ℓ (length nb).
+    ``p`` is one row of the parameter array (with per-block columns where blocks
+    differ); ``ev`` is scratch for e^ℓ (length nb).
     """
     A = p[P_A]
     B = p[P_B]
     kappa1 = p[P_KAPPA1]
     kappa2 = p[P_KAPPA2]
+    coupling = int(p[P_COUPLING])
+    het = p.size > N_PARAMS
+    total = 0.0  # Σ e^ℓ_j: every pair coupled
     for i in range(nb):
         ev[i] = np.exp(y[i])
+        if coupling == ALL:
+            total += ev[i]
     for i in range(nb):
         lnv = y[i]
         psi = y[nb + i]
@@ -154,11 +175,22 @@ def rhs(y, p, model, law, nb, ev, dydt):
             dpsi = np.exp(-psi) - e
         else:
             dpsi = -e * (lnv + psi)
+        if het:
+            A = p[N_PARAMS + B_A * nb + i]
+            B = p[N_PARAMS + B_B * nb + i]
+            kappa1 = p[N_PARAMS + B_KAPPA1 * nb + i]
+            dpsi *= p[N_PARAMS + B_RATE * nb + i]
         load = kappa1 * (1.0 - e)
-        if i > 0:
-            load += kappa2 * (ev[i - 1] - e)
-        if i < nb - 1:
-            load += kappa2 * (ev[i + 1] - e)
+        if coupling == CHAIN:
+            if i > 0:
+                load += kappa2 * (ev[i - 1] - e)
+            if i < nb - 1:
+                load += kappa2 * (ev[i + 1] - e)
+        elif coupling == RING:
+            load += kappa2 * (ev[i - 1 if i > 0 else nb - 1] - e)
+            load += kappa2 * (ev[i + 1 if i < nb - 1 else 0] - e)
+        else:
+            load += kappa2 * (total - nb * e)
         if model == QUASI_STATIC:
             dlnv = (load - B * dpsi) / A
         elif model == QUASI_DYNAMIC:
@@ -181,6 +213,8 @@ def jacobian(y, f, p, model, law, nb, ev, jac):
     B = p[P_B]
     kappa1 = p[P_KAPPA1]
     kappa2 = p[P_KAPPA2]
+    coupling = int(p[P_COUPLING])
+    het = p.size > N_PARAMS
     jac[:, :] = 0.0
     for i in range(nb):
         ev[i] = np.exp(y[i])
@@ -192,15 +226,27 @@ def jacobian(y, f, p, model, law, nb, ev, jac):
         else:
             dpsi_dlnv = -e * (y[i] + y[nb + i] + 1.0)
             dpsi_dpsi = -e
+        if het:
+            A = p[N_PARAMS + B_A * nb + i]
+            B = p[N_PARAMS + B_B * nb + i]
+            kappa1 = p[N_PARAMS + B_KAPPA1 * nb + i]
+            rate = p[N_PARAMS + B_RATE * nb + i]
+            dpsi_dlnv *= rate
+            dpsi_dpsi *= rate
         jac[nb + i, i] = dpsi_dlnv
         jac[nb + i, nb + i] = dpsi_dpsi
-        # the driving term load − B ψ' of block i: its own ℓ, ψ and its neighbours' ℓ
-        # (open chain), into row ``row`` divided by ``denom``
+        # the driving term load − B ψ' of block i: its own ℓ, ψ and its coupled
+        # neighbours' ℓ, into row ``row`` divided by ``denom``
         dload_self = -kappa1 * e
-        if i > 0:
-            dload_self -= kappa2 * e
-        if i < nb - 1:
-            dload_self -= kappa2 * e
+        if coupling == CHAIN:
+            if i > 0:
+                dload_self -= kappa2 * e
+            if i < nb - 1:
+                dload_self -= kappa2 * e
+        elif coupling == RING:
+            dload_self -= 2.0 * kappa2 * e
+        else:
+            dload_self -= (nb - 1) * kappa2 * e
         if model == INERTIAL:
             row = 2 * nb + i
             denom = 1.0
@@ -216,10 +262,18 @@ def jacobian(y, f, p, model, law, nb, ev, jac):
                 jac[i, i] = -f[i] * p[P_ETA] * e / denom
         jac[row, i] += (dload_self - B * dpsi_dlnv) / denom
         jac[row, nb + i] = -B * dpsi_dpsi / denom
-        if i > 0:
-            jac[row, i - 1] = kappa2 * ev[i - 1] / denom
-        if i < nb - 1:
-            jac[row, i + 1] = kappa2 * ev[i + 1] / denom
+        if coupling == CHAIN:
+            if i > 0:
+                jac[row, i - 1] = kappa2 * ev[i - 1] / denom
+            if i < nb - 1:
+                jac[row, i + 1] = kappa2 * ev[i + 1] / denom
+        elif coupling == RING:
+            jac[row, i - 1 if i > 0 else nb - 1] = kappa2 * ev[i - 1 if i > 0 else nb - 1] / denom
+            jac[row, i + 1 if i < nb - 1 else 0] = kappa2 * ev[i + 1 if i < nb - 1 else 0] / denom
+        else:
+            for j in range(nb):
+                if j != i:
+                    jac[row, j] = kappa2 * ev[j] / denom
 
 
 @jit
@@ -591,21 +645,71 @@ def cycle_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, at
     return -1, conv
 
 
+@jit_inline
+def block_friction(p, nb, i, A, B):
+    """(A_i, B_i) of block i: its per-block columns, or the common ``A``, ``B``."""
+    if p.size > N_PARAMS:
+        return p[N_PARAMS + B_A * nb + i], p[N_PARAMS + B_B * nb + i]
+    return A, B
+
+
 @jit
-def start_window(y, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin):
+def start_window(y, p, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin):
     """Start a cycle's statistics at state ``y``: extremes of ℓ_i and of the friction
-    A ℓ_i + B ψ_i at their current values. Returns (max |ℓ_i − ℓ_0|, mean ℓ_i)."""
+    A_i ℓ_i + B_i ψ_i at their current values. Returns (max |ℓ_i − ℓ_0|, mean ℓ_i)."""
     sync = 0.0
     mbar = 0.0
     for i in range(nb):
         win_lmax[i] = y[i]
         win_lmin[i] = y[i]
-        mu = A * y[i] + B * y[nb + i]
+        a_i, b_i = block_friction(p, nb, i, A, B)
+        mu = a_i * y[i] + b_i * y[nb + i]
         win_mumax[i] = mu
         win_mumin[i] = mu
         sync = max(sync, abs(y[i] - y[0]))
         mbar += y[i] / nb
     return sync, mbar
+
+
+@jit_inline
+def track_slips(y, nb, slip_lnv, flags, acc):
+    """Follow slip events at state ``y``: an event lasts while any ℓ_i exceeds
+    ``slip_lnv``; ``flags[i]`` marks the blocks that slipped during it. When an event
+    ends, its fraction of slipping blocks is added to ``acc[1]`` and ``acc[2]``
+    counts it; ``acc[0]`` is 1 while an event lasts."""
+    slipping = False
+    for i in range(nb):
+        if y[i] > slip_lnv:
+            flags[i] = True
+            slipping = True
+    if slipping:
+        acc[0] = 1.0
+    elif acc[0] > 0.0:
+        count = 0
+        for i in range(nb):
+            if flags[i]:
+                count += 1
+            flags[i] = False
+        acc[0] = 0.0
+        acc[1] += count / nb
+        acc[2] += 1.0
+
+
+@jit
+def kuramoto_order(t_peak_blocks, t_peak, period, nb):
+    """Kuramoto order parameter R = |mean_i exp(iθ_i)| of the blocks' phases at the
+    maximum of ℓ_0 at ``t_peak``: θ_i = 2π (last maximum of ℓ_i − t_peak) / period.
+    NaN if a block had no maximum within the last period."""
+    re = 0.0
+    im = 0.0
+    for i in range(nb):
+        dt = t_peak_blocks[i] - t_peak
+        if not (dt > -period):  # also NaN: never a maximum
+            return np.nan
+        theta = 2.0 * math.pi * dt / period
+        re += math.cos(theta)
+        im += math.sin(theta)
+    return math.sqrt(re * re + im * im) / nb
 
 
 @jit
@@ -630,6 +734,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     accuracy = settings[S_ACCURACY]
     n_confirm = max(1, int(settings[S_CONFIRM_CYCLES]))
     early_exit = settings[S_EARLY_EXIT] > 0.5
+    slip_lnv = settings[S_SLIP_LNV]
     A = p[P_A]
     B = p[P_B]
     tau_end = p[P_TAU_END]
@@ -673,12 +778,18 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     n_agree = 0
     last_verdict = -1
     conv = np.inf
-    win_sync, mbar = start_window(y, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin)
+    win_sync, mbar = start_window(y, p, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin)
     win_mbar_max = mbar
     win_mbar_min = mbar
     last_sync = np.nan
     win_t_peak_last_block = np.nan
     last_phase = np.nan
+    # N-block statistics: each block's last maximum of ℓ (sync order), slip events
+    t_peak_blocks = np.full(nb, np.nan)
+    slip_flags = np.zeros(nb, np.bool_)
+    slip_acc = np.zeros(3)  # in an event (1/0), Σ fractions, events, current cycle
+    last_order = np.nan
+    last_participation = np.nan
 
     lnv_max_run = -np.inf
     for i in range(nb):
@@ -799,6 +910,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
                 win_lmin[i] = min(win_lmin[i], val)
                 lnv_max_run = max(lnv_max_run, val)
                 if rising:
+                    t_peak_blocks[i] = t + theta * h
                     if i == 0:
                         new_peak = True
                         theta_peak = theta
@@ -809,12 +921,13 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             win_lmin[i] = min(win_lmin[i], ynew[i])
             lnv_max_run = max(lnv_max_run, ynew[i])
             # friction A ℓ_i + B ψ_i (relative to steady sliding), extremes interpolated
-            mu0 = A * y[i] + B * y[nb + i]
-            mu = A * ynew[i] + B * ynew[nb + i]
-            dmu0 = A * f[i] + B * f[nb + i]
-            dmu1 = A * fnew[i] + B * fnew[nb + i]
+            a_i, b_i = block_friction(p, nb, i, A, B)
+            mu0 = a_i * y[i] + b_i * y[nb + i]
+            mu = a_i * ynew[i] + b_i * ynew[nb + i]
+            dmu0 = a_i * f[i] + b_i * f[nb + i]
+            dmu1 = a_i * fnew[i] + b_i * fnew[nb + i]
             if (dmu0 > 0.0) == (dmu1 <= 0.0):
-                r5 = A * dense_r5(method, i, h, f, k3, k4, k5, k6, fnew) + B * dense_r5(
+                r5 = a_i * dense_r5(method, i, h, f, k3, k4, k5, k6, fnew) + b_i * dense_r5(
                     method, nb + i, h, f, k3, k4, k5, k6, fnew
                 )
                 theta = dense_extremum(mu0, mu, dmu0, dmu1, h, r5)
@@ -826,6 +939,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
             if i > 0:
                 win_sync = max(win_sync, abs(ynew[i] - ynew[0]))
         if nb > 1:
+            track_slips(ynew, nb, slip_lnv, slip_flags, slip_acc)
             m0 = 0.0
             m1 = 0.0
             dm0 = 0.0
@@ -894,9 +1008,14 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
                 if nb > 1 and win_t_peak_last_block == win_t_peak_last_block:
                     lag = (win_t_peak_last_block - t_peak) / period
                     last_phase = lag - math.floor(lag + 0.5)
+                if nb > 1:
+                    last_order = kuramoto_order(t_peak_blocks, t_new_peak, period, nb)
+                    last_participation = slip_acc[1] / slip_acc[2] if slip_acc[2] > 0 else np.nan
+            slip_acc[1] = 0.0
+            slip_acc[2] = 0.0
             t_peak = t_new_peak
             # the new cycle starts at this peak
-            win_sync, mbar = start_window(y, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin)
+            win_sync, mbar = start_window(y, p, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin)
             win_lmax[0] = max(win_lmax[0], peak_value)
             win_t_peak_last_block = np.nan
             win_mbar_max = mbar
@@ -968,6 +1087,12 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
         n_rec += 1
     result[R_N_RECORDED] = n_rec
     result[R_CONVERGENCE] = conv
+    if use_last:
+        result[R_SYNC_ORDER] = last_order
+        result[R_SLIP_PARTICIPATION] = last_participation
+    else:
+        result[R_SYNC_ORDER] = np.nan
+        result[R_SLIP_PARTICIPATION] = slip_acc[1] / slip_acc[2] if slip_acc[2] > 0 else np.nan
 
 
 @jit

@@ -19,7 +19,8 @@ inertial state is z, not σ: in stick phases force balance holds to within
 z ~ M̂ e^ℓ ℓ', far below the round-off of σ − Aℓ − Bψ, so ℓ' computed from σ
 would be noise times e^(−ℓ)/M̂; z keeps full relative precision there. The
 quasi-static model is the limit z → 0.
-Blocks form an open chain: block i feels κ2 (e^ℓj − e^ℓi) from each neighbour j.
+Block i feels κ2 (e^ℓj − e^ℓi) from each block j it is coupled to: its neighbours
+in an open chain (the default) or a ring, or every other block (coupling ``all``).
 """
 
 from dataclasses import dataclass
@@ -120,33 +121,50 @@ def mode_jacobian(model, A, B, kappa, eta_hat=0.0, mass_hat=0.0):
     return np.moveaxis(np.array(rows), (0, 1), (-2, -1))
 
 
-def mode_stiffnesses(n_blocks, kappa1, kappa2):
-    """Stiffness of each normal mode of an open chain: κ1 + κ2 λ_L.
+def laplacian_eigenvalues(n_blocks, coupling="chain"):
+    """Eigenvalues λ_L of the coupling graph's Laplacian, k = 0 … N−1 (λ_0 = 0).
 
-    λ_L = 2 − 2 cos(π k / N), k = 0 … N−1, are the eigenvalues of the chain's
-    graph Laplacian; k = 0 is the in-phase mode (κ1), and for two blocks k = 1
-    is the anti-phase mode (κ1 + 2κ2). Returns a list of N arrays.
+    chain: 2 − 2 cos(π k/N); ring: 2 − 2 cos(2π k/N); all (every pair): N for k ≥ 1.
     """
-    lam = 2.0 - 2.0 * np.cos(np.pi * np.arange(n_blocks) / n_blocks)
+    k = np.arange(n_blocks)
+    if coupling == "chain":
+        return 2.0 - 2.0 * np.cos(np.pi * k / n_blocks)
+    if coupling == "ring":
+        return 2.0 - 2.0 * np.cos(2.0 * np.pi * k / n_blocks)
+    if coupling == "all":
+        return np.where(k == 0, 0.0, float(n_blocks))
+    raise ValueError(f"coupling must be chain, ring or all, got {coupling!r}")
+
+
+def mode_stiffnesses(n_blocks, kappa1, kappa2, coupling="chain"):
+    """Stiffness of each normal mode of identical blocks: κ1 + κ2 λ_L.
+
+    λ_L: :func:`laplacian_eigenvalues`; k = 0 is the in-phase mode (κ1), and for
+    two blocks k = 1 is the anti-phase mode (κ1 + 2κ2). Returns a list of N arrays.
+    """
+    lam = laplacian_eigenvalues(n_blocks, coupling)
     return [np.asarray(kappa1, float) + np.asarray(kappa2, float) * lk for lk in lam]
 
 
-def eigenvalues(model, n_blocks, A, B, kappa1, kappa2=0.0, eta_hat=0.0, mass_hat=0.0):
-    """Eigenvalues of the linearised system at steady sliding, units of V/D0.
+def eigenvalues(model, n_blocks, A, B, kappa1, kappa2=0.0, eta_hat=0.0, mass_hat=0.0,
+                coupling="chain"):  # fmt: skip
+    """Eigenvalues of the linearised system of identical blocks at steady sliding,
+    units of V/D0.
 
     Returns a complex array with axes (..., mode, eigenvalue), the modes in the
     order of :func:`mode_stiffnesses` (in-phase first).
     """
     modes = [
         np.linalg.eigvals(mode_jacobian(model, A, B, k, eta_hat, mass_hat))
-        for k in mode_stiffnesses(n_blocks, kappa1, kappa2)
+        for k in mode_stiffnesses(n_blocks, kappa1, kappa2, coupling)
     ]
     return np.stack(modes, axis=-2)
 
 
-def linear_growth_rate(model, n_blocks, A, B, kappa1, kappa2=0.0, eta_hat=0.0, mass_hat=0.0):
+def linear_growth_rate(model, n_blocks, A, B, kappa1, kappa2=0.0, eta_hat=0.0, mass_hat=0.0,
+                       coupling="chain"):  # fmt: skip
     """Largest real part of the eigenvalues (units of V/D0); > 0 means unstable."""
-    lam = eigenvalues(model, n_blocks, A, B, kappa1, kappa2, eta_hat, mass_hat)
+    lam = eigenvalues(model, n_blocks, A, B, kappa1, kappa2, eta_hat, mass_hat, coupling)
     return lam.real.max(axis=(-2, -1))
 
 

@@ -45,7 +45,14 @@ from .atomic import replaced_atomically
 PART_FORMAT = 1
 #: Modules whose code decides the numbers stored in a part (accelerate.py: fastmath,
 #: error model).
-NUMERIC_MODULES = ("kernels.py", "grid.py", "model.py", "accelerate.py")
+NUMERIC_MODULES = (
+    "kernels.py",
+    "grid.py",
+    "model.py",
+    "linear.py",
+    "heterogeneity.py",
+    "accelerate.py",
+)
 PART_NAME = re.compile(r"^(?P<hash>[0-9a-f]{16})_(?P<start>\d+)-(?P<stop>\d+)_of_(?P<n>\d+)\.npz$")
 TEMP_PREFIX = ".part-"
 #: A temporary part file: ``.part-<host>-<pid>-<random>.tmp`` (see ``replaced_atomically``).
@@ -59,17 +66,20 @@ class PartError(ValueError):
 def config_hash(config):
     """16 hex digits identifying the numbers a config produces.
 
-    Built from the validated fields that change results (blocks, model, law,
-    fixed parameters, axes in order, initial state, integrator and
+    Built from the validated fields that change results (blocks, coupling, model,
+    law, fixed and per-block parameters, spread, axes in order, initial state, integrator and
     classification settings), the package version and the source of the
     numeric modules. Fixed parameters are sorted, since their order in the
     file does not matter; axis order does (it orders the grid).
     """
     fields = {
         "blocks": config.blocks,
+        "coupling": config.coupling_key,
         "model": config.model,
         "state_law": config.state_law,
         "parameters": sorted(config.parameters),
+        "block_parameters": sorted(config.block_parameters),
+        "spread": asdict(config.spread),
         "axes": [[a.name, list(a.values)] for a in config.axes],
         "initial": asdict(config.initial),
         "integrator": asdict(config.integrator),

@@ -167,8 +167,8 @@ def trace_attributes(config, phys, params, result, y_final, time_unit):
     attrs["t_end"] = float(params[0, kernels.P_TAU_END] * time_unit[0])
     attrs["t_end_units"] = "s"
     fields = derived_fields(config, phys, result, y_final, time_unit)
-    for var in variables_for(config.blocks, config.model):
-        if var.per_block:
+    for var in variables_for(config.blocks, config.model, config.features):
+        if var.per_block or var.per_regime:
             continue
         value = fields[var.name][0]
         if var.name == "regime":

@@ -4,7 +4,10 @@ This table feeds the Dataset constructor (``sweep/dataset.py``) and the tests;
 the README's reference table is checked against it. ``per_block``: the
 variable has a trailing ``block`` dimension; ``min_blocks``: written only for
 sweeps of at least that many blocks; ``models``: written only for these
-models (empty: every model).
+models (empty: every model); ``feature``: written only for sweeps with that
+feature (``Config.features``: ``nblock``, ``heterogeneous``, ``ensemble``);
+``per_member``: one value per run (with an ensemble, a ``member`` dimension),
+else one per grid point; ``per_regime``: a trailing ``regime`` dimension.
 """
 
 from dataclasses import dataclass
@@ -26,6 +29,9 @@ class Variable:
     per_block: bool = False
     min_blocks: int = 1
     models: tuple = ()
+    feature: str = ""
+    per_member: bool = True
+    per_regime: bool = False
 
 
 VARIABLES = (
@@ -80,18 +86,49 @@ VARIABLES = (
              "z_i = (m/W) dv_i/dt per unit normal load at t_final (the inertial model's third "
              "state variable, as in the kernels' state); with lnv_final and ln_state_final it "
              "restarts the run", per_block=True, models=("inertial",)),
+    Variable("sync_order", "float64", "1", "synchronisation order parameter",
+             "Kuramoto R = |mean_i exp(i theta_i)| of the blocks' oscillation phases in the final "
+             "window, theta_i = 2 pi (time of block i's last maximum of ln v - time of block 0's "
+             "maximum) / period: 1 in phase, 0 spread evenly; NaN without two maxima of block 0 "
+             "or where a block had none", feature="nblock"),
+    Variable("slip_participation", "float64", "1", "fraction of blocks taking part in a slip",
+             "mean over the slip events of the final window of the fraction of blocks that slip "
+             "(v > classification_slip_v_over_V * V) during the event; an event lasts while any "
+             "block slips; NaN without a completed event", feature="nblock"),
+    Variable("A_block", "float64", "1", "direct-effect coefficient A per block", "",
+             per_block=True, feature="heterogeneous", per_member=False),
+    Variable("B_block", "float64", "1", "evolution-effect coefficient B per block", "",
+             per_block=True, feature="heterogeneous", per_member=False),
+    Variable("D0_block", "float64", "um", "characteristic slip distance D0 per block", "",
+             per_block=True, feature="heterogeneous", per_member=False),
+    Variable("K_W_block", "float64", "um-1", "driving-spring stiffness per normal load K/W per "
+             "block", "", per_block=True, feature="heterogeneous", per_member=False),
+    Variable("regime_fraction", "float64", "1", "fraction of the ensemble in each regime",
+             "fraction of the initial-condition ensemble's members that ended in the regime",
+             feature="ensemble", per_member=False, per_regime=True),
     Variable("linear_growth_rate", "float64", "s-1", "linear growth rate",
-             "max Re(lambda) of the system linearised about steady sliding"),
+             "max Re(lambda) of the system linearised about steady sliding (analytic normal modes "
+             "for identical blocks, eigenvalues of the Jacobian for unequal ones)",
+             per_member=False),
     Variable("critical_K_W", "float64", "um-1", "critical stiffness Kc/W",
-             "analytic critical driving-spring stiffness per normal load"),
-    Variable("K_over_Kc", "float64", "1", "K/Kc", "driving-spring stiffness / critical stiffness"),
+             "critical driving-spring stiffness per normal load (the common K/W; per-block K/W "
+             "keep their ratios): analytic for identical blocks, else where the Jacobian's largest "
+             "real part crosses zero", per_member=False),
+    Variable("K_over_Kc", "float64", "1", "K/Kc", "driving-spring stiffness / critical stiffness",
+             per_member=False),
     Variable("onset_period", "float64", "s", "period at onset",
-             "2 pi / omega of the linear oscillation at K = Kc"),
+             "2 pi / omega of the linear oscillation at K = Kc", per_member=False),
 )  # fmt: skip
 
 BY_NAME = {v.name: v for v in VARIABLES}
 
 
-def variables_for(blocks, model="quasi-static"):
-    """The variables a sweep of ``blocks`` blocks of ``model`` writes."""
-    return [v for v in VARIABLES if blocks >= v.min_blocks and (not v.models or model in v.models)]
+def variables_for(blocks, model="quasi-static", features=()):
+    """The variables a sweep of ``blocks`` blocks of ``model`` with ``features`` writes."""
+    return [
+        v
+        for v in VARIABLES
+        if blocks >= v.min_blocks
+        and (not v.models or model in v.models)
+        and (not v.feature or v.feature in features)
+    ]

@@ -1,0 +1,81 @@
+"""Per-block parameter values: lists, seeded relative spreads, the reference scale.
+
+Each of A, B, D0 and K_W may differ between blocks. A config gives either a list of
+``blocks`` values, or a relative spread ``s`` of a common value ``x``::
+
+    x_i = x (1 + s ξ_i),    ξ_i ~ U(−1, 1) (uniform) or N(0, 1) (normal)
+
+The pattern ξ is drawn once from the seed, one row per parameter in the order of
+:data:`PER_BLOCK` (a spread on one parameter leaves the others' patterns alone), and
+is the same at every grid point: a swept spread size (axis ``spread_<name>``) scales
+one realisation, and no result depends on chunking or threads. ``x`` is the
+parameter's scalar or swept value; for a list it is the list's mean (the common
+value stored as the parameter's coordinate). A swept K_W with a K_W spread: the
+spread multiplies the swept value, so ``critical_K_W`` is that common K_W at onset.
+
+Plain numpy; the kernels see the results as per-block parameter columns
+(``grid.system_arrays``).
+"""
+
+import numpy as np
+
+#: Parameters that may differ between blocks, in the order the spread rows are drawn.
+PER_BLOCK = ("A", "B", "D0", "K_W")
+DISTRIBUTIONS = ("uniform", "normal")
+#: A sweep axis ``spread_<name>`` sweeps the relative spread of parameter ``name``.
+SPREAD_PREFIX = "spread_"
+
+
+def spread_pattern(n_blocks, distribution="uniform", seed=0):
+    """The relative pattern ξ (name → array of ``n_blocks``), drawn once from ``seed``."""
+    rng = np.random.default_rng(seed)
+    shape = (len(PER_BLOCK), n_blocks)
+    if distribution == "uniform":
+        xi = rng.uniform(-1.0, 1.0, shape)
+    elif distribution == "normal":
+        xi = rng.standard_normal(shape)
+    else:
+        raise ValueError(f"distribution must be one of {DISTRIBUTIONS}, got {distribution!r}")
+    return dict(zip(PER_BLOCK, xi, strict=True))
+
+
+def spread_sizes(config, phys, n):
+    """Relative spread size per parameter at each of ``n`` systems (name → array)."""
+    sizes = {}
+    for name in PER_BLOCK:
+        axis = SPREAD_PREFIX + name
+        if axis in phys:
+            sizes[name] = phys[axis]
+        else:
+            sizes[name] = np.full(n, config.spread.sizes_dict.get(name, 0.0))
+    return sizes
+
+
+def block_values(config, phys):
+    """Per-block values of A, B, D0 and K_W at every system: name → (n, blocks) array.
+
+    ``phys``: the common values (``grid.physical_parameters``), including the swept
+    spread sizes ``spread_<name>``. Without a list or spread a parameter's blocks all
+    hold its common value, bit for bit (the factor is exactly 1).
+    """
+    nb = config.blocks
+    n = phys["A"].size
+    lists = dict(config.block_parameters)
+    xi = spread_pattern(nb, config.spread.distribution, config.spread.seed)
+    sizes = spread_sizes(config, phys, n)
+    out = {}
+    for name in PER_BLOCK:
+        if name in lists:
+            out[name] = np.broadcast_to(np.asarray(lists[name], float), (n, nb)).copy()
+        else:
+            factor = 1.0 + sizes[name][:, None] * xi[name][None, :]
+            out[name] = phys[name][:, None] * factor
+    return out
+
+
+def identical_blocks(values):
+    """Per system: whether every block has the same A, B, D0 and K_W (bool array)."""
+    same = np.ones(next(iter(values.values())).shape[0], bool)
+    for v in values.values():
+        same &= (v == v[:, :1]).all(axis=1)
+    return same

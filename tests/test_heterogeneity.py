@@ -1,0 +1,163 @@
+"""Per-block parameters and the N-block config keys: coupling, lists, seeded spreads,
+spread axes and initial-condition ensembles (sweep/heterogeneity.py, sweep/config.py,
+sweep/grid.py)."""
+
+import numpy as np
+import pytest
+from conftest import make_config
+
+from sweep import grid, heterogeneity, kernels
+from sweep.config import ConfigError, config_mapping, parse_config
+
+NB = {"blocks": 3, "parameters": {"k2_W": 0.02}}
+
+
+def nblock_config(**sections):
+    """A three-block config with ``sections`` merged in."""
+    merged = {**NB, **sections}
+    merged["parameters"] = {**NB["parameters"], **sections.get("parameters", {})}
+    return make_config(merged)
+
+
+# (id, overrides, the key path and the allowed values the message must name)
+BAD = [
+    ("unknown coupling", {"coupling": "star"}, "coupling must be one of chain, ring, all"),
+    ("ring of two", {"blocks": 2, "coupling": "ring"}, "coupling ring needs blocks >= 3"),
+    ("list too short", {"parameters": {"D0": [1.0, 1.3]}}, "parameters.D0 must be one number or "
+     "a list of 3"),
+    ("list value out of range", {"parameters": {"A": [0.03, -0.01, 0.03]}},
+     "parameters.A[1] must be in (0, inf), got -0.01"),
+    ("list of a shared parameter", {"parameters": {"V": [0.1, 0.1, 0.1]}}, "parameters.V must be"),
+    ("unknown spread key", {"spread": {"mu0": 0.1}}, "unknown key spread.mu0"),
+    ("negative spread", {"spread": {"D0": -0.1}}, "spread.D0 must be in [0, inf)"),
+    ("bad distribution", {"spread": {"D0": 0.1, "distribution": "cauchy"}},
+     "spread.distribution must be one of uniform, normal"),
+    ("spread and list", {"parameters": {"D0": [1.0, 1.3, 0.8]}, "spread": {"D0": 0.1}},
+     "spread.D0 and a list parameters.D0"),
+    ("spread and axis", {"spread": {"D0": 0.1}, "sweep": {"K_W": [0.05], "spread_D0": [0.1]}},
+     "spread.D0 is also a sweep axis"),
+    ("spread too large", {"spread": {"K_W": 1.5}}, "spread.K_W = 1.5 makes K_W of block 2"),
+    ("spread axis too large", {"sweep": {"K_W": [0.05], "spread_A": [0.0, 2.0]}},
+     "sweep.spread_A = 2 makes A of block"),
+    ("negative spread axis", {"sweep": {"K_W": [0.05], "spread_A": [-0.1]}},
+     "sweep.spread_A[0] must be in [0, inf)"),
+    ("spread axis of a shared parameter", {"sweep": {"K_W": [0.05], "spread_V": [0.1]}},
+     "unknown sweep axis sweep.spread_V"),
+    ("negative ensemble", {"initial": {"ensemble": -1}}, "initial.ensemble must be an integer"),
+    ("seed without ensemble", {"initial": {"seed": 3}}, "give initial.ensemble"),
+    ("negative amplitude", {"initial": {"ensemble": 2, "amplitude": -0.1}},
+     "initial.amplitude must be in [0, inf)"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("overrides, message", [b[1:] for b in BAD], ids=[b[0] for b in BAD])
+def test_bad_nblock_configs_are_refused_naming_the_key(overrides, message):
+    with pytest.raises(ConfigError) as info:
+        nblock_config(**overrides)
+    assert any(message in p for p in info.value.problems), info.value.problems
+
+
+def test_spread_on_one_block_is_refused():
+    with pytest.raises(ConfigError, match="spread .per-block values. needs blocks >= 2"):
+        make_config({"spread": {"D0": 0.1}})
+
+
+def test_pattern_is_seeded_and_per_parameter():
+    """The same seed gives the same pattern; each parameter has its own row, so the
+    D0 pattern does not depend on whether A has a spread."""
+    a = heterogeneity.spread_pattern(5, "uniform", 3)
+    b = heterogeneity.spread_pattern(5, "uniform", 3)
+    for name in heterogeneity.PER_BLOCK:
+        np.testing.assert_array_equal(a[name], b[name])
+        assert np.all(np.abs(a[name]) < 1.0)
+    assert not np.array_equal(a["D0"], heterogeneity.spread_pattern(5, "uniform", 4)["D0"])
+    with_a = nblock_config(spread={"D0": 0.1, "A": 0.2, "seed": 3})
+    without = nblock_config(spread={"D0": 0.1, "seed": 3})
+    d0 = [
+        heterogeneity.block_values(c, grid.physical_parameters(c))["D0"] for c in (with_a, without)
+    ]
+    np.testing.assert_array_equal(d0[0], d0[1])
+
+
+def test_spread_values_follow_the_stated_formula():
+    """x_i = x (1 + s ξ_i) with the seed's pattern; a swept spread scales one realisation."""
+    config = nblock_config(sweep={"K_W": [0.05], "spread_D0": [0.0, 0.1, 0.2]},
+                           spread={"distribution": "normal", "seed": 5})  # fmt: skip
+    values = heterogeneity.block_values(config, grid.physical_parameters(config))["D0"]
+    xi = np.random.default_rng(5).standard_normal((4, 3))[2]  # D0 is the third row
+    np.testing.assert_allclose(values, 1.0 * (1.0 + np.array([0.0, 0.1, 0.2])[:, None] * xi),
+                               rtol=1e-15)  # fmt: skip
+    assert np.all(values[0] == 1.0)  # no spread: exactly the common value
+
+
+def test_list_values_reach_the_kernel_columns():
+    """A D0 list: common D0 its mean; rate factors D0/D0_i, κ1_i = K D0/W."""
+    d0 = [1.0, 1.3, 0.8]
+    config = nblock_config(parameters={"D0": d0}, sweep={"K_W": [0.04, 0.05]})
+    assert config.fixed["D0"] == pytest.approx(np.mean(d0), rel=1e-15)
+    params, _, _, time_unit = grid.system_arrays(config)
+    nb, start = 3, kernels.N_PARAMS
+    assert params.shape == (2, start + kernels.N_BLOCK_PARAMS * nb)
+    rate = params[:, start + kernels.B_RATE * nb : start + (kernels.B_RATE + 1) * nb]
+    np.testing.assert_allclose(rate, np.mean(d0) / np.array([d0, d0]), rtol=1e-15)
+    kappa1 = params[:, start + kernels.B_KAPPA1 * nb : start + (kernels.B_KAPPA1 + 1) * nb]
+    np.testing.assert_allclose(kappa1[:, 0], [0.04 * np.mean(d0), 0.05 * np.mean(d0)], rtol=1e-15)
+    np.testing.assert_allclose(time_unit, np.mean(d0) / 0.1, rtol=1e-15)
+
+
+def test_identical_blocks_keep_the_narrow_parameter_rows():
+    """Without per-block values the kernels get N_PARAMS columns (the identical-block path)."""
+    config = nblock_config(coupling="all")
+    params, _, _, _ = grid.system_arrays(config)
+    assert params.shape[1] == kernels.N_PARAMS
+    assert np.all(params[:, kernels.P_COUPLING] == kernels.ALL)
+
+
+def test_ensemble_starts_are_seeded_and_shared_by_grid_points():
+    config = nblock_config(initial={"ensemble": 4, "seed": 1, "amplitude": 0.2},
+                           sweep={"K_W": [0.04, 0.05, 0.06]})  # fmt: skip
+    assert config.run_shape == (3, 4)
+    _, y0, _, _ = grid.system_arrays(config)
+    assert y0.shape == (12, 6)
+    starts = y0.reshape(3, 4, 6)
+    np.testing.assert_array_equal(starts[0], starts[2])  # the same M starts everywhere
+    base = np.concatenate([np.zeros(3), np.full(3, np.log(1.01))])
+    offsets = starts[0] - base
+    assert np.all(np.abs(offsets) <= 0.2) and np.unique(offsets).size == offsets.size
+    other = nblock_config(initial={"ensemble": 4, "seed": 2}, sweep={"K_W": [0.04]})
+    assert not np.array_equal(grid.system_arrays(other)[1], starts[0])
+
+
+def test_config_mapping_round_trips_the_nblock_keys():
+    config = nblock_config(
+        coupling="ring", parameters={"D0": [1.0, 1.3, 0.8]}, spread={"A": 0.1, "seed": 4},
+        initial={"ensemble": 3, "seed": 2, "amplitude": 0.05},
+    )  # fmt: skip
+    again = parse_config(config_mapping(config))
+    for field in ("coupling", "block_parameters", "spread", "initial", "parameters"):
+        assert getattr(again, field) == getattr(config, field)
+    assert again.features == ("nblock", "heterogeneous", "ensemble")
+
+
+def test_older_configs_have_no_nblock_features():
+    """A chain without the new keys keeps its variables (tests/test_bit_identity.py)."""
+    assert nblock_config().features == ()
+    assert nblock_config(coupling="chain").features == ("nblock",)
+
+
+def test_parts_of_other_couplings_or_blocks_are_not_reused():
+    """The part files' config hash sees the coupling, per-block values and spreads."""
+    from sweep import parts
+
+    base = nblock_config(coupling="ring", spread={"A": 0.1, "seed": 1})
+    variants = [
+        nblock_config(coupling="all", spread={"A": 0.1, "seed": 1}),
+        nblock_config(spread={"A": 0.1, "seed": 1}),
+        nblock_config(coupling="ring", spread={"A": 0.1, "seed": 2}),
+        nblock_config(coupling="ring", spread={"A": 0.1, "seed": 1, "distribution": "normal"}),
+        nblock_config(coupling="ring", spread={"A": 0.2, "seed": 1}),
+        nblock_config(coupling="ring", spread={"A": 0.1, "seed": 1}, parameters={"D0": [1, 2, 1]}),
+        nblock_config(coupling="ring", spread={"A": 0.1, "seed": 1}, initial={"ensemble": 2}),
+    ]
+    hashes = {parts.config_hash(c) for c in variants}
+    assert parts.config_hash(base) not in hashes and len(hashes) == len(variants)

@@ -1,0 +1,177 @@
+"""Linear theory of unequal blocks (sweep/linear.py) against the analytic normal modes
+of identical blocks, closed forms for uncoupled blocks, and finite differences of
+the kernels' right-hand side; the kernels' analytic Jacobian with every coupling
+and per-block parameters against finite differences."""
+
+import numpy as np
+import pytest
+
+from sweep import kernels, linear, model
+
+A, B = 0.03, 0.08
+MODEL_CODES = {
+    "quasi-static": kernels.QUASI_STATIC,
+    "quasi-dynamic": kernels.QUASI_DYNAMIC,
+    "inertial": kernels.INERTIAL,
+}
+COUPLING_CODES = {"chain": kernels.CHAIN, "ring": kernels.RING, "all": kernels.ALL}
+ETA_HAT, MASS_HAT = 0.01, 0.1
+CASES = [(m, c, n) for m in MODEL_CODES for c in COUPLING_CODES for n in (3, 8)]
+
+
+def extras(model_name):
+    return {"eta_hat": ETA_HAT if model_name == "quasi-dynamic" else 0.0,
+            "mass_hat": MASS_HAT if model_name == "inertial" else 0.0}  # fmt: skip
+
+
+@pytest.mark.parametrize("coupling", ["chain", "ring", "all"])
+@pytest.mark.parametrize("n_blocks", [3, 4, 7])
+def test_laplacian_spectrum_is_the_analytic_one(coupling, n_blocks):
+    """The Laplacian matrix built from the springs has the closed-form spectrum the
+    analytic modes use (chain 2 − 2cos(πk/N), ring 2 − 2cos(2πk/N), all: N)."""
+    lam = np.linalg.eigvalsh(linear.laplacian(n_blocks, coupling))
+    expected = np.sort(model.laplacian_eigenvalues(n_blocks, coupling))
+    np.testing.assert_allclose(lam, expected, atol=1e-12)  # round-off of eigvalsh
+
+
+@pytest.mark.parametrize("model_name, coupling, nb", CASES)
+def test_identical_blocks_give_the_analytic_modes(model_name, coupling, nb):
+    """The Jacobian's eigenvalues for identical blocks are the analytic modes' (model.py)."""
+    kappa1, kappa2 = 0.045, 0.02
+    ex = extras(model_name)
+    jac = linear.steady_jacobian(
+        model_name, np.full(nb, A), np.full(nb, B), np.full(nb, kappa1), np.ones(nb),
+        kappa2, linear.laplacian(nb, coupling), **ex,
+    )  # fmt: skip
+    got = rounded_sort(np.linalg.eigvals(jac))
+    want = rounded_sort(
+        model.eigenvalues(model_name, nb, A, B, kappa1, kappa2, coupling=coupling, **ex).ravel()
+    )
+    np.testing.assert_allclose(got, want, atol=1e-9)  # eigvals round-off on O(1–10) entries
+
+
+def rounded_sort(lam):
+    """Eigenvalues in a fixed order despite round-off in repeated ones (to 1e-7)."""
+    return lam[np.lexsort((np.round(lam.imag, 7), np.round(lam.real, 7)))]
+
+
+@pytest.mark.parametrize("model_name", list(MODEL_CODES))
+@pytest.mark.parametrize("coupling", ["chain", "all"])
+def test_critical_stiffness_of_identical_blocks_is_analytic(model_name, coupling):
+    """Bisection on the Jacobian finds κc = B − A (− η̂, × (1 + M̂/A)) for every coupling."""
+    nb = 4
+    ex = extras(model_name)
+    one = np.ones((1, nb))
+    growth, kc, omega = linear.unequal_theory(
+        model_name, coupling, A * one, B * one, 0.04 * one, one, np.array([0.02]),
+        np.array([ex["eta_hat"]]), np.array([ex["mass_hat"]]), np.array([0.04]),
+    )  # fmt: skip
+    want = model.critical_kappa(model_name, A, B, **ex)
+    assert kc[0] == pytest.approx(want, rel=1e-10)  # bisection to round-off
+    assert omega[0] == pytest.approx(
+        model.onset_angular_frequency(model_name, A, B, **ex), rel=1e-6
+    )  # Im λ at a κ within round-off of κc
+    assert growth[0] == pytest.approx(
+        model.linear_growth_rate(model_name, nb, A, B, 0.04, 0.02, coupling=coupling, **ex),
+        rel=1e-9,
+    )
+
+
+def test_uncoupled_unequal_blocks_go_unstable_with_the_weakest():
+    """κ2 = 0: each block on its own, block i unstable below κ_i = r_i (B_i − A_i) / f_i
+    (its own Kc/W = (B_i − A_i)/D0_i); the system's κc is the largest of them."""
+    a = np.array([[0.03, 0.025, 0.035]])
+    b = np.array([[0.08, 0.07, 0.09]])
+    rate = np.array([[1.0, 1.0 / 1.3, 1.0 / 0.8]])
+    ratio = np.array([[1.0, 1.2, 0.9]])
+    kappa = np.array([0.05])
+    _, kc, _ = linear.unequal_theory(
+        "quasi-static", "chain", a, b, ratio * kappa, rate, np.zeros(1), np.zeros(1),
+        np.zeros(1), kappa,
+    )  # fmt: skip
+    assert kc[0] == pytest.approx((rate * (b - a) / ratio).max(), rel=1e-10)
+
+
+def het_row(nb, coupling, rng, kappa2=0.03):
+    """A kernel parameter row with per-block columns (random unequal blocks)."""
+    p = np.zeros(kernels.N_PARAMS + kernels.N_BLOCK_PARAMS * nb)
+    p[kernels.P_KAPPA2] = kappa2
+    p[kernels.P_ETA], p[kernels.P_MASS] = ETA_HAT, MASS_HAT
+    p[kernels.P_COUPLING] = COUPLING_CODES[coupling]
+    blocks = {
+        kernels.B_A: rng.uniform(0.02, 0.04, nb),
+        kernels.B_B: rng.uniform(0.06, 0.1, nb),
+        kernels.B_KAPPA1: rng.uniform(0.03, 0.06, nb),
+        kernels.B_RATE: rng.uniform(0.6, 1.5, nb),
+    }
+    for k, v in blocks.items():
+        p[kernels.N_PARAMS + k * nb : kernels.N_PARAMS + (k + 1) * nb] = v
+    return p, blocks
+
+
+def kernel_rhs(y, p, model_name, law, nb):
+    out = np.empty_like(y)
+    law_code = kernels.AGING if law == "aging" else kernels.SLIP
+    kernels.rhs(y, p, MODEL_CODES[model_name], law_code, nb, np.empty(nb), out)
+    return out
+
+
+def fd_jacobian(y, p, model_name, law, nb, h=1e-6):
+    """Central differences of the kernels' rhs (error ~h² ≈ 1e-12 × third derivatives)."""
+    n = y.size
+    jac = np.empty((n, n))
+    for j in range(n):
+        dy = np.zeros(n)
+        dy[j] = h
+        jac[:, j] = (kernel_rhs(y + dy, p, model_name, law, nb)
+                     - kernel_rhs(y - dy, p, model_name, law, nb)) / (2 * h)  # fmt: skip
+    return jac
+
+
+@pytest.mark.parametrize("model_name, coupling, nb", CASES)
+def test_steady_jacobian_linearises_the_kernels(model_name, coupling, nb):
+    """linear.steady_jacobian (written from the linearised equations) equals finite
+    differences of kernels.rhs at steady sliding, for unequal blocks."""
+    p, blk = het_row(nb, coupling, np.random.default_rng(nb))
+    n_vars = 3 * nb if model_name == "inertial" else 2 * nb
+    fd = fd_jacobian(np.zeros(n_vars), p, model_name, "aging", nb)
+    ex = extras(model_name)
+    jac = linear.steady_jacobian(
+        model_name, blk[kernels.B_A], blk[kernels.B_B], blk[kernels.B_KAPPA1],
+        blk[kernels.B_RATE], p[kernels.P_KAPPA2], linear.laplacian(nb, coupling), **ex,
+    )  # fmt: skip
+    np.testing.assert_allclose(jac, fd, atol=1e-6 * np.abs(fd).max())  # FD error ~1e-9
+
+
+@pytest.mark.parametrize("law", ["aging", "slip"])
+@pytest.mark.parametrize("model_name, coupling, nb", CASES)
+def test_kernel_jacobian_with_couplings_and_unequal_blocks(model_name, coupling, nb, law):
+    """The analytic Jacobian of the Rosenbrock stepper matches finite differences of the
+    rhs away from steady sliding, for every coupling with per-block parameters."""
+    rng = np.random.default_rng(100 + nb)
+    p, _ = het_row(nb, coupling, rng)
+    n_vars = 3 * nb if model_name == "inertial" else 2 * nb
+    y = rng.uniform(-0.5, 0.5, n_vars)
+    f = kernel_rhs(y, p, model_name, law, nb)
+    jac = np.empty((n_vars, n_vars))
+    law_code = kernels.AGING if law == "aging" else kernels.SLIP
+    kernels.jacobian(y, f, p, MODEL_CODES[model_name], law_code, nb, np.empty(nb), jac)
+    fd = fd_jacobian(y, p, model_name, law, nb)
+    np.testing.assert_allclose(jac, fd, atol=1e-6 * np.abs(fd).max())  # FD error ~1e-9
+
+
+@pytest.mark.parametrize("coupling", ["chain", "ring", "all"])
+def test_kernel_rhs_matches_a_laplacian_reference(coupling):
+    """kernels.rhs with per-block columns against the log form written with the
+    Laplacian matrix: ℓ_i' = [κ1_i (1 − e^ℓi) − κ2 Σ_j L_ij e^ℓj − B_i r_i ψ̃_i'] / A_i."""
+    nb = 5
+    rng = np.random.default_rng(7)
+    p, blk = het_row(nb, coupling, rng)
+    y = rng.uniform(-1.0, 1.0, 2 * nb)
+    v = np.exp(y[:nb])
+    dpsi = blk[kernels.B_RATE] * (np.exp(-y[nb:]) - v)
+    load = (
+        blk[kernels.B_KAPPA1] * (1 - v) - p[kernels.P_KAPPA2] * linear.laplacian(nb, coupling) @ v
+    )
+    want = np.concatenate([(load - blk[kernels.B_B] * dpsi) / blk[kernels.B_A], dpsi])
+    np.testing.assert_allclose(kernel_rhs(y, p, "quasi-static", "aging", nb), want, rtol=1e-12)
