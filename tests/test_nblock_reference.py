@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 from conftest import PAPER_A, PAPER_B, log_form_rhs
-from nblock_reference import COUPLINGS, Chain, fd_jacobian, laplacian, run, start_state
+from nblock_reference import COUPLINGS, FAST_CALL, Chain, fd_jacobian, laplacian, run, start_state
 from nblock_reference import window_amplitudes as amplitudes
 
 A, B = PAPER_A, PAPER_B
@@ -153,9 +153,6 @@ def test_runaway_times_of_the_brief(ratio, tau):
 
 #: The issue's three-block chain: D0 per block (µm), k2/W (µm⁻¹), paper A, B.
 CHAIN_D0, CHAIN_K2 = [1.0, 1.3, 0.8], 0.02
-#: Rate/state tolerances of the runs below: rtol 1e-8 gives the cycle amplitudes of
-#: DOP853 rtol 1e-10 and 1e-12 to 1e-6 (checked once, 2000 D0/V at 0.99 Kc).
-FAST = {"rtol": 1e-8, "atol": 1e-10}
 
 
 def heterogeneous_chain(D0=CHAIN_D0):
@@ -188,7 +185,7 @@ def test_unequal_chain_below_its_kc_is_bounded(D0, ratio, t_end, printed):
     prints it (section 4, LSODA rtol 1e-10, a separate computation). Values here:
     0.78617, 1.22126; four blocks 1.93960, 2.88587."""
     chain, kc = heterogeneous_chain(D0)
-    sol, t_runaway = run(chain.with_K(ratio * kc), start_state(len(D0)), t_end, **FAST)
+    sol, t_runaway = run(chain.with_K(ratio * kc), start_state(len(D0)), t_end, **FAST_CALL)
     assert t_runaway is None
     amplitude, _ = amplitudes(chain, sol, t_end - 100.0)
     assert abs(amplitude - float(printed)) <= 0.005, amplitude
@@ -197,7 +194,7 @@ def test_unequal_chain_below_its_kc_is_bounded(D0, ratio, t_end, printed):
 def test_unequal_chain_above_its_kc_decays():
     """1 % above its Kc the same start decays at ~0.009 per D0/V (the slowest mode)."""
     chain, kc = heterogeneous_chain()
-    sol, t_runaway = run(chain.with_K(1.01 * kc), start_state(3), 600.0, **FAST)
+    sol, t_runaway = run(chain.with_K(1.01 * kc), start_state(3), 600.0, **FAST_CALL)
     early, _ = amplitudes(chain, sol, 100.0)
     late, _ = amplitudes(chain, sol, 500.0)
     assert t_runaway is None and late < 0.5 * early
@@ -210,7 +207,7 @@ def test_bounded_cycle_does_not_depend_on_the_start():
     rng = np.random.default_rng(0)
     for _ in range(4):
         y0 = start_state(3, 1 + 0.1 * rng.uniform(-1, 1, 3), 1 + 0.1 * rng.uniform(-1, 1, 3))
-        sol, t_runaway = run(chain.with_K(0.97 * kc), y0, 400.0, **FAST)
+        sol, t_runaway = run(chain.with_K(0.97 * kc), y0, 400.0, **FAST_CALL)
         assert t_runaway is None
         assert abs(amplitudes(chain, sol, 300.0)[0] - 1.2213) < 1e-4
 
@@ -221,10 +218,10 @@ def test_identical_blocks_run_away_at_the_same_ratio():
     the test above run away too, by τ = 300 (observed 188–276 over six starts)."""
     D0 = np.mean(CHAIN_D0)
     chain = Chain(A, B, D0, 0.97 * C / D0, CHAIN_K2, n_blocks=3)
-    _, t_runaway = run(chain, start_state(3), 1000.0, **FAST)
+    _, t_runaway = run(chain, start_state(3), 1000.0, **FAST_CALL)
     assert t_runaway is not None and abs(t_runaway - 258.6) < 0.1
     rng = np.random.default_rng(0)
     for _ in range(4):
         y0 = start_state(3, 1 + 0.1 * rng.uniform(-1, 1, 3), 1 + 0.1 * rng.uniform(-1, 1, 3))
-        _, t_runaway = run(chain, y0, 1000.0, **FAST)
+        _, t_runaway = run(chain, y0, 1000.0, **FAST_CALL)
         assert t_runaway is not None and t_runaway < 300.0
