@@ -197,8 +197,9 @@ NBLOCK_SPREAD = 0.2
 NBLOCK_SEEDS = range(10)
 
 
-def critical_ratios(config, sizes=NBLOCK_SIZES, couplings=NBLOCK_COUPLINGS,
-                    spread=NBLOCK_SPREAD, seeds=NBLOCK_SEEDS):  # fmt: skip
+def critical_ratios(
+    config, sizes=NBLOCK_SIZES, couplings=NBLOCK_COUPLINGS, spread=NBLOCK_SPREAD, seeds=NBLOCK_SEEDS
+):
     """Critical stiffness of unequal blocks relative to identical blocks with their
     mean D0, (B − A)/⟨D0_i⟩, from the linear theory for every block count, coupling and
     spread seed (D0_i = D0 (1 + ``spread`` ξ_i)); ``config`` gives the other parameters.
@@ -221,11 +222,17 @@ def critical_ratios(config, sizes=NBLOCK_SIZES, couplings=NBLOCK_COUPLINGS,
                 kc_w = linear.theory(cfg, phys)["kappa_c"][0] / phys["D0"][0]
                 mean_d0 = heterogeneity.block_values(cfg, phys)["D0"][0].mean()
                 out[i, j, k] = kc_w * mean_d0 / (phys["B"][0] - phys["A"][0])
-    title = (f"D0 spread {spread:g} (uniform, seeds {seeds[0]}–{seeds[-1]}), "
-             f"k2/W = {float(raw['parameters']['k2_W']):g} µm⁻¹: Jacobian Kc")  # fmt: skip
-    return xr.DataArray(out, dims=("coupling", "blocks", "seed"), name="Kc_ratio",
-                        coords={"coupling": list(couplings), "blocks": list(sizes),
-                                "seed": list(seeds)}, attrs={"title": title})  # fmt: skip
+    title = (
+        f"D0 spread {spread:g} (uniform, seeds {seeds[0]}–{seeds[-1]}), "
+        f"k2/W = {float(raw['parameters']['k2_W']):g} µm⁻¹: Jacobian Kc"
+    )
+    return xr.DataArray(
+        out,
+        dims=("coupling", "blocks", "seed"),
+        name="Kc_ratio",
+        coords={"coupling": list(couplings), "blocks": list(sizes), "seed": list(seeds)},
+        attrs={"title": title},
+    )
 
 
 def figure_nblock(nblock="nblock", heterogeneous="heterogeneous", threads=None):
@@ -239,8 +246,10 @@ def figure_nblock(nblock="nblock", heterogeneous="heterogeneous", threads=None):
     sizes = critical_ratios(spread_config)
     spread = compute(spread_config, threads=threads, show_progress=False)
     coupling = compute(coupling_config, threads=threads, show_progress=False)
-    caption = ("identical blocks lose steady sliding at the one-block Kc for every N and "
-               "coupling; unequal ones at their own Kc, with bounded stick-slip below it")  # fmt: skip
+    caption = (
+        "identical blocks lose steady sliding at the one-block Kc for every N and "
+        "coupling; unequal ones at their own Kc, with bounded stick-slip below it"
+    )
     return plot_nblock(sizes, spread, coupling, caption)
 
 

@@ -672,8 +672,17 @@ def _dominant_regime_map(ax, ds):
     xe, ye = _edges(ds[xdim].values), _edges(y)
     ax.pcolormesh(xe, ye, dominant, cmap=cmap, norm=norm)
     for i, j in zip(*np.nonzero(fraction.max(axis=-1) < 1.0), strict=True):
-        ax.add_patch(Rectangle((xe[j], ye[i]), xe[j + 1] - xe[j], ye[i + 1] - ye[i],
-                               fill=False, hatch="///", edgecolor="white", linewidth=0))  # fmt: skip
+        ax.add_patch(
+            Rectangle(
+                (xe[j], ye[i]),
+                xe[j + 1] - xe[j],
+                ye[i + 1] - ye[i],
+                fill=False,
+                hatch="///",
+                edgecolor="white",
+                linewidth=0,
+            )
+        )
     if by_index:
         ax.set_yticks(y, [f"{v:g}" for v in ds[ydim].values])
     ax.xaxis.set_major_locator(MaxNLocator(5))
@@ -715,17 +724,18 @@ def plot_nblock(sizes, spread, coupling, caption=""):
     ax.set_title(sizes.attrs.get("title", ""), fontsize=9)
     ax.legend(fontsize=8)
 
-    handles = [Patch(color=REGIME_COLOURS[name], label=name.replace("_", "-"))
-               for name in REGIMES]  # fmt: skip
-    handles.append(Patch(facecolor="white", edgecolor="k", hatch="///",
-                         label="starts disagree"))  # fmt: skip
+    handles = [Patch(color=REGIME_COLOURS[name], label=name.replace("_", "-")) for name in REGIMES]
+    handles.append(Patch(facecolor="white", edgecolor="k", hatch="///", label="starts disagree"))
     kc_style = {"color": "k", "ls": "--", "lw": 1.5}
     rows = {}
     for ax, ds, title in ((axes[1], spread, "unequal D0"), (axes[2], coupling, "coupling")):
         rows[title] = _dominant_regime_map(ax, ds)
         _critical_line(ax, ds, rows[title], **kc_style)
-        ax.set_title(f"{ds.attrs['blocks']} blocks, {ds.attrs['coupling'].split(',')[0]}: "
-                     f"{title}; regime of most of {ds.sizes['member']} starts", fontsize=9)  # fmt: skip
+        ax.set_title(
+            f"{ds.attrs['blocks']} blocks, {ds.attrs['coupling'].split(',')[0]}: "
+            f"{title}; regime of most of {ds.sizes['member']} starts",
+            fontsize=9,
+        )
     mean_d0 = spread["D0_block"].isel(K_W=0).mean("block").values
     values = parameter_values(spread)
     kc_mean = (values["B"] - values["A"]) / mean_d0

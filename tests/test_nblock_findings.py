@@ -39,9 +39,16 @@ def engine(blocks, parameters, k_w, t_end=3000.0, **sections):
     merged into the paper's, K/W values ``k_w`` (µm⁻¹; None: K_W is in ``parameters``
     and ``sections`` give the sweep), start v/V = 1, Φ/Φss = 1.01."""
     axes = {"K_W": None if k_w is None else [float(k) for k in k_w]}
-    cfg = config_dict({"blocks": blocks, "coupling": sections.pop("coupling", "chain"),
-                       "parameters": parameters, "sweep": axes,
-                       "integrator": {"t_end": t_end}}, **sections)  # fmt: skip
+    cfg = config_dict(
+        {
+            "blocks": blocks,
+            "coupling": sections.pop("coupling", "chain"),
+            "parameters": parameters,
+            "sweep": axes,
+            "integrator": {"t_end": t_end},
+        },
+        **sections,
+    )
     return sweep.run(cfg, progress=False)
 
 
@@ -84,8 +91,9 @@ def test_unequal_chain_cycle_matches_scipy(unequal_chain, index):
     assert t_runaway is None
     ref = cycle_features(CHAIN, sol, CYCLE_T_END[ratio] - 100.0)
     assert regime_names(row) == ["stick_slip"]
-    np.testing.assert_allclose([row.lnv_max, row.lnv_min], [ref["lnv_max"], ref["lnv_min"]],
-                               atol=1e-3)  # fmt: skip
+    np.testing.assert_allclose(
+        [row.lnv_max, row.lnv_min], [ref["lnv_max"], ref["lnv_min"]], atol=1e-3
+    )
     np.testing.assert_allclose(row.period / TIME_UNIT, ref["period"], rtol=1e-3)
     np.testing.assert_allclose(row.sync_order, ref["sync_order"], atol=1e-3)
     assert ref["slip_participation"] == float(row.slip_participation) == 1.0
@@ -98,8 +106,13 @@ def test_unequal_chain_is_bounded_from_every_start(unequal_chain):
     regime_fraction of stick_slip 1 at 0.97 and 0.99."""
     ds = unequal_chain[1]
     np.testing.assert_array_equal(ds.regime_fraction.sel(regime_name="stick_slip"), 1.0)
-    offsets = ensemble_offsets(sweep.load_config(config_dict(
-        {"blocks": 3, "initial": ENSEMBLE, "parameters": {"D0": CHAIN_D0, "k2_W": CHAIN_K2}})))  # fmt: skip
+    offsets = ensemble_offsets(
+        sweep.load_config(
+            config_dict(
+                {"blocks": 3, "initial": ENSEMBLE, "parameters": {"D0": CHAIN_D0, "k2_W": CHAIN_K2}}
+            )
+        )
+    )
     for offset in offsets:
         y0 = start_state(3, 1.0, 1.01) + offset
         _, t_runaway = run(CHAIN.with_K(0.97 * KC_CHAIN), y0, 400.0, **FAST_CALL)
@@ -132,8 +145,14 @@ def test_two_block_anti_phase_cycle_n_block_outputs():
     chain = Chain(A, B, 1.0, 0.99 * (B - A), K2_C, n_blocks=2)
     sol, _ = run(chain, ref["y0"], 20 * ref["period"], rtol=1e-12, atol=1e-14)
     want = cycle_features(chain, sol, 2 * ref["period"], dt=5e-4)
-    ds = engine(2, {"k2_W": K2_C}, [0.99 * (B - A)], t_end=8000.0, initial=ANTI,
-                classification={"max_t_end": 8000.0})  # fmt: skip
+    ds = engine(
+        2,
+        {"k2_W": K2_C},
+        [0.99 * (B - A)],
+        t_end=8000.0,
+        initial=ANTI,
+        classification={"max_t_end": 8000.0},
+    )
     row = ds.isel(K_W=0)
     assert regime_names(row) == ["stick_slip"]
     np.testing.assert_allclose(row.sync_order, want["sync_order"], atol=1e-3)
@@ -157,11 +176,25 @@ def test_critical_stiffness_of_lists(blocks, coupling, lists):
     at which the reference's Jacobian turns unstable, K_i/K fixed; to 1e-9 (both bisect
     to ~1e-15)."""
     params = {"K_W": 0.05} | lists
-    ds = engine(blocks, params, None, t_end=1.0, coupling=coupling, sweep={"k2_W": [0.03]},
-                classification={"max_t_end": 1.0})  # fmt: skip
+    ds = engine(
+        blocks,
+        params,
+        None,
+        t_end=1.0,
+        coupling=coupling,
+        sweep={"k2_W": [0.03]},
+        classification={"max_t_end": 1.0},
+    )
     k_w = np.asarray(lists.get("K_W", 1.0), float)
-    chain = Chain(lists.get("A", A), lists.get("B", B), lists.get("D0", 1.0), k_w, 0.03, coupling,
-                  n_blocks=blocks)  # fmt: skip
+    chain = Chain(
+        lists.get("A", A),
+        lists.get("B", B),
+        lists.get("D0", 1.0),
+        k_w,
+        0.03,
+        coupling,
+        n_blocks=blocks,
+    )
     want = chain.critical_K_W(factors=k_w / k_w.mean())
     np.testing.assert_allclose(ds.critical_K_W, want, rtol=1e-9)
 
@@ -181,14 +214,22 @@ def block_chain(row, coupling, k2_w):
     return Chain(k2_W=k2_w, coupling=coupling, **blocks), blocks["K_W"] / float(row.K_W)
 
 
-@pytest.mark.parametrize("blocks, coupling, spread", SPREADS,
-                         ids=[f"{c}-{n}" for n, c, _ in SPREADS])  # fmt: skip
+@pytest.mark.parametrize(
+    "blocks, coupling, spread", SPREADS, ids=[f"{c}-{n}" for n, c, _ in SPREADS]
+)
 def test_critical_stiffness_of_seeded_spreads(blocks, coupling, spread):
     """Seeded spreads: the per-block values the engine stores are x (1 + s ξ_i) with
     |ξ_i| ≤ 1 (uniform), and its critical_K_W is the reference's for those values
     (1e-9)."""
-    ds = engine(blocks, {"k2_W": 0.03}, [0.05], t_end=1.0, coupling=coupling, spread=spread,
-                classification={"max_t_end": 1.0})  # fmt: skip
+    ds = engine(
+        blocks,
+        {"k2_W": 0.03},
+        [0.05],
+        t_end=1.0,
+        coupling=coupling,
+        spread=spread,
+        classification={"max_t_end": 1.0},
+    )
     row = ds.isel(K_W=0)
     chain, factors = block_chain(row, coupling, 0.03)
     common = {"A": A, "B": B, "D0": 1.0, "K_W": 0.05}
@@ -203,8 +244,15 @@ def test_spread_axis_scales_one_pattern():
     """A spread_D0 axis scales one realisation: (D0_i/D0 − 1)/s is the same at every s,
     and critical_K_W follows the reference at every s."""
     sizes = [0.1, 0.2, 0.3]
-    ds = engine(8, {"k2_W": 0.02}, [0.05], t_end=1.0, spread={"seed": 3},
-                sweep={"spread_D0": sizes}, classification={"max_t_end": 1.0})  # fmt: skip
+    ds = engine(
+        8,
+        {"k2_W": 0.02},
+        [0.05],
+        t_end=1.0,
+        spread={"seed": 3},
+        sweep={"spread_D0": sizes},
+        classification={"max_t_end": 1.0},
+    )
     rows = ds.isel(K_W=0)
     xi = (rows.D0_block.values - 1.0) / np.array(sizes)[:, None]
     np.testing.assert_allclose(xi, np.broadcast_to(xi[0], xi.shape), rtol=1e-12)
@@ -222,17 +270,31 @@ TRANSITIONS = [
 ]
 
 
-@pytest.mark.parametrize("blocks, coupling, extra", TRANSITIONS,
-                         ids=[f"{c}-{n}" for n, c, _ in TRANSITIONS])  # fmt: skip
+@pytest.mark.parametrize(
+    "blocks, coupling, extra", TRANSITIONS, ids=[f"{c}-{n}" for n, c, _ in TRANSITIONS]
+)
 def test_unequal_blocks_switch_within_one_grid_step_of_the_reference(blocks, coupling, extra):
     """Steady at 1.01 and 1.03 of the reference's Kc, not steady at 0.97 and 0.99 (a grid
     step of 2 % around it), start v/V = 1, Φ/Φss = 1.01 on every block."""
-    probe = engine(blocks, {"k2_W": 0.02} | extra.get("parameters", {}), [0.05], t_end=1.0,
-                   coupling=coupling, spread=extra.get("spread"),
-                   classification={"max_t_end": 1.0})  # fmt: skip
+    probe = engine(
+        blocks,
+        {"k2_W": 0.02} | extra.get("parameters", {}),
+        [0.05],
+        t_end=1.0,
+        coupling=coupling,
+        spread=extra.get("spread"),
+        classification={"max_t_end": 1.0},
+    )
     chain, factors = block_chain(probe.isel(K_W=0), coupling, 0.02)
     kc = chain.critical_K_W(factors)
     grid = [kc * f for f in (0.97, 0.99, 1.01, 1.03)]
-    got = regime_names(engine(blocks, {"k2_W": 0.02} | extra.get("parameters", {}), grid,
-                              coupling=coupling, spread=extra.get("spread")))  # fmt: skip
+    got = regime_names(
+        engine(
+            blocks,
+            {"k2_W": 0.02} | extra.get("parameters", {}),
+            grid,
+            coupling=coupling,
+            spread=extra.get("spread"),
+        )
+    )
     assert got[2:] == ["steady", "steady"] and "steady" not in got[:2], got

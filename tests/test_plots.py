@@ -253,8 +253,9 @@ def test_make_figures_on_small_configs(tmp_path):
         path = tmp_path / f"{config.name}.yaml"
         path.write_text(config.text)
         paths.append(path)
-    out = make_figures(paths[0], paths[1], (paths[2],), nblock=paths[3:],
-                       out_dir=tmp_path / "figures", threads=1)  # fmt: skip
+    out = make_figures(
+        paths[0], paths[1], (paths[2],), nblock=paths[3:], out_dir=tmp_path / "figures", threads=1
+    )
     assert [p.stem for p in out] == list(PAPER_FIGURES)
     for path in out:
         assert_png(path)
@@ -263,10 +264,16 @@ def test_make_figures_on_small_configs(tmp_path):
 def small_nblock_configs():
     """configs/nblock.yaml and configs/heterogeneous.yaml on 2 x 2 grids that include
     points where their four starts disagree (in the full maps)."""
-    nblock = small(CONFIGS / "nblock.yaml", "nblock_small",
-                   sweep={"K_W": [0.0495, 0.054], "k2_W": [0.01, 0.03]})  # fmt: skip
-    heterogeneous = small(CONFIGS / "heterogeneous.yaml", "heterogeneous_small",
-                          sweep={"K_W": [0.0435, 0.054], "spread_D0": [0.0, 0.25]})  # fmt: skip
+    nblock = small(
+        CONFIGS / "nblock.yaml",
+        "nblock_small",
+        sweep={"K_W": [0.0495, 0.054], "k2_W": [0.01, 0.03]},
+    )
+    heterogeneous = small(
+        CONFIGS / "heterogeneous.yaml",
+        "heterogeneous_small",
+        sweep={"K_W": [0.0435, 0.054], "spread_D0": [0.0, 0.25]},
+    )
     return nblock, heterogeneous
 
 
@@ -279,8 +286,11 @@ def test_nblock_figure_draws_the_ensemble_and_kc():
     from sweep.plots import plot_nblock
 
     nblock, heterogeneous = (compute(c, show_progress=False) for c in small_nblock_configs())
-    sizes = xr.DataArray(np.ones((2, 3, 2)), dims=("coupling", "blocks", "seed"),
-                         coords={"coupling": ["chain", "all"], "blocks": [3, 4, 8]})  # fmt: skip
+    sizes = xr.DataArray(
+        np.ones((2, 3, 2)),
+        dims=("coupling", "blocks", "seed"),
+        coords={"coupling": ["chain", "all"], "blocks": [3, 4, 8]},
+    )
     fig = plot_nblock(sizes, heterogeneous, nblock)
     assert len(fig.axes[0].get_lines()) == 3  # two couplings and the identical-block line
     for ax, ds in zip(fig.axes[1:], (heterogeneous, nblock), strict=True):
@@ -290,8 +300,9 @@ def test_nblock_figure_draws_the_ensemble_and_kc():
         kc = ds.critical_K_W.isel(K_W=0).values
         np.testing.assert_array_equal(ax.get_lines()[0].get_xdata(), kc)
         dominant = ds.regime_fraction.argmax("regime_name").transpose(*ax_dims(ds)).values
-        np.testing.assert_array_equal(np.asarray(ax.collections[0].get_array()).ravel(),
-                                      dominant.ravel())  # fmt: skip
+        np.testing.assert_array_equal(
+            np.asarray(ax.collections[0].get_array()).ravel(), dominant.ravel()
+        )
 
 
 def ax_dims(ds):
