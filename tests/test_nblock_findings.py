@@ -100,21 +100,20 @@ def test_unequal_chain_cycle_matches_scipy(unequal_chain, index):
     np.testing.assert_allclose(row.critical_K_W, KC_CHAIN, rtol=1e-9)
 
 
+def ensemble_starts():
+    """The (ℓ, ψ) starts of the :data:`ENSEMBLE` members of three blocks: the engine's
+    offsets (``grid.ensemble_offsets``) about v/V = 1, Φ/Φss = 1.01."""
+    cfg = config_dict({"blocks": 3, "initial": ENSEMBLE, "parameters": {"k2_W": CHAIN_K2}})
+    return start_state(3, 1.0, 1.01) + ensemble_offsets(sweep.load_config(cfg))
+
+
 def test_unequal_chain_is_bounded_from_every_start(unequal_chain):
     """Every ensemble start (the engine's offsets, ``grid.ensemble_offsets``) stays
     bounded in SciPy (DOP853 rtol 1e-8 to 400 units, 0.97) and the engine agrees:
     regime_fraction of stick_slip 1 at 0.97 and 0.99."""
     ds = unequal_chain[1]
     np.testing.assert_array_equal(ds.regime_fraction.sel(regime_name="stick_slip"), 1.0)
-    offsets = ensemble_offsets(
-        sweep.load_config(
-            config_dict(
-                {"blocks": 3, "initial": ENSEMBLE, "parameters": {"D0": CHAIN_D0, "k2_W": CHAIN_K2}}
-            )
-        )
-    )
-    for offset in offsets:
-        y0 = start_state(3, 1.0, 1.01) + offset
+    for y0 in ensemble_starts():
         _, t_runaway = run(CHAIN.with_K(0.97 * KC_CHAIN), y0, 400.0, **FAST_CALL)
         assert t_runaway is None
 
@@ -122,7 +121,8 @@ def test_unequal_chain_is_bounded_from_every_start(unequal_chain):
 def test_identical_blocks_with_the_mean_d0_run_away():
     """Identical blocks with D0 = 1.0333 µm (the chain's mean) at 0.97 of their Kc =
     (B − A)/D0: runaway, at SciPy's time (258.59 units in phase: DOP853 rtol 1e-10; to
-    1e-4, the engine's cap crossing is interpolated) and from every ensemble start."""
+    1e-4, the engine's cap crossing is interpolated) and from every ensemble start, as
+    in SciPy (DOP853 rtol 1e-8)."""
     d0 = float(np.mean(CHAIN_D0))
     k_w = 0.97 * (B - A) / d0
     ds = engine(3, {"D0": d0, "k2_W": CHAIN_K2}, [k_w], initial=ENSEMBLE)
@@ -132,14 +132,16 @@ def test_identical_blocks_with_the_mean_d0_run_away():
     assert regime_names(ds_in_phase) == ["runaway"]
     np.testing.assert_allclose(ds_in_phase.t_runaway / TIME_UNIT, t_runaway, rtol=1e-4)
     assert regime_names(ds) == ["runaway"] * ENSEMBLE["ensemble"]
+    for y0 in ensemble_starts():
+        assert run(chain, y0, 1000.0, **FAST_CALL)[1] is not None
 
 
 def test_two_block_anti_phase_cycle_n_block_outputs():
     """Finding 1 through the N-block interface (``coupling: chain``): K/Kc = 0.99, k2/W =
     0.001 µm⁻¹, anti-phase start, t_end 8000 as test_classification. Its SciPy cycle
     (``test_classification.two_block_cycle``) has max |ℓ1 − ℓ0| 0.84: the blocks slip at
-    different times. R from the cycle's phase lag (SciPy, DOP853 rtol 1e-12 over one
-    period) to 1e-3; one block per slip event (slip_participation 0.5) since v_1 stays
+    different times. R from the cycle's phase lag (SciPy, DOP853 rtol 1e-12 over 18
+    periods) to 1e-3; one block per slip event (slip_participation 0.5) since v_1 stays
     below 2 V while v_0 slips (checked on the cycle)."""
     ref = two_block_cycle(0.99)
     chain = Chain(A, B, 1.0, 0.99 * (B - A), K2_C, n_blocks=2)
