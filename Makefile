@@ -25,20 +25,20 @@ test: $(STAMP)
 # The kernels as plain Python, so they count in coverage runs: the tests of the
 # model, kernels, grid, files and CLI (the long regularised, batch and figure runs
 # would take hours without the JIT).
-NOJIT_TESTS := tests/test_model.py tests/test_kernels.py tests/test_grid.py \
+NOJIT_TESTS := tests/test_physics.py tests/test_kernels.py tests/test_grid.py \
 	tests/test_cli.py tests/test_config.py tests/test_dataset.py tests/test_accelerate.py
 test-nojit: $(STAMP)
 	NUMBA_DISABLE_JIT=1 $(PY) -m pytest -q $(NOJIT_TESTS)
 
 bench: $(STAMP)
-	$(PY) -m sweep.bench
+	$(PY) benchmarks/bench.py
 
 figures: $(STAMP)
 	$(PY) -m sweep figures --dpi 100
 
 lint: $(STAMP)
-	$(PY) -m ruff check sweep tests
-	$(PY) -m ruff format --check sweep tests
+	$(PY) -m ruff check sweep tests benchmarks
+	$(PY) -m ruff format --check sweep tests benchmarks
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache build *.egg-info

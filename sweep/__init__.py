@@ -14,14 +14,13 @@ figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
 :func:`plot_trace` (``sweep/plots.py``); traces: ``sweep.trace.compute_trace``.
 """
 
-__version__ = "0.1.0"
-
 from . import examples
+from ._version import __version__ as __version__
 from .api import run
-from .config import Config, ConfigError, load_config, parse_config, with_changes
+from .config import Config, load_config, parse_config, with_changes
+from .errors import ConfigError, InputError, RunError, SweepError
 
 _LAZY = {
-    "RunError": "runner",
     "plot_result": "plots",
     "plot_variable": "plots",
     "plot_bifurcation": "plots",
@@ -42,6 +41,7 @@ def __getattr__(name):
 __all__ = [
     "Config",
     "ConfigError",
+    "InputError",
     "RunError",
     "examples",
     "load_config",
@@ -52,5 +52,6 @@ __all__ = [
     "plot_variable",
     "run",
     "save_figure",
+    "SweepError",
     "with_changes",
 ]

@@ -4,7 +4,8 @@ Thin functions over the same pieces the CLI uses; nothing here writes a file.
 ``sweep.load_config`` and ``sweep.with_changes`` come from ``sweep/config.py``.
 """
 
-from .config import ConfigError, load_config
+from .config import load_config
+from .errors import InputError
 
 
 def run(config, *, threads=None, client=None, progress=True):
@@ -34,7 +35,7 @@ def run(config, *, threads=None, client=None, progress=True):
         (``<mapping>`` for a mapping). Save it with ``sweep.dataset.write_netcdf``
         (atomic) or ``ds.to_netcdf``.
 
-    Raises ``ConfigError`` for a bad config or arguments and ``RunError`` when
+    Raises ``ConfigError`` for a bad config, ``InputError`` for bad arguments and ``RunError`` when
     Dask is missing or the cluster cannot be reached.
     """
     from contextlib import nullcontext
@@ -43,7 +44,7 @@ def run(config, *, threads=None, client=None, progress=True):
 
     config = load_config(config)
     if client is not None and threads is not None:
-        raise ConfigError(config.source, ["threads is for numba threads; Dask workers own theirs"])
+        raise InputError(config.source, ["threads is for numba threads; Dask workers own theirs"])
     _check_threads(config.source, threads)
     if client is None:
         backend = nullcontext(None)
@@ -58,10 +59,10 @@ def run(config, *, threads=None, client=None, progress=True):
 
 
 def _check_threads(source, threads):
-    """Raise :class:`ConfigError` unless ``threads`` is None or in [1, cores]."""
+    """Raise :class:`~sweep.errors.InputError` unless ``threads`` is None or in [1, cores]."""
     import numba
 
     top = numba.config.NUMBA_NUM_THREADS
     ok = threads is None or (isinstance(threads, int) and 1 <= threads <= top)
     if not ok or isinstance(threads, bool):
-        raise ConfigError(source, [f"threads must be an integer in [1, {top}], got {threads!r}"])
+        raise InputError(source, [f"threads must be an integer in [1, {top}], got {threads!r}"])

@@ -14,12 +14,12 @@ import numpy as np
 import xarray as xr
 
 from . import kernels
-from .config import ConfigError
 from .dataset import stored_config
+from .errors import InputError
 from .extend import load_result
-from .grid import system_arrays
-from .model import PARAMETERS
-from .runner import integrate_chunks
+from .grid import build_grid
+from .physics import PARAMETERS
+from .runner import integrate_in_memory
 from .variables import REGIMES
 
 
@@ -88,14 +88,12 @@ def audit_result(result, sample=20, near_kc=0.01, t_end=None, seed=0, threads=No
     if not 0 < t_end < np.inf:
         problems.append(f"--t-end must be in (0, inf), got {t_end}")
     if problems:
-        raise ConfigError(source, problems)
+        raise InputError(source, problems)
     rows, near = audit_points(ds, sample, near_kc, seed)
     longer = audit_config(config, t_end)
-    params, y0, settings, _ = system_arrays(longer)
     if rows.size:
-        results, _ = integrate_chunks(
-            np.ascontiguousarray(params[rows]), np.ascontiguousarray(y0[rows]), settings, threads
-        )
+        picked = build_grid(longer).rows(rows)
+        results, _ = integrate_in_memory(picked.params, picked.y0, picked.settings, threads)
     else:
         results = np.empty((0, kernels.N_RESULTS))
     regime_file = ds["regime"].values.ravel()[rows]

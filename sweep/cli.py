@@ -10,7 +10,7 @@ import logging
 import shlex
 import sys
 
-from .config import ConfigError
+from .errors import InputError, RunError
 
 EXIT_BAD_INPUT = 2
 
@@ -78,7 +78,7 @@ def _shard(text):
 
 
 def build_parser():
-    from . import __version__
+    from ._version import __version__
 
     parser = argparse.ArgumentParser(
         prog="python -m sweep",
@@ -250,8 +250,10 @@ def summary_lines(ds):
 
 
 def cmd_run(args):
+    from .backends import Resources
     from .config import load_config
-    from .runner import Interrupted, run_sweep, stop_on_signals
+    from .errors import Interrupted
+    from .runner import run_sweep, stop_on_signals
 
     config = load_config(args.config)
     if args.threads and (args.scheduler or args.dask_local):
@@ -262,13 +264,11 @@ def cmd_run(args):
             result = run_sweep(
                 config,
                 out=args.out,
-                threads=args.threads,
+                resources=Resources(args.threads, args.scheduler, args.dask_local),
                 chunk_size=args.chunk_size,
-                show_progress=not args.quiet,
                 resume=args.resume,
-                scheduler=args.scheduler,
-                dask_local=args.dask_local,
                 shard=args.shard,
+                show_progress=not args.quiet,
                 stop=stop,
             )
     except Interrupted as exc:
@@ -373,14 +373,14 @@ def cmd_merge(args):
 def _plotted(source, draw, out, dpi):
     """Save the figure ``draw()`` to ``out`` after checking ``out``; a result it cannot
     draw is bad input."""
-    from .config import check_writable
     from .plots import FORMATS, save_figure
+    from .store import check_writable
 
     check_writable(out, source, "--out", tuple(FORMATS))
     try:
         fig = draw()
     except ValueError as exc:
-        raise ConfigError(source, [f"cannot plot: {exc}"]) from None
+        raise InputError(source, [f"cannot plot: {exc}"]) from None
     return save_figure(fig, out, dpi)
 
 
@@ -415,7 +415,7 @@ def cmd_trace(args):
     names = [name for name, _ in args.at]
     twice = sorted({name for name in names if names.count(name) > 1})
     if twice:
-        raise ConfigError(args.config, [f"--at gives {', '.join(twice)} more than once"])
+        raise InputError(args.config, [f"--at gives {', '.join(twice)} more than once"])
     ds, nc, png = run_trace(
         config, dict(args.at), args.out, args.png, args.t_end, args.points, args.dpi
     )
@@ -480,14 +480,12 @@ def _log_to_stderr(quiet):
 
 
 def main(argv=None):
-    from .runner import RunError
-
     args = build_parser().parse_args(argv)
     args.argv = sys.argv[1:] if argv is None else list(argv)
     _log_to_stderr(quiet=getattr(args, "quiet", False))
     try:
         return COMMANDS[args.command](args)
-    except ConfigError as exc:
+    except InputError as exc:  # ConfigError included
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except RunError as exc:

@@ -10,9 +10,7 @@ Nothing downstream reads raw dicts: it gets a :class:`Config`.
 
 import dataclasses
 import math
-import os
 import re
-import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,8 +18,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from .errors import ConfigError
 from .heterogeneity import DISTRIBUTIONS, PER_BLOCK, SPREAD_PREFIX, spread_pattern
-from .model import MODELS, PARAMETERS, STATE_LAWS, interval_text
+from .physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
 
 METHODS = ("dopri5", "rk4", "rosenbrock")
 #: Default integrator per model where it is not dopri5: the inertial model is stiff
@@ -73,18 +72,9 @@ _Loader.add_implicit_resolver(
 )
 
 
-class ConfigError(ValueError):
-    """A config that cannot be run; ``problems`` lists every reason."""
-
-    def __init__(self, source, problems):
-        self.source = str(source)
-        self.problems = list(problems)
-        super().__init__("\n".join(f"{self.source}: {p}" for p in self.problems))
-
-
 @dataclass(frozen=True)
 class Axis:
-    """One sweep axis: a model parameter (see ``model.PARAMETERS``) and its values."""
+    """One sweep axis: a model parameter (see ``physics.PARAMETERS``) and its values."""
 
     name: str
     values: tuple
@@ -99,7 +89,7 @@ class Initial:
     ``ensemble``: number of random starts per grid point (0: the one start above);
     member m starts from ln(v/V) and ln(Φ/Φss) above plus independent uniform
     offsets in ±``amplitude``, drawn once from ``seed`` (the same M starts at every
-    grid point).
+    grid point); without an ensemble ``seed`` and ``amplitude`` are not used.
     """
 
     v_over_V: tuple
@@ -127,50 +117,78 @@ class Spread:
 
 
 @dataclass(frozen=True)
+class Setting:
+    """What one integrator or classification setting means, in what unit, and what is
+    allowed: an interval such as ``(0, 1)`` or ``[1, inf)`` for numbers and integers,
+    or a tuple of choices. Validation and its messages read it from here; the
+    default is the dataclass field's."""
+
+    doc: str
+    allowed: object = None
+    units: str = "1"
+
+    def bounds(self):
+        """``(low, low_open, high, high_open)`` of an interval ``allowed``."""
+        low, high = (float(x) for x in self.allowed[1:-1].split(","))
+        return low, self.allowed[0] == "(", high, self.allowed[-1] == ")"
+
+
+def setting(default, doc, allowed=None, units="1"):
+    """A dataclass field with its :class:`Setting` (the one place a setting is stated)."""
+    return dataclasses.field(default=default, metadata={"setting": Setting(doc, allowed, units)})
+
+
+@dataclass(frozen=True)
 class Integrator:
     """Integrator settings. ``t_end`` is in ``t_unit`` (``"D0/V"`` or ``"s"``); the step
     sizes ``dt`` and ``max_step`` resolve the dynamics, whose time scale is D0/V,
     so they are always in units of D0/V."""
 
-    method: str = "dopri5"  # dopri5 | rk4 | rosenbrock (the inertial model's default)
-    rtol: float = 1e-8
-    atol: float = 1e-10
-    dt: float = 0.01  # fixed step of rk4
+    method: str = setting("dopri5", "stepper (the inertial model's default: rosenbrock)",
+                          METHODS)  # fmt: skip
+    rtol: float = setting(1e-8, "relative tolerance of the adaptive methods", "(0, 1)")
+    atol: float = setting(1e-10, "absolute tolerance of the adaptive methods", "(0, inf)")
+    dt: float = setting(0.01, "fixed step of rk4", "(0, inf)", "D0/V")
     # Largest step of the adaptive methods (.inf: no cap). The cap keeps about ten
     # steps per linear period (4.87 D0/V for the paper's A, B): without it, once an
     # oscillation has decayed to round-off the steps outgrow the period and the
     # interpolant's round-off wiggles count as extrema (235 instead of 85 maxima per
     # run, 1.4x the time per step on K/Kc 0.8-1.2 to 2000 D0/V without early exit).
     # With early exit (the default) it costs nothing: 1950 vs 1947 steps per run.
-    max_step: float = 0.5
-    t_end: float = 3000.0
-    t_unit: str = "D0/V"
-    max_steps: int = 20_000_000  # step budget per run; past it the run is undecided
+    max_step: float = setting(0.5, "largest step of the adaptive methods (.inf: no cap)",
+                              "(0, inf)", "D0/V")  # fmt: skip
+    t_end: float = setting(3000.0, "end time", "(0, inf)", "t_unit")
+    t_unit: str = setting("D0/V", "unit of t_end and max_t_end", TIME_UNITS)
+    max_steps: int = setting(20_000_000, "step budget per run; past it the run is undecided",
+                             f"[1, {MAX_STEPS_LIMIT}]")  # fmt: skip
 
 
 @dataclass(frozen=True)
 class Classification:
     """How a run's oscillation becomes a regime (README: How a run is classified).
 
-    ``v_cap_over_V``: runaway once any v/V exceeds this. ``steady_amplitude``:
-    steady once every |ln v/V|, |ln Φ/Φss| (and inertial force) is below this
-    (where steady sliding is linearly stable). ``accuracy``: relative accuracy to
-    which the limit of the cycle-to-cycle sequence (zero, or a limit cycle's
-    features) must be known to settle a run. ``confirm_cycles``: consecutive
-    cycles that verdict must hold before a run stops early. ``max_t_end``: runs
-    still unsettled at ``integrator.t_end`` go on up to this time (same unit;
-    ``None``: ten times ``t_end``). ``early_exit``: stop each run once settled.
-    ``slip_v_over_V``: a block slips (for ``slip_participation``) while its v/V
-    exceeds this.
+    ``steady_amplitude`` applies only where steady sliding is linearly stable;
+    ``accuracy`` is the relative accuracy to which the limit of the cycle-to-cycle
+    sequence (zero, or a limit cycle's features) must be known to settle a run;
+    ``max_t_end`` (``None``: ten times ``integrator.t_end``) must be at least
+    ``integrator.t_end``.
     """
 
-    v_cap_over_V: float = 1e6
-    steady_amplitude: float = 1e-6
-    accuracy: float = 1e-3
-    confirm_cycles: int = 2
-    max_t_end: float = None
-    early_exit: bool = True
-    slip_v_over_V: float = 2.0
+    v_cap_over_V: float = setting(1e6, "runaway once any v/V exceeds this", "(1, inf)")
+    steady_amplitude: float = setting(
+        1e-6, "steady once every |ln v/V|, |ln Phi/Phi_ss| (and inertial force) is below this",
+        "(0, inf)",
+    )  # fmt: skip
+    accuracy: float = setting(1e-3, "relative accuracy of the extrapolated limit", "(0, 0.5]")
+    confirm_cycles: int = setting(2, "consecutive cycles a verdict must hold to stop early",
+                                  "[1, inf)")  # fmt: skip
+    max_t_end: float = setting(None, "unsettled runs go on up to this time", "(0, inf)",
+                               "t_unit")  # fmt: skip
+    early_exit: bool = setting(True, "stop each run as soon as its regime is settled",
+                               (True, False))  # fmt: skip
+    slip_v_over_V: float = setting(
+        2.0, "a block slips (slip_participation) while its v/V exceeds this", "(0, inf)"
+    )
 
 
 @dataclass(frozen=True)
@@ -321,6 +339,31 @@ class _Checker:
             if k not in allowed:
                 where = f"{key}.{k}" if key else str(k)
                 self.add(f"unknown key {where}; allowed keys: {', '.join(allowed)}")
+
+    def setting(self, value, key, kind, spec):
+        """``value`` of a setting of type ``kind`` checked against its :class:`Setting`."""
+        if kind is bool:
+            if not isinstance(value, bool):
+                self.add(f"{key} must be true or false, got {value!r}")
+                return None
+            return value
+        if kind is str:
+            return self.choice(value, key, spec.allowed)
+        low, low_open, high, high_open = spec.bounds()
+        if kind is int:
+            return self.integer(value, key, int(low), None if math.isinf(high) else int(high))
+        return self.number(value, key, low, low_open, high, high_open)
+
+    def section(self, spec, prefix, cls, defaults, given=None):
+        """Every setting of the dataclass ``cls`` read from ``spec`` (else ``defaults``)
+        and checked; ``given`` holds settings already read (skipped here)."""
+        values = dict(given or {})
+        for f in dataclasses.fields(cls):
+            if f.name not in values:
+                value = spec.get(f.name, getattr(defaults, f.name))
+                kind = type(f.default) if f.default is not None else float
+                values[f.name] = self.setting(value, prefix + f.name, kind, f.metadata["setting"])
+        return values
 
     def parameter(self, name, value, key):
         info = PARAMETERS[name]
@@ -794,9 +837,6 @@ def _parse_initial(c, raw, blocks):
     ensemble = c.integer(spec.get("ensemble", 0), "initial.ensemble", 0)
     seed = c.integer(spec.get("seed", 0), "initial.seed", 0)
     amplitude = c.number(spec.get("amplitude", 0.1), "initial.amplitude", low=0.0)
-    if not spec.get("ensemble") and ("seed" in spec or "amplitude" in spec):
-        c.add("initial.seed and initial.amplitude apply to random starts: give initial.ensemble "
-              "(number of starts per grid point, >= 1) too")  # fmt: skip
     return Initial(
         v or (1.0,) * blocks,
         phi or (1.0,) * blocks,
@@ -810,30 +850,13 @@ def _parse_integrator(c, raw, model):
     spec = c.mapping(raw.get("integrator", {}), "integrator")
     defaults = Integrator(method=DEFAULT_METHODS.get(model, Integrator.method))
     c.unknown(spec, "integrator", tuple(Integrator.__dataclass_fields__))
-    method = c.choice(spec.get("method", defaults.method), "integrator.method", METHODS)
-    unit = c.choice(spec.get("t_unit", defaults.t_unit), "integrator.t_unit", TIME_UNITS)
-    values = {}
-    max_step = spec.get("max_step", defaults.max_step)
-    if max_step in (None, math.inf):  # no cap (YAML: .inf or null)
-        values["max_step"] = math.inf
-    for key, high in (("rtol", 1.0), ("atol", math.inf), ("dt", math.inf), ("max_step", math.inf)):
-        if key in values:
-            continue
-        values[key] = c.number(
-            spec.get(key, getattr(defaults, key)),
-            f"integrator.{key}",
-            low=0.0,
-            low_open=True,
-            high=high,
-            high_open=True,
-        )
-    t_end = c.number(spec.get("t_end", defaults.t_end), "integrator.t_end", low=0.0, low_open=True)
-    max_steps = c.integer(
-        spec.get("max_steps", defaults.max_steps), "integrator.max_steps", 1, MAX_STEPS_LIMIT
-    )
-    if None in (method, unit, t_end, max_steps) or None in values.values():
+    given = {}
+    if spec.get("max_step", defaults.max_step) in (None, math.inf):  # no cap (.inf or null)
+        given["max_step"] = math.inf
+    values = c.section(spec, "integrator.", Integrator, defaults, given)
+    if None in values.values():
         return defaults
-    return Integrator(method=method, t_unit=unit, t_end=t_end, max_steps=max_steps, **values)
+    return Integrator(**values)
 
 
 #: Classification keys of earlier versions and what replaced them.
@@ -852,61 +875,16 @@ def _parse_classification(c, raw, t_end):
             c.add(f"{key}{old} is no longer used; use {key}{new}")
     spec = {k: v for k, v in spec.items() if k not in RETIRED_CLASSIFICATION_KEYS}
     c.unknown(spec, "classification", tuple(Classification.__dataclass_fields__))
-    cap = c.number(spec.get("v_cap_over_V", d.v_cap_over_V), key + "v_cap_over_V", 1.0, True)
-    amp = c.number(
-        spec.get("steady_amplitude", d.steady_amplitude), key + "steady_amplitude", 0.0, True
-    )
-    accuracy = c.number(
-        spec.get("accuracy", d.accuracy), key + "accuracy", 0.0, True, high=0.5, high_open=False
-    )
-    cycles = c.integer(spec.get("confirm_cycles", d.confirm_cycles), key + "confirm_cycles", 1)
-    max_t_end, max_ok = spec.get("max_t_end"), True  # None: ten times t_end
-    if max_t_end is not None:
-        max_t_end = c.number(max_t_end, key + "max_t_end", 0.0, True)
+    given = {} if spec.get("max_t_end") is not None else {"max_t_end": None}  # 10 t_end
+    values = c.section(spec, key, Classification, d, given)
+    max_t_end, max_ok = values["max_t_end"], True
+    if "max_t_end" not in given:
         max_ok = max_t_end is not None
         if max_ok and t_end is not None and max_t_end < t_end:
             c.add(
                 f"{key}max_t_end must be at least integrator.t_end ({t_end:g}), got {max_t_end:g}"
             )
             max_ok = False
-    early = spec.get("early_exit", d.early_exit)
-    if not isinstance(early, bool):
-        c.add(f"{key}early_exit must be true or false, got {early!r}")
-        early = None
-    slip = c.number(spec.get("slip_v_over_V", d.slip_v_over_V), key + "slip_v_over_V", 0.0, True)
-    if None in (cap, amp, accuracy, cycles, early, slip) or not max_ok:
+    if not max_ok or None in (v for k, v in values.items() if k != "max_t_end"):
         return d
-    return Classification(cap, amp, accuracy, cycles, max_t_end, early, slip)
-
-
-def check_writable(path, source="<config>", key="output", suffix=".nc"):
-    """Raise :class:`ConfigError` unless a file can be created at ``path``.
-
-    ``suffix``: the file type, or a tuple of those allowed (e.g. ``(".png",
-    ".pdf", ".svg")``). Creates missing parent directories and a probe file
-    (removed at once), so the answer is the file system's, not a guess from
-    permission bits (which root ignores).
-    """
-    path = Path(path)
-    suffixes = (suffix,) if isinstance(suffix, str) else tuple(suffix)
-    allowed = " or ".join(suffixes)
-    if path.suffix not in suffixes:
-        raise ConfigError(source, [f"{key} {path} must be a file name ending in {allowed}"])
-    if path.is_dir():
-        raise ConfigError(
-            source, [f"{key} {path} is a directory; give a file path ending in {allowed}"]
-        )
-    blocking = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
-    if blocking is not None:
-        raise ConfigError(
-            source, [f"{key} {path} cannot be written: {blocking} is a file, not a directory"]
-        )
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.probe-"):
-            pass
-    except OSError as exc:
-        reason = exc.strerror or str(exc)
-        raise ConfigError(source, [f"{key} {path} cannot be written: {reason}"]) from None
-    if path.exists() and not os.access(path, os.W_OK):
-        raise ConfigError(source, [f"{key} {path} exists and is not writable"])
+    return Classification(**values)

@@ -17,23 +17,31 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from . import __version__, heterogeneity, linear
-from .atomic import replaced_atomically
-from .config import ConfigError, parse_config
-from .model import PARAMETERS
+from . import heterogeneity
+from ._version import __version__
+from .config import parse_config
+from .errors import ConfigError, InputError
+from .physics import PARAMETERS
+from .store import replaced_atomically
 from .variables import REGIMES, variables_for
 
 
-def derived_fields(config, phys, results, y_final, time_unit):
-    """Every output variable as a flat array (per system, or per system × block)."""
+def derived_fields(grid, results, y_final):
+    """Every output variable as a flat array (per system, or per system × block).
+
+    ``grid``: the :class:`~sweep.grid.Grid` the kernels ran (its physical and
+    dimensionless parameters); ``results``, ``y_final``: their outputs, one row per
+    system of the grid.
+    """
     from . import kernels  # lazily: reading and plotting results needs no numba
 
+    config, phys, time_unit = grid.config, grid.physical, grid.time_unit
     r = results
     nb = config.blocks
     V = phys["V"]
     regime = r[:, kernels.R_REGIME].astype(np.int8)
     period = r[:, kernels.R_PERIOD] * time_unit
-    lin = linear.theory(config, phys)
+    lin = grid.linear
     growth, kc, omega = lin["growth_rate"], lin["kappa_c"], lin["omega"]
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         fields = {
@@ -119,7 +127,7 @@ def parameter_coords(config):
 
 def parameter_values(ds):
     """The model parameters of a result or trace that have one value: name → float
-    (in the units of ``model.PARAMETERS``). Reads the scalar coordinates, or the
+    (in the units of ``physics.PARAMETERS``). Reads the scalar coordinates, or the
     global attributes of files written before version 0.2."""
     values = {}
     for name in PARAMETERS:
@@ -130,16 +138,17 @@ def parameter_values(ds):
     return values
 
 
-def build_dataset(config, phys, results, y_final, time_unit, command="run"):
-    """Assemble the result Dataset of a sweep from the kernels' outputs.
+def build_dataset(grid, results, y_final, command="run"):
+    """Assemble the result Dataset of a sweep from the kernels' outputs on ``grid``.
 
     ``command``: what made it, for ``history`` (see :func:`provenance`).
     """
+    config = grid.config
     dims = tuple(a.name for a in config.axes)
     ensemble = config.initial.ensemble > 0
     run_dims = dims + (("member",) if ensemble else ())
     coords = parameter_coords(config)
-    fields = derived_fields(config, phys, results, y_final, time_unit)
+    fields = derived_fields(grid, results, y_final)
     data_vars = {}
     for var in variables_for(config.blocks, config.model, config.features):
         attrs = {"units": var.units, "long_name": var.long_name}
@@ -181,6 +190,8 @@ def provenance(config, command="run"):
     import numba
 
     integ, cls = config.integrator, config.classification
+    if cls.max_t_end is None:  # written as the value it stands for
+        cls = dataclasses.replace(cls, max_t_end=10.0 * integ.t_end)
     if command.startswith("sweep."):
         made_by = f"{command}() in Python from config {config.source}"
     else:
@@ -202,23 +213,8 @@ def provenance(config, command="run"):
         "time_unit_note": "the dynamics scale with D0/V; times are stored in s",
         "initial_v_over_V": np.asarray(config.initial.v_over_V, float),
         "initial_phi_over_phi_ss": np.asarray(config.initial.phi_over_phi_ss, float),
-        "integrator_method": integ.method,
-        "integrator_rtol": integ.rtol,
-        "integrator_atol": integ.atol,
-        "integrator_dt": integ.dt,
-        "integrator_max_step": integ.max_step,
-        "integrator_t_end": integ.t_end,
-        "integrator_t_unit": integ.t_unit,
-        "integrator_max_steps": np.int32(integ.max_steps),
-        "classification_v_cap_over_V": cls.v_cap_over_V,
-        "classification_steady_amplitude": cls.steady_amplitude,
-        "classification_accuracy": cls.accuracy,
-        "classification_confirm_cycles": np.int32(cls.confirm_cycles),
-        "classification_max_t_end": (
-            10.0 * integ.t_end if cls.max_t_end is None else cls.max_t_end
-        ),
-        "classification_early_exit": np.int8(cls.early_exit),
-        "classification_slip_v_over_V": cls.slip_v_over_V,
+        **settings_attrs("integrator", integ),
+        **settings_attrs("classification", cls),
         "package_version": __version__,
         "numba_version": numba.__version__,
         "numpy_version": np.__version__,
@@ -245,6 +241,21 @@ def extra_provenance(config):
     return attrs
 
 
+def settings_attrs(section, settings):
+    """File attributes ``<section>_<name>`` of every setting of an ``Integrator`` or
+    ``Classification``, in their declared order: integers as int32 and booleans as int8
+    (NetCDF has no bool)."""
+    attrs = {}
+    for field in dataclasses.fields(settings):
+        value = getattr(settings, field.name)
+        if isinstance(value, bool):
+            value = np.int8(value)
+        elif isinstance(value, int):
+            value = np.int32(value)
+        attrs[f"{section}_{field.name}"] = value
+    return attrs
+
+
 def utc_now():
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 
@@ -264,19 +275,19 @@ def read_result(path, needs_config=False):
     """Load the result file ``path`` into memory (the file is closed again).
 
     With ``needs_config``, the file must also hold the config that made it
-    (``config_text``). Raises :class:`~sweep.config.ConfigError` naming ``path``
+    (``config_text``). Raises :class:`~sweep.errors.InputError` naming ``path``
     for a missing or unreadable file, or one that is not a sweep result.
     """
     try:
         with xr.open_dataset(path) as ds:
             ds.load()
     except (OSError, ValueError) as exc:
-        raise ConfigError(path, [f"cannot read result file: {exc}"]) from None
+        raise InputError(path, [f"cannot read result file: {exc}"]) from None
     missing = [v for v in ("regime", "K_over_Kc", "lnv_amplitude") if v not in ds]
     if needs_config and "config_text" not in ds.attrs:
         missing.append("config_text attribute")
     if missing:
-        raise ConfigError(path, [f"not a sweep result (no {', '.join(missing)})"])
+        raise InputError(path, [f"not a sweep result (no {', '.join(missing)})"])
     return ds
 
 
@@ -285,7 +296,7 @@ def stored_config(ds, source):
 
     ``source`` names the result file in errors; the Config keeps the original
     config path (``config_path``) as its source. Raises
-    :class:`~sweep.config.ConfigError` if the text is no longer a valid config
+    :class:`~sweep.errors.ConfigError` if the text is no longer a valid config
     or its grid is not the file's.
     """
     try:

@@ -1,4 +1,4 @@
-"""Dask glue: run a sweep's chunks as tasks on a Dask distributed cluster.
+"""Dask glue: connect to a cluster and run a sweep's chunks on it as tasks.
 
 Dask is imported lazily, so the core package does not need it. Each task
 integrates one chunk with the *serial* grid kernel: the kernels release the
@@ -7,18 +7,18 @@ fight Dask for the cores). Results come back to the client, which writes the
 parts, so workers need no shared file system; they do need the ``sweep``
 package importable (``pip install rsf-sweep[distributed]`` or ``-e .``).
 
-Before any task is submitted, the parent compiles the serial kernel, so the
-numba cache on disk is written by one process only (concurrent writers can
-crash, numba#4807); workers on the same machine and CPU then load it.
+Before any task is submitted, the parent compiles the serial kernel
+(``backends.DaskTasks.compile``), so the numba cache on disk is written by one
+process only (concurrent writers can crash, numba#4807); workers on the same
+machine and CPU then load it.
 """
 
 import logging
-import time
 from contextlib import contextmanager
 
 import numpy as np
 
-from .runner import RunError, compile_grid_kernel
+from .errors import InputError, RunError
 
 log = logging.getLogger(__name__)
 
@@ -26,7 +26,7 @@ log = logging.getLogger(__name__)
 POLL = 0.5
 
 
-def integrate_chunk(params, y0, settings):
+def chunk_task(params, y0, settings):
     """Task body: integrate the systems of one chunk one after another.
 
     Arguments as for ``kernels.integrate_grid_serial``; arrays arriving from
@@ -52,10 +52,10 @@ def connect(scheduler=None, local_workers=None):
     ``LocalCluster``; a client is opened on it and closed after).
     ``local_workers``: number of single-threaded worker processes of a new
     LocalCluster. Logs the dashboard link when there is one. Raises
-    :class:`~sweep.runner.RunError` if Dask is missing or the scheduler cannot be
+    :class:`~sweep.errors.RunError` if Dask is missing or the scheduler cannot be
     reached (the connect timeout is Dask's ``distributed.comm.timeouts.connect``,
     e.g. env ``DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=10s``), and
-    :class:`~sweep.config.ConfigError` for a ``scheduler`` of another type.
+    :class:`~sweep.errors.InputError` for a ``scheduler`` of another type.
     """
     try:
         from distributed import Client, LocalCluster
@@ -91,11 +91,9 @@ def connect(scheduler=None, local_workers=None):
 
 def _open_client(Client, scheduler):
     """A new Client on a scheduler address or a Cluster; errors in the tool's terms."""
-    from .config import ConfigError
-
     is_cluster = hasattr(scheduler, "scheduler_address")
     if not isinstance(scheduler, str) and not is_cluster:
-        raise ConfigError(
+        raise InputError(
             "client",
             [f"must be a dask distributed Client, a Cluster or a scheduler address such as "
              f"'tcp://host:8786'; got {type(scheduler).__name__}"],
@@ -116,22 +114,12 @@ def dashboard_link(client):
     return client.dashboard_link if "dashboard" in services else None
 
 
-def load_kernels(parallel=False):
-    """Load (or compile) the serial grid kernel in this process, e.g. on every worker;
-    with ``parallel``, the threaded one as well (to warm the cache before job arrays)."""
-    from . import kernels
-
-    compile_grid_kernel(kernels.integrate_grid_serial)
-    if parallel:
-        compile_grid_kernel(kernels.integrate_grid_parallel)
-
-
 def worker_threads(client):
     """Total threads over the cluster's current workers."""
     return sum(client.nthreads().values())
 
 
-def dask_chunks(client, params, y0, settings, ranges, stop=None):
+def submit_chunks(client, params, y0, settings, ranges, stop=None):
     """Integrate ``ranges`` of systems as Dask tasks; yield results as they finish.
 
     Yields ``(start, stop, results, y_final)`` per range, in completion order.
@@ -150,7 +138,7 @@ def dask_chunks(client, params, y0, settings, ranges, stop=None):
             window = max(8, 4 * worker_threads(client)) if todo else 0
             while todo and len(flying) < window:
                 a, b = todo.pop()
-                future = client.submit(integrate_chunk, params[a:b], y0[a:b], settings, pure=False)
+                future = client.submit(chunk_task, params[a:b], y0[a:b], settings, pure=False)
                 flying[future] = (a, b)
             try:
                 done = wait(list(flying), timeout=POLL, return_when="FIRST_COMPLETED").done
@@ -170,25 +158,3 @@ def dask_chunks(client, params, y0, settings, ranges, stop=None):
                 return
     finally:
         client.cancel(list(flying))
-
-
-def compare_backends(config, workers=2):
-    """Wall times (s) of computing ``config`` on 1 and ``workers`` numba threads and on a
-    LocalCluster of ``workers`` processes (kernels compiled beforehand).
-
-    Returns a dict: ``threads_1``, ``threads_n``, ``speedup`` (threads_1 /
-    threads_n), ``cluster_start`` (starting the LocalCluster and its workers)
-    and ``cluster`` (the computation on it); for ``make bench``.
-    """
-    from .runner import time_compute
-
-    times = {"threads_1": time_compute(config, threads=1)}
-    times["threads_n"] = time_compute(config, threads=workers)
-    times["speedup"] = times["threads_1"] / times["threads_n"]
-    start = time.perf_counter()
-    with connect(local_workers=workers) as client:
-        client.wait_for_workers(workers)
-        client.run(load_kernels)
-        times["cluster_start"] = time.perf_counter() - start
-        times["cluster"] = time_compute(config, client=client)
-    return times

@@ -17,7 +17,7 @@ import dataclasses
 import numpy as np
 
 from . import kernels
-from .config import ConfigError, check_writable, config_mapping, parse_config
+from .config import config_mapping, parse_config
 from .dataset import (
     derived_fields,
     read_result,
@@ -26,8 +26,10 @@ from .dataset import (
     utc_now,
     write_netcdf,
 )
-from .grid import physical_parameters, system_arrays
-from .runner import RunError, integrate_chunks
+from .errors import InputError, RunError
+from .grid import build_grid
+from .runner import integrate_in_memory
+from .store import check_writable
 from .variables import variables_for
 
 #: Variables from linear theory, not from the run: never recomputed.
@@ -58,13 +60,13 @@ def undecided_rows(ds):
 def final_state(ds, config):
     """The stored final state of every run as kernel rows ``(n, n_vars)``.
 
-    Raises :class:`~sweep.config.ConfigError` if the file lacks a part of it
+    Raises :class:`~sweep.errors.InputError` if the file lacks a part of it
     (inertial results written before ``inertial_force_final`` existed).
     """
     names = FINAL_STATE if config.model == "inertial" else FINAL_STATE[:2]
     missing = [name for name in names if name not in ds]
     if missing:
-        raise ConfigError(
+        raise InputError(
             config.source,
             [f"no {', '.join(missing)} in the file: the final state cannot be restarted; "
              "run the config again with this version of rsf-sweep"],
@@ -124,7 +126,7 @@ def extend_result(result, t_end=None, threads=None, source=None):
         and ``integrator_t_end`` and an entry in ``history``. Other runs are
         unchanged. A result without undecided runs is returned as it is.
 
-    Raises ``ConfigError`` for a file that cannot be continued or an end time
+    Raises ``InputError`` for a file that cannot be continued or an end time
     that is not later than the old one.
     """
     ds, source = load_result(result, source)
@@ -132,7 +134,7 @@ def extend_result(result, t_end=None, threads=None, source=None):
     old_end, unit = horizon(config), config.integrator.t_unit
     t_end = 4.0 * old_end if t_end is None else float(t_end)
     if not t_end > old_end:
-        raise ConfigError(
+        raise InputError(
             source,
             [f"--t-end must be later than the time its undecided runs already reached "
              f"({old_end:g} {unit}: max_t_end, or t_end without early exit), got {t_end:g}"],
@@ -142,17 +144,16 @@ def extend_result(result, t_end=None, threads=None, source=None):
         return ds
     y_stored = final_state(ds, config)
     longer = with_end_time(config, t_end, source=source)
-    phys = physical_parameters(longer)
-    params, _, settings, time_unit = system_arrays(longer, phys)
-    n = params.shape[0]
+    grid = build_grid(longer)
+    n = grid.n
     t_final = ds["t_final"].values.reshape(n)[rows]
-    params = np.ascontiguousarray(params[rows])
-    params[:, kernels.P_TAU_END] -= t_final / time_unit[rows]
+    undecided = grid.rows(rows)
+    params = undecided.params
+    params[:, kernels.P_TAU_END] -= t_final / undecided.time_unit
     params[:, kernels.P_TAU_MAX] = params[:, kernels.P_TAU_END]
     y0 = np.ascontiguousarray(y_stored[rows])
-    results, y_final = integrate_chunks(params, y0, settings, threads)
-    phys_rows = {name: values[rows] for name, values in phys.items()}
-    fields = derived_fields(longer, phys_rows, results, y_final, time_unit[rows])
+    results, y_final = integrate_in_memory(params, y0, undecided.settings, threads)
+    fields = derived_fields(undecided, results, y_final)
     out = ds.copy(deep=True)
     for var in variables_for(config.blocks, config.model, config.features):
         if var.name in LINEAR_THEORY or not var.per_member:

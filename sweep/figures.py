@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import check_writable, config_mapping, load_config, parse_config
+from .config import config_mapping, load_config, parse_config
 from .dataset import parameter_values
 from .plots import (
     BLOCK_STYLES,
@@ -29,6 +29,7 @@ from .plots import (
     power_text,
     save_figure,
 )
+from .store import check_writable
 from .trace import compute_trace, pin_config
 
 #: Radiation damping per normal load of the quasi-dynamic comparison (s/µm): η̂ = η V/W = 0.001.

@@ -1,11 +1,12 @@
-"""From a validated config to the arrays the kernels take.
+"""From a validated config to a :class:`Grid`: every system, as the kernels take it.
 
 The grid is the Cartesian product of the sweep axes, flattened in C order (the
 last axis varies fastest); with an initial-condition ensemble each grid point is
 repeated for its members (the fastest index of all). Every run is one system; its
 physical parameters become one row of dimensionless parameters (``kernels.P_*``,
-followed by per-block columns ``kernels.block_column`` when blocks differ) and its
-initial perturbation one row of initial state.
+followed by per-block columns ``kernels.B_*`` when blocks differ) and its initial
+perturbation one row of initial state. A Grid is built once per run
+(:func:`build_grid`) and handed on to the kernels and the Dataset.
 
 Per-block parameters are made dimensionless with one reference D0 (the common
 value, ``sweep/heterogeneity.py``): κ1_i = K_i D0/W, and block i's state evolves
@@ -13,10 +14,11 @@ at the rate factor D0/D0_i (ψ_i' = (D0/D0_i)(e^(−ψ_i) − e^ℓ_i)).
 """
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from . import heterogeneity, kernels, linear, model
+from . import heterogeneity, kernels, linear, physics
 
 MODEL_CODES = {
     "quasi-static": kernels.QUASI_STATIC,
@@ -74,15 +76,57 @@ def settings_array(config):
     return s
 
 
-def system_arrays(config, phys=None):
-    """Dimensionless parameters (n, N_PARAMS) and initial states (n, n_vars).
+@dataclass(frozen=True, eq=False)
+class Grid:
+    """Every system of ``config``: physical and dimensionless parameters, kernel arrays.
 
-    Returns ``(params, y0, settings, time_unit)`` with ``time_unit`` = D0/V in s
-    per system. With ``t_unit: s`` the end time is converted to units of D0/V
-    per system; step sizes are always in D0/V.
+    ``physical``: name → 1-D array per system (physical units, see
+    :func:`physical_parameters`); ``dimensionless``: ``physics.dimensionless`` of
+    those (``time_unit`` = D0/V in s per system); ``linear``: ``linear.theory``
+    per system; ``params`` (n, N_PARAMS [+ N_BLOCK_PARAMS × blocks]), ``y0``
+    (n, n_vars) and ``settings`` (N_SETTINGS,): the kernels' arrays.
     """
-    phys = physical_parameters(config) if phys is None else phys
-    dl = model.dimensionless(
+
+    config: object
+    physical: dict
+    dimensionless: dict
+    linear: dict
+    params: np.ndarray
+    y0: np.ndarray
+    settings: np.ndarray
+
+    @property
+    def n(self):
+        """Number of systems."""
+        return self.params.shape[0]
+
+    @property
+    def time_unit(self):
+        """D0/V in s, per system."""
+        return self.dimensionless["time_unit"]
+
+    def rows(self, index):
+        """The grid of the systems ``index`` only (kernel arrays C-contiguous)."""
+        pick = {name: values[index] for name, values in self.physical.items()}
+        return Grid(
+            self.config,
+            pick,
+            {name: values[index] for name, values in self.dimensionless.items()},
+            {name: values[index] for name, values in self.linear.items()},
+            np.ascontiguousarray(self.params[index]),
+            np.ascontiguousarray(self.y0[index]),
+            self.settings,
+        )
+
+
+def build_grid(config):
+    """The :class:`Grid` of a validated config.
+
+    With ``t_unit: s`` the end time is converted to units of D0/V per system;
+    step sizes are always in D0/V.
+    """
+    phys = physical_parameters(config)
+    dl = physics.dimensionless(
         phys["A"], phys["B"], phys["D0"], phys["V"], phys["K_W"], phys["k2_W"],
         phys["eta_W"], phys["m_W"],
     )  # fmt: skip
@@ -106,14 +150,12 @@ def system_arrays(config, phys=None):
     params[:, kernels.P_TAU_MAX] = max_t_end * to_tau
     params[:, kernels.P_COUPLING] = COUPLING_CODES[config.coupling]
     if config.heterogeneous:
-        blocks = block_parameters(config, phys)
-        for k, values in enumerate(blocks):
+        for k, values in enumerate(block_parameters(config, phys)):
             start = kernels.N_PARAMS + k * nb
             params[:, start : start + nb] = values
-    params[:, kernels.P_LIN_GROWTH] = linear.theory(config, phys)["growth_rate"]
-    settings = settings_array(config)
-    y0 = initial_state(config, n)
-    return params, y0, settings, dl["time_unit"]
+    lin = linear.theory(config, phys)
+    params[:, kernels.P_LIN_GROWTH] = lin["growth_rate"]
+    return Grid(config, phys, dl, lin, params, initial_state(config, n), settings_array(config))
 
 
 def block_parameters(config, phys):
@@ -122,6 +164,11 @@ def block_parameters(config, phys):
     values = heterogeneity.block_values(config, phys)
     D0 = phys["D0"][:, None]
     return (values["A"], values["B"], values["K_W"] * D0, D0 / values["D0"])
+
+
+def state_size(config):
+    """State variables per system: ℓ and ψ per block, and z per block (inertial model)."""
+    return config.blocks * (3 if config.model == "inertial" else 2)
 
 
 def initial_state(config, n_systems):

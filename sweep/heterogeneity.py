@@ -14,7 +14,7 @@ value stored as the parameter's coordinate). A swept K_W with a K_W spread: the
 spread multiplies the swept value, so ``critical_K_W`` is that common K_W at onset.
 
 Plain numpy; the kernels see the results as per-block parameter columns
-(``grid.system_arrays``).
+(``grid.build_grid``).
 """
 
 import numpy as np
@@ -51,12 +51,12 @@ def spread_sizes(config, phys, n):
     return sizes
 
 
-def block_values(config, phys):
-    """Per-block values of A, B, D0 and K_W at every system: name → (n, blocks) array.
+def block_factors(config, phys):
+    """Per-block values relative to the common value: name → (n, blocks) array.
 
-    ``phys``: the common values (``grid.physical_parameters``), including the swept
-    spread sizes ``spread_<name>``. Without a list or spread a parameter's blocks all
-    hold its common value, bit for bit (the factor is exactly 1).
+    1 + s ξ_i for a spread (exactly 1 without one), list / mean for a list. They do
+    not depend on the common value, so rows that differ only in it (a swept K_W)
+    share them bit for bit.
     """
     nb = config.blocks
     n = phys["A"].size
@@ -66,10 +66,29 @@ def block_values(config, phys):
     out = {}
     for name in PER_BLOCK:
         if name in lists:
-            out[name] = np.broadcast_to(np.asarray(lists[name], float), (n, nb)).copy()
+            values = np.asarray(lists[name], float)
+            out[name] = np.broadcast_to(values / config.fixed[name], (n, nb)).copy()
         else:
-            factor = 1.0 + sizes[name][:, None] * xi[name][None, :]
-            out[name] = phys[name][:, None] * factor
+            out[name] = 1.0 + sizes[name][:, None] * xi[name][None, :]
+    return out
+
+
+def block_values(config, phys):
+    """Per-block values of A, B, D0 and K_W at every system: name → (n, blocks) array.
+
+    ``phys``: the common values (``grid.physical_parameters``), including the swept
+    spread sizes ``spread_<name>``. A list's values as given; with a spread, the
+    common value × :func:`block_factors` (without one: exactly the common value).
+    """
+    n = phys["A"].size
+    lists = dict(config.block_parameters)
+    factors = block_factors(config, phys)
+    out = {}
+    for name in PER_BLOCK:
+        if name in lists:
+            out[name] = np.broadcast_to(np.asarray(lists[name], float), (n, config.blocks)).copy()
+        else:
+            out[name] = phys[name][:, None] * factors[name]
     return out
 
 

@@ -1,6 +1,6 @@
 """Numba kernels: right-hand side, steppers and the per-system integration loop.
 
-Only jitted loops live here; the equations are documented in ``sweep/model.py``.
+Only jitted loops live here; the equations are documented in ``sweep/physics.py``.
 Everything a kernel needs is passed as an argument (numba's cache freezes
 globals, so the module-level integers below are true constants: column indices
 and codes shared with the Python side).
@@ -105,6 +105,43 @@ N_SETTINGS = 13
     R_SLIP_PARTICIPATION,  # mean fraction of blocks slipping per slip event, final window
 ) = range(18)
 N_RESULTS = 18
+
+# Outcomes of a step's runaway test besides the index of the block that crossed
+# the cap (runaway_index).
+NO_RUNAWAY, NOT_FINITE = -1, -2
+
+# --- rows of a cycle's per-block statistics (win, last in integrate_system) --
+W_LMAX, W_LMIN, W_MUMAX, W_MUMIN = range(4)  # extremes of ℓ_i and of friction A ℓ_i + B ψ_i
+W_T_PEAK = 4  # time of block i's last maximum of ℓ_i in the cycle (D0/V)
+N_WINDOW = 5
+
+# --- entries of the scalar cycle state ``cs`` of integrate_system ------------
+(
+    C_N_PEAKS,  # maxima of ℓ_0 seen
+    C_T_PEAK,  # time of the last maximum of ℓ_0 (D0/V)
+    C_PEAK_VALUE,  # value of the latest maximum of ℓ_0
+    C_PERIOD,  # last peak-to-peak time of ℓ_0 (D0/V)
+    C_AMP_PREV,  # peak-to-trough amplitude of ℓ_0 in the last completed cycle
+    C_GROWTH,  # envelope growth rate over the last two cycles (V/D0)
+    C_N_CYCLES,  # completed cycles
+    C_N_AGREE,  # consecutive cycles with the same verdict
+    C_VERDICT,  # the last cycle's verdict (−1: none yet)
+    C_CONV,  # the last cycle's estimated relative distance to its limit
+    C_WIN_SYNC,  # max |ℓ_i − ℓ_0| in the current cycle
+    C_WIN_MBAR_MAX,  # max of mean ℓ_i in the current cycle
+    C_WIN_MBAR_MIN,  # min of mean ℓ_i in the current cycle
+    C_WIN_T_PEAK_LAST,  # time of the last block's maximum of ℓ in the current cycle
+    C_LAST_SYNC,  # max |ℓ_i − ℓ_0| in the last completed cycle
+    C_LAST_PHASE,  # phase lag of the last block in the last completed cycle
+    C_LNV_MAX_RUN,  # max ℓ_i over the whole run
+    C_LAST_ORDER,  # Kuramoto order parameter of the last completed cycle
+    C_LAST_PARTICIPATION,  # mean fraction of blocks per slip event, last completed cycle
+    C_SLIPPING,  # 1 while some block slips (ℓ_i > S_SLIP_LNV) after the current step
+    C_IN_EVENT,  # 1 while a slip event lasts
+    C_SLIP_SUM,  # Σ fractions of slipping blocks of the events ended in the current cycle
+    C_SLIP_EVENTS,  # number of those events
+) = range(23)
+N_CYCLE_STATE = 23
 
 # Dormand–Prince 5(4) tableau (Hairer, Nørsett & Wanner, Table II.5.2).
 _A21 = 1 / 5
@@ -438,7 +475,7 @@ def dense_r5(method, j, h, f, k3, k4, k5, k6, fnew):
     return h * (_D1 * f[j] + _D3 * k3[j] + _D4 * k4[j] + _D5 * k5[j] + _D6 * k6[j] + _D7 * fnew[j])
 
 
-@jit
+@jit_inline
 def dense_value(y0, y1, d0, d1, h, r5, theta):
     """Interpolant at fraction ``theta`` of a step of size h from (y0, slope d0) to
     (y1, slope d1): DOPRI5's continuous extension (order 4) with its coefficient
@@ -470,7 +507,7 @@ def dense_slope(y0, y1, d0, d1, h, r5, theta):
     )
 
 
-@jit
+@jit_inline
 def dense_extremum(y0, y1, d0, d1, h, r5):
     """Fraction θ ∈ [0, 1] of the step where the interpolant's slope vanishes, given
     slopes d0 and d1 of opposite sign (bisection, 50 halvings)."""
@@ -645,6 +682,66 @@ def cycle_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, at
     return -1, conv
 
 
+@jit
+def max_abs(y):
+    """Largest |y_j|."""
+    big = 0.0
+    for j in range(y.size):
+        big = max(big, abs(y[j]))
+    return big
+
+
+@jit_inline
+def next_step_size(method, h, err, max_step):
+    """The step after one of size ``h`` with error norm ``err`` (D0/V).
+
+    RK4 keeps its fixed step. The adaptive methods use the standard controller
+    0.9 err^(−1/(q+1)) (q: order of the error estimate), growing at most 5× and
+    at most to ``max_step`` after an accepted step, shrinking at least 5× after a
+    rejected one (and 5× when the error is not finite).
+    """
+    if method == RK4:
+        return h
+    expo = -0.25 if method == ROSENBROCK else -0.2
+    if err <= 1.0:
+        return min(max_step, h * min(5.0, 0.9 * max(err, 1e-10) ** expo))
+    if math.isfinite(err):
+        return h * max(0.2, 0.9 * err**expo)
+    return h * 0.2
+
+
+@jit
+def collapse_regime(y, nb):
+    """Regime of a run whose step size collapsed below 1e-300 D0/V.
+
+    With any finite slope a small enough step passes the error test, so the slope
+    overflows. With a block slipping faster than the load point this is the
+    finite-time blow-up of v (runaway); otherwise the solver failed (undecided).
+    Steps below the resolution of t are legitimate: an inertial block arresting
+    after a fast slip lands on ℓ ~ −30 within ~1e-20 D0/V
+    (test_models.py::test_inertial_arrest_is_resolved).
+    """
+    regime = UNDECIDED
+    for i in range(nb):
+        if y[i] > 0.0:
+            regime = RUNAWAY
+    return regime
+
+
+@jit_inline
+def runaway_index(ynew, fnew, nb, lnv_cap):
+    """Whether the state after a step ran away: NOT_FINITE when a state or slope is
+    not finite, else the first block whose ℓ_i exceeds ``lnv_cap``, else NO_RUNAWAY."""
+    out = NO_RUNAWAY
+    for i in range(nb):
+        if ynew[i] > lnv_cap and out < 0:
+            out = i
+    for j in range(ynew.size):  # no branch around these loops: accelerate.py
+        if not (math.isfinite(ynew[j]) and math.isfinite(fnew[j])):
+            out = NOT_FINITE
+    return out
+
+
 @jit_inline
 def block_friction(p, nb, i, A, B):
     """(A_i, B_i) of block i: its per-block columns, or the common ``A``, ``B``."""
@@ -654,62 +751,302 @@ def block_friction(p, nb, i, A, B):
 
 
 @jit
-def start_window(y, p, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin):
+def start_cycle(y, p, nb, A, B, win, cs):
     """Start a cycle's statistics at state ``y``: extremes of ℓ_i and of the friction
-    A_i ℓ_i + B_i ψ_i at their current values. Returns (max |ℓ_i − ℓ_0|, mean ℓ_i)."""
+    A_i ℓ_i + B_i ψ_i, the synchronisation error and mean ℓ at their current values;
+    no block maximum and no slip event ended yet."""
     sync = 0.0
     mbar = 0.0
     for i in range(nb):
-        win_lmax[i] = y[i]
-        win_lmin[i] = y[i]
+        win[W_LMAX, i] = y[i]
+        win[W_LMIN, i] = y[i]
         a_i, b_i = block_friction(p, nb, i, A, B)
         mu = a_i * y[i] + b_i * y[nb + i]
-        win_mumax[i] = mu
-        win_mumin[i] = mu
+        win[W_MUMAX, i] = mu
+        win[W_MUMIN, i] = mu
+        win[W_T_PEAK, i] = np.nan
         sync = max(sync, abs(y[i] - y[0]))
         mbar += y[i] / nb
-    return sync, mbar
+    cs[C_WIN_SYNC] = sync
+    cs[C_WIN_MBAR_MAX] = mbar
+    cs[C_WIN_MBAR_MIN] = mbar
+    cs[C_WIN_T_PEAK_LAST] = np.nan
+    cs[C_SLIP_SUM] = 0.0
+    cs[C_SLIP_EVENTS] = 0.0
 
 
 @jit_inline
-def track_slips(y, nb, slip_lnv, flags, acc):
-    """Follow slip events at state ``y``: an event lasts while any ℓ_i exceeds
-    ``slip_lnv``; ``flags[i]`` marks the blocks that slipped during it. When an event
-    ends, its fraction of slipping blocks is added to ``acc[1]`` and ``acc[2]``
-    counts it; ``acc[0]`` is 1 while an event lasts."""
-    slipping = False
+def update_cycle(
+    method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, p, nb, A, B, win, cs, slipped, slip_lnv
+):
+    """Fold the step from ``t`` to ``t + h`` into the current cycle's statistics.
+
+    Extremes of every block's ℓ and friction are located inside the step with
+    the dense output. Blocks with ℓ_i > ``slip_lnv`` after the step are marked in
+    ``slipped`` (``cs[C_SLIPPING]``: whether any is). Returns ``(new_peak, theta)``:
+    whether ℓ_0 had a maximum in the step (its value goes to ``cs[C_PEAK_VALUE]``)
+    and where, as a fraction of the step.
+    """
+    new_peak = False
+    theta_peak = 0.0
+    lnv_max_run = cs[C_LNV_MAX_RUN]
+    win_sync = cs[C_WIN_SYNC]
+    slipping = 0.0
     for i in range(nb):
-        if y[i] > slip_lnv:
-            flags[i] = True
-            slipping = True
-    if slipping:
-        acc[0] = 1.0
-    elif acc[0] > 0.0:
-        count = 0
-        for i in range(nb):
-            if flags[i]:
-                count += 1
-            flags[i] = False
-        acc[0] = 0.0
-        acc[1] += count / nb
-        acc[2] += 1.0
+        rising = f[i] > 0.0
+        falling_now = fnew[i] <= 0.0
+        if rising == falling_now:  # slope changed sign: one extremum in the step
+            r5 = dense_r5(method, i, h, f, k3, k4, k5, k6, fnew)
+            theta = dense_extremum(y[i], ynew[i], f[i], fnew[i], h, r5)
+            val = dense_value(y[i], ynew[i], f[i], fnew[i], h, r5, theta)
+            win[W_LMAX, i] = max(win[W_LMAX, i], val)
+            win[W_LMIN, i] = min(win[W_LMIN, i], val)
+            lnv_max_run = max(lnv_max_run, val)
+            if rising:
+                win[W_T_PEAK, i] = t + theta * h
+                if i == 0:
+                    new_peak = True
+                    theta_peak = theta
+                    cs[C_PEAK_VALUE] = val
+                elif i == nb - 1:
+                    cs[C_WIN_T_PEAK_LAST] = t + theta * h
+        win[W_LMAX, i] = max(win[W_LMAX, i], ynew[i])
+        win[W_LMIN, i] = min(win[W_LMIN, i], ynew[i])
+        lnv_max_run = max(lnv_max_run, ynew[i])
+        if ynew[i] > slip_lnv:
+            slipped[i] = 1.0
+            slipping = 1.0
+        # friction A_i ℓ_i + B_i ψ_i (relative to steady sliding), extremes interpolated
+        a_i, b_i = block_friction(p, nb, i, A, B)
+        mu0 = a_i * y[i] + b_i * y[nb + i]
+        mu = a_i * ynew[i] + b_i * ynew[nb + i]
+        dmu0 = a_i * f[i] + b_i * f[nb + i]
+        dmu1 = a_i * fnew[i] + b_i * fnew[nb + i]
+        if (dmu0 > 0.0) == (dmu1 <= 0.0):
+            r5_mu = a_i * dense_r5(method, i, h, f, k3, k4, k5, k6, fnew) + b_i * dense_r5(
+                method, nb + i, h, f, k3, k4, k5, k6, fnew
+            )
+            theta = dense_extremum(mu0, mu, dmu0, dmu1, h, r5_mu)
+            val = dense_value(mu0, mu, dmu0, dmu1, h, r5_mu, theta)
+            win[W_MUMAX, i] = max(win[W_MUMAX, i], val)
+            win[W_MUMIN, i] = min(win[W_MUMIN, i], val)
+        win[W_MUMAX, i] = max(win[W_MUMAX, i], mu)
+        win[W_MUMIN, i] = min(win[W_MUMIN, i], mu)
+        if i > 0:
+            win_sync = max(win_sync, abs(ynew[i] - ynew[0]))
+    cs[C_LNV_MAX_RUN] = lnv_max_run
+    cs[C_WIN_SYNC] = win_sync
+    cs[C_SLIPPING] = slipping
+    return new_peak, theta_peak
+
+
+@jit
+def end_slip_event(nb, slipped, cs):
+    """A slip event ended (no block slips any more): add the fraction of blocks that
+    slipped during it to the current cycle's sum and clear the marks."""
+    count = 0.0
+    for i in range(nb):
+        count += slipped[i]
+        slipped[i] = 0.0
+    cs[C_SLIP_SUM] += count / nb
+    cs[C_SLIP_EVENTS] += 1.0
+    cs[C_IN_EVENT] = 0.0
 
 
 @jit
 def kuramoto_order(t_peak_blocks, t_peak, period, nb):
     """Kuramoto order parameter R = |mean_i exp(iθ_i)| of the blocks' phases at the
     maximum of ℓ_0 at ``t_peak``: θ_i = 2π (last maximum of ℓ_i − t_peak) / period.
-    NaN if a block had no maximum within the last period."""
+    NaN if a block had no maximum in the cycle."""
     re = 0.0
     im = 0.0
     for i in range(nb):
-        dt = t_peak_blocks[i] - t_peak
-        if not (dt > -period):  # also NaN: never a maximum
-            return np.nan
-        theta = 2.0 * math.pi * dt / period
+        theta = 2.0 * math.pi * (t_peak_blocks[i] - t_peak) / period
         re += math.cos(theta)
         im += math.sin(theta)
-    return math.sqrt(re * re + im * im) / nb
+    return math.sqrt(re * re + im * im) / nb  # NaN from a block without a maximum
+
+
+@jit
+def record_step(method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, rec_dt, rec_t, rec_y, n_rec):
+    """Record the state at the multiples of ``rec_dt`` inside the step (dense output)
+    while the buffers have room (the last slot is kept for the end). Returns the count."""
+    rec_cap = rec_t.size
+    while n_rec < rec_cap - 1 and n_rec * rec_dt <= t + h and rec_dt > 0.0:
+        theta = (n_rec * rec_dt - t) / h
+        rec_t[n_rec] = n_rec * rec_dt
+        for j in range(y.size):
+            r5 = dense_r5(method, j, h, f, k3, k4, k5, k6, fnew)
+            rec_y[n_rec, j] = dense_value(y[j], ynew[j], f[j], fnew[j], h, r5, theta)
+        n_rec += 1
+    return n_rec
+
+
+@jit
+def close_cycle(t_peak, nb, win, last, hist, cs, accuracy, steady_amp, lin_growth, rtol, atol):
+    """End the cycle at the maximum of ℓ_0 at ``t_peak`` (D0/V).
+
+    Adds the cycle to the history, judges it (:func:`cycle_verdict`) and keeps
+    its statistics as the last completed cycle.
+    """
+    period = t_peak - cs[C_T_PEAK]
+    cs[C_PERIOD] = period
+    # growth of the peak-to-trough amplitude of ℓ_0, where it is above round-off
+    # (a decayed run would report noise, not a rate)
+    amp = cs[C_PEAK_VALUE] - win[W_LMIN, 0]
+    growth = np.nan
+    if cs[C_AMP_PREV] >= steady_amp and amp >= steady_amp:
+        growth = math.log(amp / cs[C_AMP_PREV]) / period
+    cs[C_GROWTH] = growth
+    cs[C_AMP_PREV] = amp
+    n_cycles = int(cs[C_N_CYCLES])
+    slot = n_cycles % HISTORY
+    for i in range(nb):
+        hist[i, slot] = win[W_LMAX, i]
+        hist[nb + i, slot] = win[W_LMIN, i]
+    hist[0, slot] = cs[C_PEAK_VALUE]
+    hist[2 * nb, slot] = period
+    hist[2 * nb + 1, slot] = cs[C_WIN_MBAR_MAX] - cs[C_WIN_MBAR_MIN]
+    n_cycles += 1
+    cs[C_N_CYCLES] = n_cycles
+    verdict, conv = cycle_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, atol)
+    cs[C_CONV] = conv
+    same = verdict >= 0 and verdict == int(cs[C_VERDICT])
+    cs[C_N_AGREE] = cs[C_N_AGREE] + 1 if same else 1
+    cs[C_VERDICT] = verdict
+    for k in range(N_WINDOW):
+        for i in range(nb):
+            last[k, i] = win[k, i]
+    cs[C_LAST_ORDER] = kuramoto_order(win[W_T_PEAK], t_peak, period, nb)
+    events = cs[C_SLIP_EVENTS]
+    cs[C_LAST_PARTICIPATION] = cs[C_SLIP_SUM] / events if events > 0 else np.nan
+    cs[C_LAST_SYNC] = cs[C_WIN_SYNC]
+    t_last = cs[C_WIN_T_PEAK_LAST]
+    if nb > 1 and t_last == t_last:
+        lag = (t_last - cs[C_T_PEAK]) / period
+        cs[C_LAST_PHASE] = lag - math.floor(lag + 0.5)
+
+
+@jit
+def final_regime(regime, t, tau_stop, y, cs, steady_amp, lin_growth):
+    """The regime of a run that ended without a settled verdict (``regime`` < 0):
+    undecided when the step budget ran out, else the last cycle's verdict, steady
+    when it decayed onto a linearly stable steady state, else undecided."""
+    if regime >= 0:
+        return regime
+    if t < tau_stop:  # step budget exhausted
+        return UNDECIDED
+    if cs[C_VERDICT] >= 0:
+        return int(cs[C_VERDICT])
+    if max_abs(y) < steady_amp and lin_growth < 0.0:
+        return STEADY
+    return UNDECIDED
+
+
+@jit
+def write_result(result, regime, t, n_steps, n_rejected, tau_runaway, nb, win, last, cs):
+    """The run's statistics into ``result`` (``R_*`` columns).
+
+    The final window is the last completed cycle, except for runaway runs and
+    runs that never completed one, which report the cycle in progress.
+    """
+    use_last = cs[C_N_PEAKS] >= 2 and regime != RUNAWAY
+    window = last if use_last else win
+    lmax = -np.inf
+    lmin = np.inf
+    fdrop = 0.0
+    for i in range(nb):
+        lmax = max(lmax, window[W_LMAX, i])
+        lmin = min(lmin, window[W_LMIN, i])
+        fdrop = max(fdrop, window[W_MUMAX, i] - window[W_MUMIN, i])
+    sync = cs[C_LAST_SYNC] if use_last else cs[C_WIN_SYNC]
+    result[R_REGIME] = regime
+    result[R_TAU_FINAL] = t
+    result[R_N_STEPS] = n_steps
+    result[R_N_REJECTED] = n_rejected
+    result[R_LNV_MAX] = lmax
+    result[R_LNV_MIN] = lmin
+    result[R_PERIOD] = cs[C_PERIOD]
+    result[R_GROWTH] = cs[C_GROWTH]
+    result[R_FRICTION_DROP] = fdrop
+    result[R_TAU_RUNAWAY] = tau_runaway
+    result[R_SYNC_ERROR] = sync if nb > 1 else np.nan
+    result[R_PHASE_LAG] = cs[C_LAST_PHASE]
+    result[R_N_PEAKS] = cs[C_N_PEAKS]
+    result[R_LNV_MAX_RUN] = cs[C_LNV_MAX_RUN]
+    steady_or_runaway = regime == STEADY or regime == RUNAWAY
+    result[R_CONVERGENCE] = np.nan if steady_or_runaway else cs[C_CONV]
+    events = cs[C_SLIP_EVENTS]
+    result[R_SYNC_ORDER] = cs[C_LAST_ORDER] if use_last else np.nan
+    if use_last:
+        result[R_SLIP_PARTICIPATION] = cs[C_LAST_PARTICIPATION]
+    else:
+        result[R_SLIP_PARTICIPATION] = cs[C_SLIP_SUM] / events if events > 0 else np.nan
+
+
+@jit
+def rosenbrock_scratch(method, n):
+    """Scratch of the RODAS4 step (stages, matrix, pivots); empty for other methods."""
+    if method == ROSENBROCK:
+        return np.empty((6, n)), np.empty((n, n)), np.empty(n, np.int64)
+    return np.empty((0, n)), np.empty((0, 0)), np.empty(0, np.int64)
+
+
+@jit
+def cap_crossing(method, i, t, h, y, ynew, f, fnew, k3, k4, k5, k6, nb, lnv_cap, win, cs):
+    """End a run whose block ``i`` crossed ``lnv_cap`` in the step from ``t`` to
+    ``t + h``: keep the step (``y`` becomes ``ynew``, the extremes include it) and
+    return the time of the crossing (D0/V, interpolated)."""
+    r5 = dense_r5(method, i, h, f, k3, k4, k5, k6, fnew)
+    theta = dense_crossing(y[i], ynew[i], f[i], fnew[i], h, r5, lnv_cap)
+    tau = t + (0.0 if y[i] > lnv_cap else theta) * h
+    for j in range(nb):
+        win[W_LMAX, j] = max(win[W_LMAX, j], ynew[j])
+    cs[C_LNV_MAX_RUN] = max(cs[C_LNV_MAX_RUN], lnv_cap)
+    for j in range(y.size):
+        y[j] = ynew[j]
+    return tau
+
+
+@jit
+def record_start(y, rec_t, rec_y):
+    """Record the initial state when there are buffers; returns the count."""
+    if rec_t.size == 0:
+        return 0
+    rec_t[0] = 0.0
+    for j in range(y.size):
+        rec_y[0, j] = y[j]
+    return 1
+
+
+@jit
+def record_end(t, y, rec_t, rec_y, n_rec):
+    """Record the final state when the buffers have room; returns the count."""
+    if 0 < n_rec < rec_t.size and rec_t[n_rec - 1] < t:
+        rec_t[n_rec] = t
+        for j in range(y.size):
+            rec_y[n_rec, j] = y[j]
+        n_rec += 1
+    return n_rec
+
+
+@jit
+def new_cycle_state(y, nb):
+    """Scalar cycle state (``C_*`` entries) at the start of a run from ``y``."""
+    cs = np.full(N_CYCLE_STATE, np.nan)
+    cs[C_N_PEAKS] = 0.0
+    cs[C_PEAK_VALUE] = 0.0
+    cs[C_N_CYCLES] = 0.0
+    cs[C_N_AGREE] = 0.0
+    cs[C_VERDICT] = -1.0
+    cs[C_CONV] = np.inf
+    cs[C_SLIPPING] = 0.0
+    cs[C_IN_EVENT] = 0.0
+    lnv_max_run = -np.inf
+    for i in range(nb):
+        lnv_max_run = max(lnv_max_run, y[i])
+    cs[C_LNV_MAX_RUN] = lnv_max_run
+    return cs
 
 
 @jit
@@ -755,191 +1092,80 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     k5 = np.empty(n)
     k6 = np.empty(n)
     ev = np.empty(nb)
-    if method == ROSENBROCK:
-        k_ros = np.empty((6, n))
-        mat = np.empty((n, n))
-        perm = np.empty(n, np.int64)
-    else:
-        k_ros = np.empty((0, n))
-        mat = np.empty((0, 0))
-        perm = np.empty(0, np.int64)
-    # statistics of the current cycle (win_*) and of the last completed one (last_*)
-    win_lmax = np.empty(nb)
-    win_lmin = np.empty(nb)
-    win_mumax = np.empty(nb)
-    win_mumin = np.empty(nb)
-    last_lmax = np.full(nb, np.nan)
-    last_lmin = np.full(nb, np.nan)
-    last_mumax = np.full(nb, np.nan)
-    last_mumin = np.full(nb, np.nan)
-    # per completed cycle: max ℓ_i, min ℓ_i, period, peak-to-peak of mean(ℓ_i)
+    k_ros, mat, perm = rosenbrock_scratch(method, n)
+    # the current cycle (win) and the last completed one (last): W_* rows per block;
+    # per completed cycle (hist): max ℓ_i, min ℓ_i, period, peak-to-peak of mean(ℓ_i)
+    win = np.empty((N_WINDOW, nb))
+    last = np.full((N_WINDOW, nb), np.nan)
     hist = np.zeros((2 * nb + 2, HISTORY))
-    n_cycles = 0
-    n_agree = 0
-    last_verdict = -1
-    conv = np.inf
-    win_sync, mbar = start_window(y, p, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin)
-    win_mbar_max = mbar
-    win_mbar_min = mbar
-    last_sync = np.nan
-    win_t_peak_last_block = np.nan
-    last_phase = np.nan
-    # N-block statistics: each block's last maximum of ℓ (sync order), slip events
-    t_peak_blocks = np.full(nb, np.nan)
-    slip_flags = np.zeros(nb, np.bool_)
-    slip_acc = np.zeros(3)  # in an event (1/0), Σ fractions, events, current cycle
-    last_order = np.nan
-    last_participation = np.nan
+    cs = new_cycle_state(y, nb)
+    start_cycle(y, p, nb, A, B, win, cs)
+    slipped = np.zeros(nb)  # 1: block i slipped during the current slip event
 
-    lnv_max_run = -np.inf
-    for i in range(nb):
-        lnv_max_run = max(lnv_max_run, y[i])
-    n_peaks = 0
-    peak_value = 0.0
-    t_peak = np.nan
-    period = np.nan
-    amp_prev = np.nan
-    growth = np.nan
-    regime = -1
-    tau_runaway = np.nan
-
-    n_rec = 0
-    rec_cap = rec_t.size
-    if rec_cap > 0:
-        rec_t[0] = 0.0
-        for j in range(n):
-            rec_y[0, j] = y[j]
-        n_rec = 1
+    n_rec = record_start(y, rec_t, rec_y)
 
     rhs(y, p, model, law, nb, ev, f)
     t = 0.0
     h = p[P_DT] if method == RK4 else min(1e-3, max_step, tau_end)
-    # step-size exponent −1/(q + 1) of the embedded error estimate of order q
-    expo = -0.25 if method == ROSENBROCK else -0.2
     n_steps = 0
     n_rejected = 0
+    regime = -1
+    tau_runaway = np.nan
     # unsettled at tau_end: go on (settling early from then on) up to tau_max
     tau_stop = tau_end
     while t < tau_max:
         if t >= tau_stop:
             tau_stop = tau_max
-            if last_verdict >= 0:
-                regime = last_verdict
+            if cs[C_VERDICT] >= 0:
+                regime = int(cs[C_VERDICT])
                 break
         if n_steps + n_rejected >= max_steps:
             break
         h = min(h, tau_stop - t)
-        if method != RK4:
-            if method == DOPRI5:
-                err = step_dopri5(
-                    y, f, h, p, model, law, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, fnew, rtol,
-                    atol,
-                )  # fmt: skip
-            else:
-                err = step_rosenbrock(
-                    y, f, h, p, model, law, nb, ev, k_ros, mat, perm, ytmp, ynew, fnew, rtol, atol
-                )
-            if not (err <= 1.0):
-                n_rejected += 1
-                if math.isfinite(err):
-                    h *= max(0.2, 0.9 * err**expo)
-                else:
-                    h *= 0.2
-                if h < 1e-300:
-                    # the step size collapsed: with any finite slope a small enough step
-                    # passes the error test, so the slope overflows. With a block slipping
-                    # faster than the load point this is the finite-time blow-up of v
-                    # (runaway); otherwise the solver failed and the run is undecided.
-                    # Steps below the resolution of t are legitimate: an inertial block
-                    # arresting after a fast slip lands on ℓ ~ −30 within ~1e-20 D0/V
-                    # (test_regularised.py::test_inertial_arrest_is_resolved).
-                    regime = UNDECIDED
-                    for i in range(nb):
-                        if y[i] > 0.0:
-                            regime = RUNAWAY
-                            tau_runaway = t
-                    break
-                continue
-            h_next = min(max_step, h * min(5.0, 0.9 * max(err, 1e-10) ** expo))
+        err = 0.0  # RK4: every step is accepted
+        if method == DOPRI5:
+            err = step_dopri5(
+                y, f, h, p, model, law, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, fnew, rtol, atol
+            )
+        elif method == ROSENBROCK:
+            err = step_rosenbrock(
+                y, f, h, p, model, law, nb, ev, k_ros, mat, perm, ytmp, ynew, fnew, rtol, atol
+            )
         else:
             step_rk4(y, f, h, p, model, law, nb, ev, k2, k3, k4, ytmp, ynew)
             rhs(ynew, p, model, law, nb, ev, fnew)
-            h_next = h
+        h_next = next_step_size(method, h, err, max_step)
+        if not (err <= 1.0):
+            n_rejected += 1
+            h = h_next
+            if h < 1e-300:
+                regime = collapse_regime(y, nb)
+                tau_runaway = t if regime == RUNAWAY else np.nan
+                break
+            continue
         n_steps += 1
 
-        # runaway: a velocity above the cap or any non-finite value
-        finite = True
-        for j in range(n):
-            if not (math.isfinite(ynew[j]) and math.isfinite(fnew[j])):
-                finite = False
-        if not finite:
+        crossed = runaway_index(ynew, fnew, nb, lnv_cap)
+        if crossed != NO_RUNAWAY:
             regime = RUNAWAY
             tau_runaway = t + h
-            break
-        crossed = -1
-        for i in range(nb):
-            if ynew[i] > lnv_cap and crossed < 0:
-                crossed = i
-        if crossed >= 0:
-            i = crossed
-            r5 = dense_r5(method, i, h, f, k3, k4, k5, k6, fnew)
-            theta = dense_crossing(y[i], ynew[i], f[i], fnew[i], h, r5, lnv_cap)
-            if y[i] > lnv_cap:
-                theta = 0.0
-            tau_runaway = t + theta * h
-            regime = RUNAWAY
-            for j in range(nb):
-                win_lmax[j] = max(win_lmax[j], ynew[j])
-            lnv_max_run = max(lnv_max_run, lnv_cap)
-            t += h
-            for j in range(n):
-                y[j] = ynew[j]
+            if crossed >= 0:  # the step is kept: the run ends after it
+                tau_runaway = cap_crossing(
+                    method, crossed, t, h, y, ynew, f, fnew, k3, k4, k5, k6, nb, lnv_cap, win, cs
+                )
+                t += h
             break
 
-        # extrema of every block's ℓ inside the step, then the window statistics
-        new_peak = False
-        theta_peak = 0.0
-        for i in range(nb):
-            rising = f[i] > 0.0
-            falling_now = fnew[i] <= 0.0
-            if rising == falling_now:  # slope changed sign: one extremum in the step
-                r5 = dense_r5(method, i, h, f, k3, k4, k5, k6, fnew)
-                theta = dense_extremum(y[i], ynew[i], f[i], fnew[i], h, r5)
-                val = dense_value(y[i], ynew[i], f[i], fnew[i], h, r5, theta)
-                win_lmax[i] = max(win_lmax[i], val)
-                win_lmin[i] = min(win_lmin[i], val)
-                lnv_max_run = max(lnv_max_run, val)
-                if rising:
-                    t_peak_blocks[i] = t + theta * h
-                    if i == 0:
-                        new_peak = True
-                        theta_peak = theta
-                        peak_value = val
-                    elif i == nb - 1:
-                        win_t_peak_last_block = t + theta * h
-            win_lmax[i] = max(win_lmax[i], ynew[i])
-            win_lmin[i] = min(win_lmin[i], ynew[i])
-            lnv_max_run = max(lnv_max_run, ynew[i])
-            # friction A ℓ_i + B ψ_i (relative to steady sliding), extremes interpolated
-            a_i, b_i = block_friction(p, nb, i, A, B)
-            mu0 = a_i * y[i] + b_i * y[nb + i]
-            mu = a_i * ynew[i] + b_i * ynew[nb + i]
-            dmu0 = a_i * f[i] + b_i * f[nb + i]
-            dmu1 = a_i * fnew[i] + b_i * fnew[nb + i]
-            if (dmu0 > 0.0) == (dmu1 <= 0.0):
-                r5 = a_i * dense_r5(method, i, h, f, k3, k4, k5, k6, fnew) + b_i * dense_r5(
-                    method, nb + i, h, f, k3, k4, k5, k6, fnew
-                )
-                theta = dense_extremum(mu0, mu, dmu0, dmu1, h, r5)
-                val = dense_value(mu0, mu, dmu0, dmu1, h, r5, theta)
-                win_mumax[i] = max(win_mumax[i], val)
-                win_mumin[i] = min(win_mumin[i], val)
-            win_mumax[i] = max(win_mumax[i], mu)
-            win_mumin[i] = min(win_mumin[i], mu)
-            if i > 0:
-                win_sync = max(win_sync, abs(ynew[i] - ynew[0]))
-        if nb > 1:
-            track_slips(ynew, nb, slip_lnv, slip_flags, slip_acc)
+        new_peak, theta_peak = update_cycle(
+            method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, p, nb, A, B, win, cs, slipped,
+            slip_lnv,
+        )  # fmt: skip
+        if cs[C_SLIPPING] > 0.0:
+            cs[C_IN_EVENT] = 1.0
+        elif cs[C_IN_EVENT] > 0.0:
+            end_slip_event(nb, slipped, cs)
+        if nb > 1:  # extremes of the mean ℓ, written out here (see accelerate.py: an
+            # inlined helper with a branch around its loops refcounts every step)
             m0 = 0.0
             m1 = 0.0
             dm0 = 0.0
@@ -955,19 +1181,14 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
                     r5 += dense_r5(method, i, h, f, k3, k4, k5, k6, fnew) / nb
                 theta = dense_extremum(m0, m1, dm0, dm1, h, r5)
                 val = dense_value(m0, m1, dm0, dm1, h, r5, theta)
-                win_mbar_max = max(win_mbar_max, val)
-                win_mbar_min = min(win_mbar_min, val)
-            win_mbar_max = max(win_mbar_max, m1)
-            win_mbar_min = min(win_mbar_min, m1)
-
-        while n_rec < rec_cap - 1 and n_rec * rec_dt <= t + h and rec_dt > 0.0:
-            theta = (n_rec * rec_dt - t) / h
-            rec_t[n_rec] = n_rec * rec_dt
-            for j in range(n):
-                r5 = dense_r5(method, j, h, f, k3, k4, k5, k6, fnew)
-                rec_y[n_rec, j] = dense_value(y[j], ynew[j], f[j], fnew[j], h, r5, theta)
-            n_rec += 1
-
+                cs[C_WIN_MBAR_MAX] = max(cs[C_WIN_MBAR_MAX], val)
+                cs[C_WIN_MBAR_MIN] = min(cs[C_WIN_MBAR_MIN], val)
+            cs[C_WIN_MBAR_MAX] = max(cs[C_WIN_MBAR_MAX], m1)
+            cs[C_WIN_MBAR_MIN] = min(cs[C_WIN_MBAR_MIN], m1)
+        if n_rec > 0:
+            n_rec = record_step(
+                method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, rec_dt, rec_t, rec_y, n_rec
+            )
         t_new_peak = t + theta_peak * h
         t += h
         for j in range(n):
@@ -976,123 +1197,29 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
         h = h_next
 
         if new_peak:
-            n_peaks += 1
-            if n_peaks >= 2:
-                period = t_new_peak - t_peak
-                # growth of the peak-to-trough amplitude of ℓ_0, where it is above
-                # round-off (a decayed run would report noise, not a rate)
-                amp = peak_value - win_lmin[0]
-                growth = np.nan
-                if amp_prev >= steady_amp and amp >= steady_amp:
-                    growth = math.log(amp / amp_prev) / period
-                amp_prev = amp
-                slot = n_cycles % HISTORY
-                for i in range(nb):
-                    hist[i, slot] = win_lmax[i]
-                    hist[nb + i, slot] = win_lmin[i]
-                hist[0, slot] = peak_value
-                hist[2 * nb, slot] = period
-                hist[2 * nb + 1, slot] = win_mbar_max - win_mbar_min
-                n_cycles += 1
-                verdict, conv = cycle_verdict(
-                    hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, atol
-                )
-                n_agree = n_agree + 1 if verdict >= 0 and verdict == last_verdict else 1
-                last_verdict = verdict
-                for i in range(nb):
-                    last_lmax[i] = win_lmax[i]
-                    last_lmin[i] = win_lmin[i]
-                    last_mumax[i] = win_mumax[i]
-                    last_mumin[i] = win_mumin[i]
-                last_sync = win_sync
-                if nb > 1 and win_t_peak_last_block == win_t_peak_last_block:
-                    lag = (win_t_peak_last_block - t_peak) / period
-                    last_phase = lag - math.floor(lag + 0.5)
-                if nb > 1:
-                    last_order = kuramoto_order(t_peak_blocks, t_new_peak, period, nb)
-                    last_participation = slip_acc[1] / slip_acc[2] if slip_acc[2] > 0 else np.nan
-            slip_acc[1] = 0.0
-            slip_acc[2] = 0.0
-            t_peak = t_new_peak
+            cs[C_N_PEAKS] += 1
+            if cs[C_N_PEAKS] >= 2:
+                close_cycle(
+                    t_new_peak, nb, win, last, hist, cs, accuracy, steady_amp, lin_growth, rtol,
+                    atol,
+                )  # fmt: skip
+            cs[C_T_PEAK] = t_new_peak
             # the new cycle starts at this peak
-            win_sync, mbar = start_window(y, p, nb, A, B, win_lmax, win_lmin, win_mumax, win_mumin)
-            win_lmax[0] = max(win_lmax[0], peak_value)
-            win_t_peak_last_block = np.nan
-            win_mbar_max = mbar
-            win_mbar_min = mbar
-            if early_exit and last_verdict >= 0 and n_agree >= n_confirm:
-                regime = last_verdict
+            start_cycle(y, p, nb, A, B, win, cs)
+            win[W_LMAX, 0] = max(win[W_LMAX, 0], cs[C_PEAK_VALUE])
+            if early_exit and cs[C_VERDICT] >= 0 and cs[C_N_AGREE] >= n_confirm:
+                regime = int(cs[C_VERDICT])
                 break
 
         # decayed onto a linearly stable steady state
-        if early_exit and lin_growth < 0.0:
-            big = 0.0
-            for j in range(n):
-                big = max(big, abs(y[j]))
-            if big < steady_amp:
-                regime = STEADY
-                break
-
-    # final window: the last completed cycle, except for runaway runs and runs
-    # that never completed one, which report the cycle in progress
-    use_last = n_peaks >= 2 and regime != RUNAWAY
-    lmax = -np.inf
-    lmin = np.inf
-    fdrop = 0.0
-    for i in range(nb):
-        if use_last:
-            lmax = max(lmax, last_lmax[i])
-            lmin = min(lmin, last_lmin[i])
-            fdrop = max(fdrop, last_mumax[i] - last_mumin[i])
-        else:
-            lmax = max(lmax, win_lmax[i])
-            lmin = min(lmin, win_lmin[i])
-            fdrop = max(fdrop, win_mumax[i] - win_mumin[i])
-    sync = last_sync if use_last else win_sync
-    if regime < 0:
-        big = 0.0
-        for j in range(n):
-            big = max(big, abs(y[j]))
-        if t < tau_stop:  # step budget exhausted
-            regime = UNDECIDED
-        elif last_verdict >= 0:
-            regime = last_verdict
-        elif big < steady_amp and lin_growth < 0.0:
+        if early_exit and lin_growth < 0.0 and max_abs(y) < steady_amp:
             regime = STEADY
-        else:
-            regime = UNDECIDED
-    if regime == STEADY or regime == RUNAWAY:
-        conv = np.nan
+            break
 
-    result[R_REGIME] = regime
-    result[R_TAU_FINAL] = t
-    result[R_N_STEPS] = n_steps
-    result[R_N_REJECTED] = n_rejected
-    result[R_LNV_MAX] = lmax
-    result[R_LNV_MIN] = lmin
-    result[R_PERIOD] = period
-    result[R_GROWTH] = growth
-    result[R_FRICTION_DROP] = fdrop
-    result[R_TAU_RUNAWAY] = tau_runaway
-    result[R_SYNC_ERROR] = sync if nb > 1 else np.nan
-    result[R_PHASE_LAG] = last_phase
-    result[R_N_PEAKS] = n_peaks
-    result[R_LNV_MAX_RUN] = lnv_max_run
-    for j in range(n):
-        y_final[j] = y[j]
-    if 0 < n_rec < rec_cap and rec_t[n_rec - 1] < t:
-        rec_t[n_rec] = t
-        for j in range(n):
-            rec_y[n_rec, j] = y[j]
-        n_rec += 1
-    result[R_N_RECORDED] = n_rec
-    result[R_CONVERGENCE] = conv
-    if use_last:
-        result[R_SYNC_ORDER] = last_order
-        result[R_SLIP_PARTICIPATION] = last_participation
-    else:
-        result[R_SYNC_ORDER] = np.nan
-        result[R_SLIP_PARTICIPATION] = slip_acc[1] / slip_acc[2] if slip_acc[2] > 0 else np.nan
+    regime = final_regime(regime, t, tau_stop, y, cs, steady_amp, lin_growth)
+    write_result(result, regime, t, n_steps, n_rejected, tau_runaway, nb, win, last, cs)
+    y_final[:] = y
+    result[R_N_RECORDED] = record_end(t, y, rec_t, rec_y, n_rec)
 
 
 @jit

@@ -11,21 +11,23 @@ laws give ψ_i' = −r_i (ℓ_i + ψ_i))::
                               z_i' = −κ1_i ℓ_i − κ2 Σ_j L_ij ℓ_j + B_i r_i (ℓ_i + ψ_i) − A_i z_i/M̂
 
 with L the coupling graph's Laplacian. Identical blocks keep the analytic normal
-modes of ``sweep/model.py``; for unequal ones the eigenvalues of this Jacobian
+modes of ``sweep/physics.py``; for unequal ones the eigenvalues of this Jacobian
 give the growth rate, and the critical stiffness is where the largest real part
 crosses zero as the common K_W varies with the per-block ratios K_i/K fixed.
 """
 
+import functools
+
 import numpy as np
 
-from . import heterogeneity, model
+from . import heterogeneity, physics
 
-#: Critical-stiffness search: κ is scanned downwards from the first stable value
-#: ``hi`` in factors of 2^(1/2) over SCAN_POINTS points (down to hi 2^(−20), about
-#: 1e−6 hi); the largest unstable point and the stable one above it are bisected
-#: BISECTIONS times (a bracket ratio of √2 shrinks below double round-off).
-SCAN_POINTS = 41
-BISECTIONS = 60
+#: Critical-stiffness search: from an estimate, steps of this factor up to the first
+#: stable κ and down to the first unstable one, then the Illinois variant of regula
+#: falsi on the largest real part (superlinear; 10-15 Jacobian spectra instead of
+#: ~60 for bisection, which matters at 64 blocks) to a bracket of RELATIVE_WIDTH.
+BRACKET_FACTOR = 1.25
+RELATIVE_WIDTH = 1e-14
 
 
 def laplacian(n_blocks, coupling="chain"):
@@ -79,7 +81,7 @@ def steady_jacobian(model_name, A, B, kappa1, rate, kappa2, lap, eta_hat=0.0, ma
         jac[..., :nb, :nb] = drive_l / denom[..., :, None]
         jac[..., :nb, nb : 2 * nb] = drive_psi / denom[..., :, None]
     else:
-        raise ValueError(f"model must be one of {model.MODELS}, got {model_name!r}")
+        raise ValueError(f"model must be one of {physics.MODELS}, got {model_name!r}")
     return jac
 
 
@@ -89,72 +91,107 @@ def _largest_eigenvalue(jac):
     return np.take_along_axis(lam, lam.real.argmax(axis=-1)[..., None], axis=-1)[..., 0]
 
 
-def critical_scale(jac_at, n_systems):
-    """Largest common stiffness κ > 0 at which the largest real part crosses zero.
+def critical_scale(growth, estimate):
+    """Largest κ > 0 at which ``growth(κ)`` (the largest real part) crosses zero.
 
-    ``jac_at(kappa)``: the Jacobians (n_systems, n, n) at common stiffness κ
-    (array (n_systems,)). Stable above the returned κ. Returns ``(kappa_c,
-    omega)``, ω = |Im λ| of the critical eigenvalue (V/D0); NaN where no
-    κ in the scanned range is unstable.
+    Brackets the crossing by steps of :data:`BRACKET_FACTOR` from ``estimate`` (the
+    first stable κ above, the first unstable one below it), then narrows the bracket
+    by the Illinois method to :data:`RELATIVE_WIDTH`. NaN where no κ within a factor
+    1e20 of the estimate is unstable (or none is stable).
     """
-    hi = np.ones(n_systems)
-    for _ in range(60):  # the first stable stiffness from κ = 1 up
-        unstable = _largest_eigenvalue(jac_at(hi)).real > 0.0
-        if not unstable.any():
+    hi, g_hi = estimate, growth(estimate)
+    lo, g_lo = np.nan, np.nan
+    for _ in range(210):  # 1.25^210 ≈ 1e20
+        if g_hi < 0.0:
             break
-        hi = np.where(unstable, 2.0 * hi, hi)
-    scan = hi[:, None] * 2.0 ** (-0.5 * np.arange(SCAN_POINTS))[None, :]
-    growth = np.stack(
-        [_largest_eigenvalue(jac_at(scan[:, k])).real for k in range(SCAN_POINTS)], axis=1
+        lo, g_lo = hi, g_hi
+        hi *= BRACKET_FACTOR
+        g_hi = growth(hi)
+    else:
+        return np.nan
+    if not g_lo > 0.0:
+        lo = hi
+        for _ in range(210):
+            lo /= BRACKET_FACTOR
+            g_lo = growth(lo)
+            if g_lo > 0.0:
+                break
+            hi, g_hi = lo, g_lo
+        else:
+            return np.nan
+    side = 0
+    for it in range(200):
+        if hi - lo <= RELATIVE_WIDTH * hi:
+            break
+        c = hi - g_hi * (hi - lo) / (g_hi - g_lo)
+        if it >= 100 or not lo < c < hi:  # safeguard: bisection
+            c = 0.5 * (lo + hi)
+        g_c = growth(c)
+        if g_c > 0.0:
+            lo, g_lo = c, g_c
+            if side > 0:
+                g_hi *= 0.5
+            side = 1
+        elif g_c < 0.0:
+            hi, g_hi = c, g_c
+            if side < 0:
+                g_lo *= 0.5
+            side = -1
+        else:
+            return c
+    return 0.5 * (lo + hi)
+
+
+@functools.lru_cache(maxsize=4096)
+def _critical(model_name, coupling, nb, key):
+    """(κc, ω at onset) of one set of unequal blocks; ``key``: the tuple (A_i…, B_i…,
+    K_i/K…, D0/D0_i…, κ2, η̂, M̂). Cached: the grid and the Dataset ask for the same."""
+    k = np.array(key)
+    A, B, ratio, rate = (k[i * nb : (i + 1) * nb] for i in range(4))
+    kappa2, eta_hat, mass_hat = k[4 * nb :]
+    lap = laplacian(nb, coupling)
+
+    def largest(kappa):
+        return _largest_eigenvalue(
+            steady_jacobian(model_name, A, B, ratio * kappa, rate, kappa2, lap, eta_hat, mass_hat)
+        )
+
+    # each block on its own, at its own rate: the mean of their critical κ
+    own = physics.critical_kappa(model_name, A, B, eta_hat, mass_hat) * rate / ratio
+    estimate = float(np.mean(own)) if np.mean(own) > 0.0 else 1.0
+    kc = critical_scale(lambda kappa: largest(kappa).real, estimate)
+    return kc, (abs(largest(kc).imag) if kc == kc else np.nan)
+
+
+@functools.lru_cache(maxsize=65536)
+def _growth(model_name, coupling, nb, key):
+    """Largest real part at steady sliding for the key of :func:`_critical` + (κ,)."""
+    k = np.array(key)
+    A, B, ratio, rate = (k[i * nb : (i + 1) * nb] for i in range(4))
+    kappa2, eta_hat, mass_hat, kappa = k[4 * nb :]
+    jac = steady_jacobian(
+        model_name, A, B, ratio * kappa, rate, kappa2, laplacian(nb, coupling), eta_hat, mass_hat
     )
-    first = np.argmax(growth > 0.0, axis=1)  # the largest unstable κ (scan goes down)
-    found = (growth > 0.0).any(axis=1) & (first > 0)
-    rows = np.arange(n_systems)
-    lo = np.where(found, scan[rows, first], np.nan)  # unstable
-    up = np.where(found, scan[rows, np.maximum(first - 1, 0)], np.nan)  # stable
-    for _ in range(BISECTIONS):
-        mid = 0.5 * (lo + up)
-        grows = _largest_eigenvalue(jac_at(np.where(found, mid, 1.0))).real > 0.0
-        lo = np.where(grows, mid, lo)
-        up = np.where(grows, up, mid)
-    kc = 0.5 * (lo + up)
-    omega = np.abs(_largest_eigenvalue(jac_at(np.where(found, kc, 1.0))).imag)
-    return kc, np.where(found, omega, np.nan)
+    return float(_largest_eigenvalue(jac).real)
 
 
-def unequal_theory(model_name, coupling, A, B, kappa1, rate, kappa2, eta_hat, mass_hat, kappa):
+def unequal_theory(model_name, coupling, A, B, ratio, rate, kappa2, eta_hat, mass_hat, kappa):
     """Growth rate at κ and critical κ (with ω at onset) of unequal blocks.
 
-    Per-block arrays (n, nb), the others (n,); ``kappa`` is the common κ = K D0/W
-    (so κ1_i/κ are the per-block stiffness ratios). Repeated rows are computed once.
-    Returns ``(growth_rate, kappa_c, omega)``, in units of V/D0 and 1.
+    Per-block arrays (n, nb): ``A``, ``B``, ``ratio`` = K_i/K and ``rate`` = D0/D0_i;
+    the others (n,); ``kappa`` is the common κ = K D0/W (block i's κ1_i = ratio_i κ).
+    Each distinct parameter set is computed once (and cached). Returns
+    ``(growth_rate, kappa_c, omega)``, in units of V/D0 and 1.
     """
     nb = A.shape[1]
-    lap = laplacian(nb, coupling)
-    ratio = kappa1 / kappa[:, None]
     keys = np.column_stack([A, B, ratio, rate, kappa2, eta_hat, mass_hat])
-    uniq, inverse = np.unique(keys, axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    uA, uB, uratio, urate = (uniq[:, k * nb : (k + 1) * nb] for k in range(4))
-    uk2, ueta, umass = uniq[:, 4 * nb], uniq[:, 4 * nb + 1], uniq[:, 4 * nb + 2]
-
-    def jac_at(scale):
-        return steady_jacobian(
-            model_name, uA, uB, uratio * scale[:, None], urate, uk2, lap, ueta, umass
-        )
-
-    kc, omega = critical_scale(jac_at, len(uniq))
-    full = np.column_stack([keys, kappa])
-    ufull, finverse = np.unique(full, axis=0, return_inverse=True)
-    finverse = finverse.reshape(-1)
-    growth = _largest_eigenvalue(
-        steady_jacobian(
-            model_name, *(ufull[:, k * nb : (k + 1) * nb] for k in (0, 1)),
-            ufull[:, 2 * nb : 3 * nb] * ufull[:, -1:], ufull[:, 3 * nb : 4 * nb],
-            ufull[:, 4 * nb], lap, ufull[:, 4 * nb + 1], ufull[:, 4 * nb + 2],
-        )
-    ).real  # fmt: skip
-    return growth[finverse], kc[inverse], omega[inverse]
+    growth = np.empty(len(keys))
+    kc = np.empty(len(keys))
+    omega = np.empty(len(keys))
+    for r, (key, kap) in enumerate(zip(map(tuple, keys.tolist()), kappa.tolist(), strict=True)):
+        kc[r], omega[r] = _critical(model_name, coupling, nb, key)
+        growth[r] = _growth(model_name, coupling, nb, key + (kap,))
+    return growth, kc, omega
 
 
 def theory(config, phys):
@@ -162,32 +199,32 @@ def theory(config, phys):
 
     Returns a dict of arrays: ``growth_rate`` (max Re λ), ``kappa_c`` (critical
     common κ = Kc D0/W) and ``omega`` (|Im λ| at onset). Systems whose blocks are
-    identical use the analytic modes of ``sweep/model.py``; the others the
+    identical use the analytic modes of ``sweep/physics.py``; the others the
     eigenvalues of :func:`steady_jacobian`.
     """
-    dl = model.dimensionless(
+    dl = physics.dimensionless(
         phys["A"], phys["B"], phys["D0"], phys["V"], phys["K_W"], phys["k2_W"],
         phys["eta_W"], phys["m_W"],
     )  # fmt: skip
     args = (config.model, dl["A"], dl["B"], dl["eta_hat"], dl["mass_hat"])
-    growth = model.linear_growth_rate(
+    growth = physics.linear_growth_rate(
         config.model, config.blocks, dl["A"], dl["B"], dl["kappa1"], dl["kappa2"],
         dl["eta_hat"], dl["mass_hat"], config.coupling,
     )  # fmt: skip
     out = {
         "growth_rate": growth,
-        "kappa_c": model.critical_kappa(*args),
-        "omega": model.onset_angular_frequency(*args),
+        "kappa_c": physics.critical_kappa(*args),
+        "omega": physics.onset_angular_frequency(*args),
     }
     if not config.heterogeneous:
         return out
     values = heterogeneity.block_values(config, phys)
     rows = ~heterogeneity.identical_blocks(values)
     if rows.any():
-        D0 = phys["D0"][rows, None]
+        factors = heterogeneity.block_factors(config, phys)
         growth, kc, omega = unequal_theory(
             config.model, config.coupling, values["A"][rows], values["B"][rows],
-            values["K_W"][rows] * D0, D0 / values["D0"][rows], dl["kappa2"][rows],
+            factors["K_W"][rows], 1.0 / factors["D0"][rows], dl["kappa2"][rows],
             dl["eta_hat"][rows], dl["mass_hat"][rows], dl["kappa1"][rows],
         )  # fmt: skip
         for name, value in (("growth_rate", growth), ("kappa_c", kc), ("omega", omega)):

@@ -16,7 +16,7 @@ import textwrap
 import numpy as np
 
 from .dataset import parameter_values
-from .model import PARAMETERS
+from .physics import PARAMETERS
 from .variables import REGIMES
 
 #: Colour of each regime in every figure (Okabe–Ito palette, colour-blind safe).
@@ -635,7 +635,7 @@ def save_figure(fig, out, dpi=DPI):
     """
     from pathlib import Path
 
-    from .atomic import replaced_atomically
+    from .store import replaced_atomically
 
     out = Path(out)
     if out.suffix not in FORMATS:

@@ -19,11 +19,11 @@ import math
 import numpy as np
 import xarray as xr
 
-from . import kernels, model
+from . import kernels, physics
 from .config import ConfigError, config_mapping, parse_config
 from .dataset import derived_fields, parameter_attrs, parameter_coords, provenance
-from .grid import physical_parameters, system_arrays
-from .model import PARAMETERS
+from .grid import build_grid
+from .physics import PARAMETERS
 from .variables import REGIMES, variables_for
 
 #: Fine samples recorded per output point before decimation.
@@ -44,7 +44,7 @@ def pin_config(config, at, t_end=None):
     ``at``: parameter name → value (physical units). Every sweep axis must be
     given; a fixed parameter given in ``at`` is overridden. ``t_end`` (in the
     config's ``t_unit``) replaces the end time. Early exit is switched off.
-    Raises :class:`~sweep.config.ConfigError` listing every problem.
+    Raises :class:`~sweep.errors.ConfigError` listing every problem.
     """
     text = " ".join(f"--at {name}={value:g}" for name, value in at.items())
     source = f"{config.source} {text}".strip()
@@ -109,8 +109,8 @@ def compute_trace(config, points=4000):
         raise ValueError(
             f"a trace integrates one system; this config has {config.shape} grid points"
         )
-    phys = physical_parameters(config)
-    params, y0, settings, time_unit = system_arrays(config, phys)
+    grid = build_grid(config)
+    params, y0, settings, time_unit = grid.params, grid.y0, grid.settings, grid.time_unit
     fine = points * OVERSAMPLE
     rec_t = np.empty(fine + 1)
     rec_y = np.empty((fine + 1, y0.shape[1]))
@@ -125,8 +125,8 @@ def compute_trace(config, points=4000):
     keep = decimate(rec_y[:n, :nb], points)
     lnv = rec_y[keep, :nb]
     psi = rec_y[keep, nb : 2 * nb]
-    first = {name: values[0] for name, values in phys.items()}
-    mu_ss = model.steady_friction(first["mu0"], first["A"], first["B"], first["V"], first["V0"])
+    first = {name: values[0] for name, values in grid.physical.items()}
+    mu_ss = physics.steady_friction(first["mu0"], first["A"], first["B"], first["V"], first["V0"])
     with np.errstate(over="ignore"):
         series = {
             "velocity": first["V"] * np.exp(lnv),
@@ -151,12 +151,13 @@ def compute_trace(config, points=4000):
     return xr.Dataset(
         data_vars,
         coords=coords,
-        attrs=trace_attributes(config, phys, params, result, y_final, time_unit),
+        attrs=trace_attributes(grid, result, y_final),
     )
 
 
-def trace_attributes(config, phys, params, result, y_final, time_unit):
+def trace_attributes(grid, result, y_final):
     """Provenance of a trace plus its pinned parameters and run statistics (with units)."""
+    config, time_unit = grid.config, grid.time_unit
     attrs = provenance(config, "trace")
     attrs["title"] = f"Rice-Ruina spring-block trace: {config.name}"
     attrs["time_sampling"] = (
@@ -164,9 +165,9 @@ def trace_attributes(config, phys, params, result, y_final, time_unit):
         f"largest and smallest ln(v/V) ({OVERSAMPLE} fine samples per output point), "
         "plus the final state"
     )
-    attrs["t_end"] = float(params[0, kernels.P_TAU_END] * time_unit[0])
+    attrs["t_end"] = float(grid.params[0, kernels.P_TAU_END] * time_unit[0])
     attrs["t_end_units"] = "s"
-    fields = derived_fields(config, phys, result, y_final, time_unit)
+    fields = derived_fields(grid, result, y_final)
     for var in variables_for(config.blocks, config.model, config.features):
         if var.per_block or var.per_regime:
             continue
@@ -189,9 +190,9 @@ def run_trace(config, at, out=None, png=None, t_end=None, points=4000, dpi=None)
     """
     from pathlib import Path
 
-    from .config import check_writable
     from .dataset import write_netcdf
     from .plots import DPI, FORMATS, plot_trace, save_figure
+    from .store import check_writable
 
     pinned = pin_config(config, at, t_end)
     stem = "_".join(f"{name}={value:g}" for name, value in at.items())

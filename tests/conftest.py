@@ -19,11 +19,27 @@ from scipy.integrate import solve_ivp
 from sweep import grid, kernels, runner
 from sweep.config import load_config, parse_config
 from sweep.dataset import write_netcdf
+from sweep.physics import log_form_rhs
 
 #: The seed paper's friction coefficients (physics brief, section 1).
 PAPER_A, PAPER_B = 0.03, 0.08
 #: Critical stiffness per normal load Kc/W = (B − A)/D0 for D0 = 1 µm, in µm⁻¹.
 KC_W = PAPER_B - PAPER_A
+
+
+def kc_w(model_name, eta_w=0.0, m_w=0.0, V=0.1, D0=1.0):
+    """The brief's critical stiffness Kc/W (µm⁻¹) for the paper's A and B, η/W (s/µm),
+    m/W (s²/µm), V (µm/s) and D0 (µm), from its closed forms (sections 3–4)::
+
+        radiation damping   Kc = (W(B − A) − ηV)/D0
+        inertia             Kc = (W(B − A)/D0)(1 + m V²/(W A D0))
+    """
+    if model_name == "quasi-dynamic":
+        return ((PAPER_B - PAPER_A) - eta_w * V) / D0
+    if model_name == "inertial":
+        return (PAPER_B - PAPER_A) / D0 * (1.0 + m_w * V**2 / (PAPER_A * D0))
+    return (PAPER_B - PAPER_A) / D0
+
 
 #: A one-block quasi-static config like configs/quick.yaml (D0 = 1 µm, V = 0.1 µm/s,
 #: so the time unit D0/V is 10 s); tests override only what they need.
@@ -73,8 +89,8 @@ def write_config(path, overrides=None, **sections):
 
 def run_grid(config):
     """Integrate every system of ``config`` → ``(results, y_final)`` (kernel units, D0/V)."""
-    params, y0, settings, _ = grid.system_arrays(config)
-    return runner.integrate_chunks(params, y0, settings)
+    g = grid.build_grid(config)
+    return runner.integrate_in_memory(g.params, g.y0, g.settings)
 
 
 def run_recorded(config, rec_dt, index=0):
@@ -82,7 +98,8 @@ def run_recorded(config, rec_dt, index=0):
 
     Returns ``(result, rec_t, rec_y)`` trimmed to the recorded points.
     """
-    params, y0, settings, _ = grid.system_arrays(config)
+    g = grid.build_grid(config)
+    params, y0, settings = g.params, g.y0, g.settings
     n_rec = int(params[index, kernels.P_TAU_END] / rec_dt) + 3
     rec_t = np.zeros(n_rec)
     rec_y = np.zeros((n_rec, y0.shape[1]))
@@ -93,26 +110,6 @@ def run_recorded(config, rec_dt, index=0):
     )  # fmt: skip
     n = int(result[kernels.R_N_RECORDED])
     return result, rec_t[:n], rec_y[:n]
-
-
-def log_form_rhs(t, y, A, B, kappa1, kappa2=0.0, n_blocks=1, law="aging", eta_hat=0.0):
-    """Right-hand side of the log form (physics brief, section 2), plain numpy.
-
-    State ``y = (ℓ_1 … ℓ_N, ψ_1 … ψ_N)``, time in D0/V; an open chain with κ2 on
-    each coupling spring; ``eta_hat`` > 0 adds radiation damping (quasi-dynamic).
-    Written independently of ``sweep.kernels`` to serve as the reference.
-    """
-    lnv, psi = y[:n_blocks], y[n_blocks:]
-    v = np.exp(lnv)
-    if law == "aging":
-        dpsi = np.exp(-psi) - v
-    else:  # slip law: dΦ/dt = −(vΦ/D0) ln(vΦ/D0), i.e. ψ' = −e^ℓ (ℓ + ψ)
-        dpsi = -v * (lnv + psi)
-    coupling = np.zeros(n_blocks)
-    coupling[1:] += v[:-1] - v[1:]
-    coupling[:-1] += v[1:] - v[:-1]
-    dlnv = (kappa1 * (1.0 - v) + kappa2 * coupling - B * dpsi) / (A + eta_hat * v)
-    return np.concatenate([dlnv, dpsi])
 
 
 def scipy_runaway_time(kappa_over_kc, lnv0, psi0, v_cap_over_V=1e6, t_max=3000.0):
@@ -217,7 +214,7 @@ import numpy as np
 mode, directory, config_path = sys.argv[1:]
 if mode == "elsewhere":
     socket.gethostname = lambda: "elsewhere.example.org"
-from sweep import parts
+from sweep import store
 from sweep.config import load_config
 
 def savez(f, **arrays):
@@ -230,7 +227,7 @@ def savez(f, **arrays):
 
 np.savez = savez
 config = load_config(config_path)
-parts.write_part(directory, config, parts.config_hash(config), 0, 2, 9, np.zeros((2, 15)),
+store.write_part(directory, config, store.config_hash(config), 0, 2, 9, np.zeros((2, 15)),
                  np.zeros((2, 2)))
 """
 

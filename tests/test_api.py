@@ -88,8 +88,10 @@ def test_a_text_number_from_safe_load_gets_a_hint():
 
 
 def test_run_rejects_bad_threads():
-    with pytest.raises(sweep.ConfigError, match="threads must be an integer"):
+    """A bad argument is the user's to fix (InputError, exit 2) but not a config problem."""
+    with pytest.raises(sweep.InputError, match="threads must be an integer") as err:
         sweep.run(QUICK, threads=0, progress=False)
+    assert not isinstance(err.value, sweep.ConfigError)
 
 
 def test_results_differing_in_a_fixed_parameter_combine_along_it(quick_result, tmp_path):

@@ -50,10 +50,11 @@ import time
 
 import numpy as np
 import pytest
-from conftest import PAPER_A, PAPER_B, log_form_rhs, make_config, run_grid
+from conftest import PAPER_A, PAPER_B, make_config, run_grid
 from scipy.integrate import solve_ivp
 
 from sweep import kernels
+from sweep.physics import log_form_rhs
 
 A, B = PAPER_A, PAPER_B
 KC_QS = B - A
@@ -75,10 +76,10 @@ FEATURE_CALL = {"method": "DOP853", "rtol": 1e-12, "atol": 1e-14}
 
 def one_block_rhs(kappa, eta_hat=0.0, law="aging", mass_hat=0.0):
     """The brief's log form for one block, written with ``math`` (4x faster than the
-    numpy ``conftest.log_form_rhs``, which ``test_one_block_rhs_is_the_brief`` compares
+    numpy ``sweep.physics.log_form_rhs``, which ``test_one_block_rhs_is_the_brief`` compares
     it with). Quasi-static / quasi-dynamic state (ℓ, ψ); inertial (ℓ, ψ, σ) with σ the
     spring force in excess of steady friction, m ẍ = W(σ − Aℓ − Bψ) (as
-    test_regularised.physics_rhs)."""
+    test_models.physics_rhs)."""
 
     def dpsi(lnv, psi, v):
         return math.exp(-psi) - v if law == "aging" else -v * (lnv + psi)
@@ -103,7 +104,7 @@ def one_block_rhs(kappa, eta_hat=0.0, law="aging", mass_hat=0.0):
 
 
 def chain_rhs(nb, kappa1, kappa2, **extra):
-    """``conftest.log_form_rhs`` (numpy, any number of blocks) as ``fun(t, y)``."""
+    """``sweep.physics.log_form_rhs`` (numpy, any number of blocks) as ``fun(t, y)``."""
 
     def fun(t, y):
         return log_form_rhs(t, y, A, B, kappa1, kappa2, nb, **extra)
@@ -296,7 +297,7 @@ def assert_cycle_matches(row, ref, sync=False):
     )
     if sync:
         # the kernel samples |ℓ_i − ℓ_0| at step ends only (steps ≤ 0.5 D0/V), as in
-        # test_regularised: 2 %
+        # test_models: 2 %
         np.testing.assert_allclose(row[kernels.R_SYNC_ERROR], ref["sync"], rtol=0.02)
 
 

@@ -13,7 +13,7 @@ import xarray as xr
 from conftest import KC_W, make_config, write_config
 
 from sweep import cli, runner
-from sweep.model import PARAMETERS
+from sweep.physics import PARAMETERS
 from sweep.variables import REGIMES, variables_for
 
 ROOT = Path(__file__).resolve().parent.parent

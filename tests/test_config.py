@@ -3,11 +3,13 @@ the file and the key, and no change to an existing result."""
 
 import math
 
+import numpy as np
 import pytest
 import yaml
-from conftest import config_dict, make_config, write_config
+from conftest import config_dict, kc_w, make_config, write_config
 
 from sweep import cli
+from sweep.cli import main
 from sweep.config import ConfigError, load_config, parse_config
 
 SENTINEL = b"an earlier result that must survive\n"
@@ -248,3 +250,98 @@ def test_classification_settings_and_retired_keys():
         assert f"classification.{old} is no longer used; use classification.{new}" in text
     with pytest.raises(ConfigError, match=r"classification.accuracy must be in \(0, 0.5\]"):
         make_config(classification={"accuracy": 0.0})
+
+
+# --- the models' configs (issue 3) ---------------------------------------------------
+
+
+def test_inertial_model_defaults_to_rosenbrock():
+    def method(model, extra, **integrator):
+        overrides = {"model": model, "parameters": extra, "integrator": None}
+        return make_config(overrides, integrator=integrator).integrator.method
+
+    assert method("inertial", {"m_W": 1.0}) == "rosenbrock"
+    assert method("quasi-dynamic", {"eta_W": 0.1}) == "dopri5"
+    assert method("inertial", {"m_W": 1.0}, method="dopri5") == "dopri5"
+
+
+def raw_config(model_name="quasi-dynamic", law="aging", parameters=None, sweep=None, **other):
+    """``conftest.config_dict`` for ``model_name`` (with the parameter it needs), ``law``
+    and ``sweep`` (replacing the base axes), then the changes ``other``."""
+    params = {"quasi-dynamic": {"eta_W": 0.1}, "inertial": {"m_W": 1.0}}.get(model_name, {})
+    params |= parameters or {}
+    sweep = sweep or {"K_W": [0.04]}
+    params |= {name: None for name in sweep if name in params}  # swept, so not fixed
+    base = {"model": model_name, "state_law": law, "sweep": None, "integrator": None}
+    return config_dict(base, parameters=params, sweep=sweep, **other)
+
+
+BAD_MODEL_CONFIGS = [
+    (raw_config(parameters={"eta_W": -0.1}), "parameters.eta_W must be in [0, inf), got -0.1"),
+    (
+        raw_config(sweep={"K_W": [0.04], "eta_W": [0.1, -0.2]}),
+        "sweep.eta_W[1] must be in [0, inf), got -0.2",
+    ),
+    (
+        raw_config("inertial", parameters={"m_W": -1.0}),
+        "parameters.m_W must be in [0, inf), got -1",
+    ),
+    (
+        raw_config("inertial", parameters={"m_W": 0.0}),
+        "parameters.m_W must be in (0, inf) for model inertial, got 0",
+    ),
+    (
+        raw_config("inertial", sweep={"K_W": [0.04], "m_W": [0.0, 1.0]}),
+        "sweep.m_W must be in (0, inf) for model inertial, got 0",
+    ),
+    (
+        raw_config("dynamic"),
+        "model must be one of quasi-static, quasi-dynamic, inertial; got 'dynamic'",
+    ),
+    (raw_config(law="ruina"), "state_law must be one of aging, slip; got 'ruina'"),
+    (
+        raw_config(integrator={"method": "radau"}),
+        "integrator.method must be one of dopri5, rk4, rosenbrock; got 'radau'",
+    ),
+    (
+        raw_config("quasi-static", parameters={"eta_W": 0.1}),
+        "parameters.eta_W only applies to model quasi-dynamic",
+    ),
+]
+
+
+@pytest.mark.parametrize("raw, message", BAD_MODEL_CONFIGS)
+def test_bad_model_values_are_rejected(tmp_path, capsys, raw, message):
+    """Exit status 2, the file and the offending key in the message, nothing written."""
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    out = tmp_path / "out.nc"
+    assert main(["run", str(path), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert message in err
+    assert str(path) in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "name, model_name, law, second",
+    [
+        ("quasidynamic", "quasi-dynamic", "aging", "eta_W"),
+        ("inertial", "inertial", "aging", "m_W"),
+        ("slip_law", "quasi-dynamic", "slip", "eta_W"),
+    ],
+)
+def test_shipped_model_configs(name, model_name, law, second):
+    """The new configs: model and law as named, a K/W × (η/W or m/W) grid whose
+    K/W axis brackets Kc for every value of the second axis, with no grid point on
+    Kc; m/W spans at least two decades."""
+    config = load_config(f"configs/{name}.yaml")
+    assert (config.model, config.state_law) == (model_name, law)
+    axes = {a.name: np.array(a.values) for a in config.axes}
+    assert set(axes) == {"K_W", second}
+    for value in axes[second]:
+        kc = kc_w(model_name, **{second.lower(): value})
+        assert axes["K_W"].min() < kc < axes["K_W"].max()
+        assert np.abs(axes["K_W"] / kc - 1).min() > 1e-3
+    if second == "m_W":
+        assert axes["m_W"].max() / axes["m_W"].min() >= 100.0

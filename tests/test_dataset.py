@@ -11,7 +11,7 @@ from conftest import KC_W, PAPER_A, PAPER_B, make_config, run_grid
 
 from sweep import kernels, runner
 from sweep.dataset import write_netcdf
-from sweep.model import PARAMETERS
+from sweep.physics import PARAMETERS
 from sweep.variables import BY_NAME, REGIMES, VARIABLES, variables_for
 
 A, B = PAPER_A, PAPER_B

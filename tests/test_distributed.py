@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from conftest import QUICK, assert_same_file
 
-from sweep import accelerate, parts, runner
+from sweep import accelerate, runner, store
+from sweep.backends import Resources, load_kernels
 from sweep.cli import main
-from sweep.grid import system_arrays
+from sweep.grid import build_grid
 
 dask = pytest.importorskip("dask")
 distributed = pytest.importorskip("distributed")
@@ -29,21 +30,23 @@ def local_client():
 
 def test_serial_task_kernel_matches_threads_on_read_only_input(quick):
     """Arrays unpickled on a worker may be read-only; the task copes and agrees."""
-    params, y0, settings, _ = system_arrays(quick)
+    g = build_grid(quick)
+    params, y0, settings = g.params, g.y0, g.settings
     for a in (params, y0, settings):
         a.flags.writeable = False
-    results, y_final = sweep_distributed.integrate_chunk(params, y0, settings)
-    threaded, y_threaded = runner.integrate_chunks(params.copy(), y0.copy(), settings.copy())
+    results, y_final = sweep_distributed.chunk_task(params, y0, settings)
+    threaded, y_threaded = runner.integrate_in_memory(params.copy(), y0.copy(), settings.copy())
     np.testing.assert_array_equal(results, threaded)
     np.testing.assert_array_equal(y_final, y_threaded)
 
 
 @pytest.mark.slow
 def test_local_cluster_gives_identical_results(quick, quick_reference_file, local_client, tmp_path):
-    """Through ``run_sweep(scheduler=...)``, i.e. ``--scheduler ADDRESS``, in chunks of 2."""
+    """Through ``Resources(scheduler=...)``, i.e. ``--scheduler ADDRESS``, in chunks of 2."""
     out = tmp_path / "r.nc"
     address = local_client.scheduler.address
-    runner.run_sweep(quick, out=out, scheduler=address, chunk_size=2, show_progress=False)
+    runner.run_sweep(quick, out=out, resources=Resources(scheduler=address), chunk_size=2,
+                     show_progress=False)  # fmt: skip
     assert_same_file(out, quick_reference_file)
 
 
@@ -61,8 +64,8 @@ def test_workers_load_the_kernel_from_the_cache(local_client):
         stats = kernels.integrate_grid_serial.stats
         return len(stats.cache_hits), len(stats.cache_misses)
 
-    sweep_distributed.load_kernels()
-    local_client.run(sweep_distributed.load_kernels)
+    load_kernels()
+    local_client.run(load_kernels)
     for hits, misses in local_client.run(compile_stats).values():
         assert (hits, misses) == (1, 0)
 
@@ -73,7 +76,7 @@ def test_three_shards_and_merge_give_identical_results(quick_reference_file, tmp
         args = ["run", str(QUICK), "--out", str(out), "--shard", f"{i}/3", "--chunk-size", "2"]
         assert main([*args, "--quiet"]) == 0
         assert not out.exists()
-    parts_dir = parts.parts_dir_for(out)
+    parts_dir = store.parts_dir_for(out)
     assert "python -m sweep merge" in capsys.readouterr().out
     assert main(["merge", str(parts_dir), "--out", str(out)]) == 0
     assert_same_file(out, quick_reference_file)
@@ -101,8 +104,8 @@ def test_threads_and_dask_do_not_mix(tmp_path, capsys):
 @pytest.mark.slow
 def test_api_runs_on_a_client_a_cluster_or_not_a_client(quick, quick_reference_file, local_client,
                                                         tmp_path):  # fmt: skip
-    """``sweep.run(client=...)`` and ``run_sweep(scheduler=...)`` take a Client (left
-    open) or a Cluster; anything else is the tool's ConfigError, not a TypeError."""
+    """``sweep.run(client=...)`` and ``Resources(scheduler=...)`` take a Client (left
+    open) or a Cluster; anything else is the tool's InputError, not a TypeError."""
     import sweep
     from sweep.dataset import write_netcdf
 
@@ -110,20 +113,20 @@ def test_api_runs_on_a_client_a_cluster_or_not_a_client(quick, quick_reference_f
         ds = sweep.run(quick, client=client, progress=False)
         assert_same_file(write_netcdf(ds, tmp_path / f"{k}.nc"), quick_reference_file)
     assert local_client.status == "running"
-    with pytest.raises(sweep.ConfigError, match="must be a dask distributed Client"):
+    with pytest.raises(sweep.InputError, match="must be a dask distributed Client"):
         sweep.run(quick, client=3, progress=False)
-    with pytest.raises(sweep.ConfigError, match="threads is for numba threads"):
+    with pytest.raises(sweep.InputError, match="threads is for numba threads"):
         sweep.run(quick, client=local_client, threads=1, progress=False)
 
 
 @pytest.mark.slow
 def test_run_sweep_takes_a_client_and_logs_its_dashboard(quick, quick_reference_file, local_client,
                                                          tmp_path, caplog):  # fmt: skip
-    """``run_sweep(scheduler=client)`` used to raise TypeError; the dashboard link (which
+    """``run_sweep`` with a Client as scheduler used to raise TypeError; the dashboard link (which
     the CLI prints) is logged whenever the scheduler serves one."""
     caplog.set_level("INFO", logger="sweep")
     result = runner.run_sweep(quick, out=tmp_path / "c.nc", show_progress=False,
-                              scheduler=local_client)  # fmt: skip
+                              resources=Resources(scheduler=local_client))  # fmt: skip
     assert_same_file(result.path, quick_reference_file)
     link = sweep_distributed.dashboard_link(local_client)
     if link is not None:  # None without bokeh, which serves the dashboard

@@ -31,7 +31,9 @@ def test_grid_is_c_ordered_product_of_axes():
     np.testing.assert_array_equal(phys["D0"], np.full(6, 2.0))
     np.testing.assert_array_equal(phys["V0"], phys["D0"] / phys["Phi0"])  # V0 = D0/Φ0
     np.testing.assert_array_equal(phys["eta_W"], np.zeros(6))  # unset: zero
-    params, y0, settings, time_unit = grid.system_arrays(config, phys)
+    g = grid.build_grid(config)
+    np.testing.assert_array_equal(g.physical["K_W"], phys["K_W"])
+    params, y0, settings, time_unit = g.params, g.y0, g.settings, g.time_unit
     np.testing.assert_allclose(params[:, kernels.P_KAPPA1], phys["K_W"] * 2.0, rtol=1e-15)
     np.testing.assert_allclose(params[:, kernels.P_KAPPA2], phys["k2_W"] * 2.0, rtol=1e-15)
     np.testing.assert_allclose(time_unit, 2.0 / 0.1)  # D0/V in s
@@ -48,7 +50,7 @@ def test_times_in_seconds_are_converted_per_system():
         parameters={"K_W": 0.05, "D0": None},
         integrator={"t_unit": "s", "t_end": 100.0, "dt": 0.5, "max_step": 2.0},
     )
-    params, *_ = grid.system_arrays(config)
+    params = grid.build_grid(config).params
     tau_unit = np.array([10.0, 20.0])  # D0/V in s
     np.testing.assert_allclose(params[:, kernels.P_TAU_END], 100.0 / tau_unit)
     np.testing.assert_array_equal(params[:, kernels.P_DT], 0.5)
@@ -62,7 +64,7 @@ def test_inertial_start_is_in_force_balance():
         parameters={"m_W": 0.5},
         initial={"v_over_V": 1.2, "phi_over_phi_ss": 1.01},
     )
-    _, y0, *_ = grid.system_arrays(config)
+    y0 = grid.build_grid(config).y0
     np.testing.assert_allclose(y0[:, 0], math.log(1.2), rtol=1e-15)
     np.testing.assert_allclose(y0[:, 1], math.log(1.01), rtol=1e-15)
     np.testing.assert_array_equal(y0[:, 2], 0.0)
@@ -154,7 +156,8 @@ def test_results_do_not_depend_on_chunking_property(mixed_reference, chunk_size,
 
 def test_serial_and_parallel_kernels_agree():
     """The serial grid kernel (used under Dask) gives the parallel kernel's numbers."""
-    params, y0, shared, _ = grid.system_arrays(make_config(MIXED))
+    g = grid.build_grid(make_config(MIXED))
+    params, y0, shared = g.params, g.y0, g.settings
     n = params.shape[0]
     out = {}
     for name, kernel in (

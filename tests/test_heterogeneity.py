@@ -44,7 +44,6 @@ BAD = [
     ("spread axis of a shared parameter", {"sweep": {"K_W": [0.05], "spread_V": [0.1]}},
      "unknown sweep axis sweep.spread_V"),
     ("negative ensemble", {"initial": {"ensemble": -1}}, "initial.ensemble must be an integer"),
-    ("seed without ensemble", {"initial": {"seed": 3}}, "give initial.ensemble"),
     ("negative amplitude", {"initial": {"ensemble": 2, "amplitude": -0.1}},
      "initial.amplitude must be in [0, inf)"),
 ]  # fmt: skip
@@ -95,7 +94,8 @@ def test_list_values_reach_the_kernel_columns():
     d0 = [1.0, 1.3, 0.8]
     config = nblock_config(parameters={"D0": d0}, sweep={"K_W": [0.04, 0.05]})
     assert config.fixed["D0"] == pytest.approx(np.mean(d0), rel=1e-15)
-    params, _, _, time_unit = grid.system_arrays(config)
+    g = grid.build_grid(config)
+    params, time_unit = g.params, g.time_unit
     nb, start = 3, kernels.N_PARAMS
     assert params.shape == (2, start + kernels.N_BLOCK_PARAMS * nb)
     rate = params[:, start + kernels.B_RATE * nb : start + (kernels.B_RATE + 1) * nb]
@@ -108,7 +108,7 @@ def test_list_values_reach_the_kernel_columns():
 def test_identical_blocks_keep_the_narrow_parameter_rows():
     """Without per-block values the kernels get N_PARAMS columns (the identical-block path)."""
     config = nblock_config(coupling="all")
-    params, _, _, _ = grid.system_arrays(config)
+    params = grid.build_grid(config).params
     assert params.shape[1] == kernels.N_PARAMS
     assert np.all(params[:, kernels.P_COUPLING] == kernels.ALL)
 
@@ -117,7 +117,7 @@ def test_ensemble_starts_are_seeded_and_shared_by_grid_points():
     config = nblock_config(initial={"ensemble": 4, "seed": 1, "amplitude": 0.2},
                            sweep={"K_W": [0.04, 0.05, 0.06]})  # fmt: skip
     assert config.run_shape == (3, 4)
-    _, y0, _, _ = grid.system_arrays(config)
+    y0 = grid.build_grid(config).y0
     assert y0.shape == (12, 6)
     starts = y0.reshape(3, 4, 6)
     np.testing.assert_array_equal(starts[0], starts[2])  # the same M starts everywhere
@@ -125,7 +125,7 @@ def test_ensemble_starts_are_seeded_and_shared_by_grid_points():
     offsets = starts[0] - base
     assert np.all(np.abs(offsets) <= 0.2) and np.unique(offsets).size == offsets.size
     other = nblock_config(initial={"ensemble": 4, "seed": 2}, sweep={"K_W": [0.04]})
-    assert not np.array_equal(grid.system_arrays(other)[1], starts[0])
+    assert not np.array_equal(grid.build_grid(other).y0, starts[0])
 
 
 def test_config_mapping_round_trips_the_nblock_keys():
@@ -147,7 +147,7 @@ def test_older_configs_have_no_nblock_features():
 
 def test_parts_of_other_couplings_or_blocks_are_not_reused():
     """The part files' config hash sees the coupling, per-block values and spreads."""
-    from sweep import parts
+    from sweep import store
 
     base = nblock_config(coupling="ring", spread={"A": 0.1, "seed": 1})
     variants = [
@@ -159,5 +159,5 @@ def test_parts_of_other_couplings_or_blocks_are_not_reused():
         nblock_config(coupling="ring", spread={"A": 0.1, "seed": 1}, parameters={"D0": [1, 2, 1]}),
         nblock_config(coupling="ring", spread={"A": 0.1, "seed": 1}, initial={"ensemble": 2}),
     ]
-    hashes = {parts.config_hash(c) for c in variants}
-    assert parts.config_hash(base) not in hashes and len(hashes) == len(variants)
+    hashes = {store.config_hash(c) for c in variants}
+    assert store.config_hash(base) not in hashes and len(hashes) == len(variants)

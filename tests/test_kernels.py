@@ -8,7 +8,6 @@ from conftest import (
     KC_W,
     PAPER_A,
     PAPER_B,
-    log_form_rhs,
     make_config,
     run_grid,
     run_recorded,
@@ -16,7 +15,8 @@ from conftest import (
 )
 from scipy.integrate import solve_ivp
 
-from sweep import kernels, model
+from sweep import kernels, physics
+from sweep.physics import log_form_rhs
 
 A, B = PAPER_A, PAPER_B
 KAPPA_C = B - A  # D0 = 1 µm: κ = K D0/W = K/W in µm⁻¹
@@ -83,7 +83,7 @@ def test_period_matches_linear_theory(small_perturbation):
 def test_regularised_growth_rate_matches_linear_theory(model_name, extra, kappa_c, rtol):
     """Same check for radiation damping and inertia, at their own κc: measured errors
     ≤ 1.3e-4 (quasi-dynamic) and ≤ 3.0e-3 (inertial, at 1.05 κc), tested at about 4×.
-    Re λ from ``model.linear_growth_rate``, itself checked in test_model.py against the
+    Re λ from ``physics.linear_growth_rate``, itself checked in test_physics.py against the
     kernel's finite-difference Jacobian and the brief's closed-form κc."""
     config = make_config(
         model=model_name,
@@ -95,7 +95,7 @@ def test_regularised_growth_rate_matches_linear_theory(model_name, extra, kappa_
     )
     results, _ = run_grid(config)
     eta_hat, mass_hat = extra.get("eta_W", 0.0) * 0.1, extra.get("m_W", 0.0) * 0.01
-    expected = model.linear_growth_rate(
+    expected = physics.linear_growth_rate(
         model_name, 1, A, B, np.array([0.95, 1.05]) * kappa_c, 0.0, eta_hat, mass_hat
     )
     np.testing.assert_allclose(results[:, kernels.R_GROWTH], expected, rtol=rtol)

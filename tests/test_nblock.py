@@ -157,3 +157,20 @@ def test_identical_starts_stay_in_phase():
     assert REGIMES[int(ds.regime)] == "stick_slip"
     assert float(ds.sync_order) == pytest.approx(1.0, abs=1e-12)  # cos of round-off phases
     assert float(ds.slip_participation) == 1.0
+
+
+def test_extending_an_ensemble_updates_its_regime_fractions(tmp_path):
+    """``extend`` continues undecided members and recounts regime_fraction."""
+    from sweep import extend
+
+    cfg = nblock(3, "ring", parameters={"D0": [1.0, 1.3, 0.8]}, sweep={"K_W": [0.046, 0.049]},
+                 initial={"ensemble": 3, "seed": 0}, integrator={"t_end": 50.0},
+                 classification={"max_t_end": 50.0})  # fmt: skip
+    ds = sweep.run(cfg, progress=False)
+    assert (ds.regime == REGIMES.index("undecided")).all()
+    path = tmp_path / "e.nc"
+    sweep.dataset.write_netcdf(ds, path)
+    out, n = extend.extend_file(path, t_end=3000.0)
+    assert n == 6 and not (out.regime == REGIMES.index("undecided")).all()
+    counts = [(out.regime == k).mean("member") for k in range(len(REGIMES))]
+    np.testing.assert_array_equal(out.regime_fraction.transpose("regime_name", "K_W"), counts)

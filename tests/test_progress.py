@@ -16,6 +16,7 @@ import pytest
 
 from sweep import progress as progress_module
 from sweep import runner
+from sweep.backends import Resources
 from sweep.progress import Progress
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -75,7 +76,7 @@ def test_a_sweep_prints_every_ten_seconds(quick, tmp_path, monkeypatch, capsys):
     4 s each time progress reads it: lines after 12 s and 24 s, and the last one."""
     ticks = iter(range(0, 1000, 4))
     monkeypatch.setattr(progress_module, "time", SimpleNamespace(monotonic=lambda: next(ticks)))
-    runner.run_sweep(quick, out=tmp_path / "r.nc", chunk_size=1, threads=1)
+    runner.run_sweep(quick, out=tmp_path / "r.nc", chunk_size=1, resources=Resources(threads=1))
     err = capsys.readouterr().err  # (log lines too, where an earlier test set up logging)
     lines = re.findall(r"^quick: \d+/9 runs.*$", err, re.M)
     assert [line.split()[1] for line in lines] == ["3/9", "6/9", "9/9"], err

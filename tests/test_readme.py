@@ -5,11 +5,13 @@ recomputes it: with the engine the way ``make figures`` or the named config does
 and, where an independent reference is cheap, with SciPy. A number must agree to
 its last printed digit, so a change in the code that moves it fails here until the
 README is updated (and a README edit that no longer matches fails too). The limit
-cycle numbers of "What happens below Kc" are checked in ``test_regularised.py``,
+cycle numbers of "What happens below Kc" are checked in ``test_models.py``,
 beside the runs that produce them.
 """
 
+import dataclasses
 import math
+import re
 import subprocess
 import sys
 
@@ -22,7 +24,6 @@ from conftest import (
     ROOT,
     assert_as_printed,
     config_dict,
-    log_form_rhs,
     readme_numbers,
     scipy_runaway_time,
 )
@@ -32,7 +33,8 @@ from scipy.integrate import solve_ivp
 from test_classification import ANTI
 
 from sweep import figures, run
-from sweep.config import config_mapping, load_config, parse_config
+from sweep.config import Classification, Integrator, config_mapping, load_config, parse_config
+from sweep.physics import log_form_rhs
 from sweep.runner import compute
 from sweep.trace import compute_trace, pin_config
 from sweep.variables import REGIMES
@@ -172,6 +174,44 @@ def test_memory_of_a_million_point_sweep(tmp_path):
     assert "wrote m.nc (1000000 runs" in proc.stdout
     peak_kib = int(proc.stderr.split()[-1])
     assert peak_kib * 1024 / 1e9 == pytest.approx(float(gb), rel=0.15)
+
+
+def setting_comments(section):
+    """``{key: comment}`` of the README's annotated config under ``section:`` (a key's
+    comment and the comment lines that continue it)."""
+    lines = (ROOT / "README.md").read_text().splitlines()
+    start = lines.index(f"{section}:")
+    comments, key = {}, None
+    for line in lines[start + 1 :]:
+        if not line.startswith("  "):
+            break
+        head, _, comment = line.partition("#")
+        if head.strip():
+            key = head.split(":")[0].strip()
+            comments[key] = comment
+        else:
+            comments[key] += " " + comment
+    return comments
+
+
+@pytest.mark.parametrize("section, cls", [("integrator", Integrator),
+                                          ("classification", Classification)])  # fmt: skip
+def test_config_reference_states_each_setting_as_declared(section, cls):
+    """The annotated config names every integrator and classification setting with the
+    interval or choices and the unit declared once in ``sweep.config`` (its field's
+    ``Setting``), so the reference and the validation cannot drift apart."""
+    comments = setting_comments(section)
+    for field in dataclasses.fields(cls):
+        spec = field.metadata["setting"]
+        assert field.name in comments, f"README config lacks {section}.{field.name}"
+        comment = comments[field.name]
+        if isinstance(spec.allowed, str):
+            assert spec.allowed in comment, f"{section}.{field.name}: no {spec.allowed}"
+        elif all(isinstance(choice, str) for choice in spec.allowed):
+            words = re.split(r"[\s|]+", comment)
+            assert set(spec.allowed) <= set(words), f"{section}.{field.name}: {spec.allowed}"
+        if spec.units != "1":
+            assert spec.units in comment, f"{section}.{field.name}: no unit {spec.units}"
 
 
 # --- Many contact points (issue 14) ------------------------------------------------------

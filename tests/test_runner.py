@@ -22,10 +22,11 @@ from conftest import QUICK, assert_same_file, interrupted_part_writer, reference
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sweep import kernels, parts, runner
+from sweep import kernels, runner, store
+from sweep.backends import NumbaThreads, Resources, compile_grid_kernel
 from sweep.cli import main
 from sweep.config import load_config, parse_config
-from sweep.grid import system_arrays
+from sweep.grid import build_grid
 
 #: Slow enough per run to kill a sweep part-way: fixed-step RK4 with 1e6 steps per run
 #: (about 0.2 s each on one thread), runs kept going to t_end (early_exit false, and a
@@ -115,11 +116,11 @@ def test_chunk_size_and_threads_do_not_change_results(
     chunk = chunk_size or quick.shape[0]  # None: the whole grid in one chunk
     out = tmp_path / "r.nc"
     result = runner.run_sweep(
-        quick, out=out, threads=threads, chunk_size=chunk, show_progress=False
+        quick, out=out, resources=Resources(threads), chunk_size=chunk, show_progress=False
     )
     assert_same_file(out, quick_reference_file)
     assert result.computed == quick.shape[0]
-    assert not parts.parts_dir_for(out).exists()  # parts removed once the file is written
+    assert not store.parts_dir_for(out).exists()  # parts removed once the file is written
 
 
 def test_resume_with_another_chunk_size_reuses_saved_rows(quick, quick_reference_file, tmp_path):
@@ -150,7 +151,7 @@ def test_default_shard_chunks_do_not_depend_on_the_thread_count(tmp_path):
     for shard, threads in (("0/2", "1"), ("1/2", "2")):
         args = ["run", config, "--out", out, "--shard", shard, "--threads", threads, "--quiet"]
         assert main(list(map(str, args))) == 0
-    assert main(["merge", str(parts.parts_dir_for(out)), "--out", str(out)]) == 0
+    assert main(["merge", str(store.parts_dir_for(out)), "--out", str(out)]) == 0
     reference = reference_file(load_config(config), tmp_path / "reference.nc")
     assert xr.load_dataset(reference).sizes["K_W"] == 40
     assert_same_file(out, reference)
@@ -176,8 +177,8 @@ def test_stop_request_keeps_finished_chunks_and_resume_completes(
             quick, out=out, chunk_size=2, show_progress=False, stop=StopAfterFirstCheck()
         )
     assert info.value.signum == signal.SIGTERM
-    (part,) = parts.parts_dir_for(out).glob("*.npz")
-    assert (parts.read_part(part).start, parts.read_part(part).stop) == (0, 2)
+    (part,) = store.parts_dir_for(out).glob("*.npz")
+    assert (store.read_part(part).start, store.read_part(part).stop) == (0, 2)
     result = runner.run_sweep(quick, out=out, chunk_size=2, resume=True, show_progress=False)
     assert (result.reused, result.computed) == (2, 7)
     assert_same_file(out, quick_reference_file)
@@ -188,22 +189,23 @@ def test_a_second_ctrl_c_stops_at_once(quick, tmp_path, monkeypatch, signals, sa
     """Ctrl-C (real SIGINTs, through the CLI's handler) while the first chunk's part is
     being written: once, the sweep finishes that part and stops after it (2 of 9 runs
     saved); twice, it stops at once, inside the write, and that part is not saved."""
-    write_part = parts.write_part
+    write_part = store.write_part
 
     def interrupted_write(*args, **kwargs):
         for _ in range(signals):
             signal.raise_signal(signal.SIGINT)
         return write_part(*args, **kwargs)
 
-    monkeypatch.setattr(parts, "write_part", interrupted_write)
+    monkeypatch.setattr(store, "write_part", interrupted_write)
     out = tmp_path / "r.nc"
     with (
         runner.stop_on_signals() as stop,
         pytest.raises(runner.Interrupted, match=f"SIGINT: {saved} of 9 runs are saved") as info,
     ):
-        runner.run_sweep(quick, out=out, chunk_size=2, threads=1, show_progress=False, stop=stop)
+        runner.run_sweep(quick, out=out, chunk_size=2, resources=Resources(threads=1),
+                         show_progress=False, stop=stop)  # fmt: skip
     assert info.value.signum == signal.SIGINT
-    assert len(list(parts.parts_dir_for(out).glob("*.npz"))) == saved // 2
+    assert len(list(store.parts_dir_for(out).glob("*.npz"))) == saved // 2
     assert not out.exists()
 
 
@@ -213,7 +215,7 @@ def test_signals_during_a_kernel_are_seen_when_it_returns():
     and 0.3 s into a chunk that computes for about 2 s (8 slow runs on one thread)
     reach the Python handler once, when the kernel has returned (CPython runs handlers
     between bytecodes and keeps one pending flag per signal)."""
-    params, y0, settings, _ = system_arrays(parse_config(SLOW))
+    g = build_grid(parse_config(SLOW))
     seen = []
     previous = signal.signal(signal.SIGINT, lambda *_: seen.append(time.perf_counter()))
 
@@ -223,11 +225,11 @@ def test_signals_during_a_kernel_are_seen_when_it_returns():
             os.kill(os.getpid(), signal.SIGINT)
 
     try:
-        runner.compile_grid_kernel(kernels.integrate_grid_parallel)
+        compile_grid_kernel(kernels.integrate_grid_parallel)
         sender = threading.Thread(target=send_two)
         start = time.perf_counter()
         sender.start()
-        (chunk,) = runner.threaded_chunks(params, y0, settings, [(0, 8)], threads=1)
+        (chunk,) = NumbaThreads(threads=1).run(g.params, g.y0, g.settings, [(0, 8)])
         returned = time.perf_counter()
         sender.join()
         time.sleep(0.05)  # a pending signal would be handled here
@@ -245,16 +247,16 @@ def test_signal_keeps_parts_and_says_how_to_resume(slow_config, tmp_path, signum
     out = tmp_path / "slow.nc"
     args = ["run", slow_config, "--out", out, "--chunk-size", "1", "--threads", "1", "--quiet"]
     proc = sweep_cli(*args, cwd=tmp_path)
-    wait_for_parts(parts.parts_dir_for(out), proc)
+    wait_for_parts(store.parts_dir_for(out), proc)
     proc.send_signal(signum)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 128 + signum
     assert f"interrupted by {signal.Signals(signum).name}" in err
     assert f"{' '.join(map(str, args))} --resume" in err  # the command to continue
-    saved = sorted(parts.parts_dir_for(out).glob("*.npz"))
+    saved = sorted(store.parts_dir_for(out).glob("*.npz"))
     assert 1 <= len(saved) < 8
     for path in saved:
-        parts.read_part(path)  # complete and valid: raises PartError otherwise
+        store.read_part(path)  # complete and valid: raises PartError otherwise
     assert not out.exists()
 
 
@@ -263,7 +265,7 @@ def test_sigkill_then_resume_recomputes_only_unfinished_chunks(slow_config, tmp_
     out = tmp_path / "slow.nc"
     args = ["run", slow_config, "--out", out, "--chunk-size", "1", "--threads", "1"]
     proc = sweep_cli(*args, cwd=tmp_path)
-    parts_dir = parts.parts_dir_for(out)
+    parts_dir = store.parts_dir_for(out)
     wait_for_parts(parts_dir, proc)
     proc.kill()
     proc.communicate(timeout=60)
@@ -309,13 +311,13 @@ def test_kill_during_a_part_write_then_resume_leaves_no_trace(
     the two finished parts, and once the result is written the dead writer's file goes
     with the parts, while the file of a writer still running (another shard) stays."""
     out = tmp_path / "r.nc"
-    folder = parts.parts_dir_for(out)
+    folder = store.parts_dir_for(out)
     args = ["run", QUICK, "--out", out, "--chunk-size", "3", "--threads", "1", "--quiet"]
     proc = subprocess.run([sys.executable, "-c", KILLED_WRITING_THIRD_PART, *map(str, args)],
                           cwd=tmp_path, capture_output=True, text=True, timeout=120)  # fmt: skip
     assert proc.returncode == -signal.SIGKILL, proc.stderr
     finished = sorted(folder.glob("*.npz"))
-    rows = [(part.start, part.stop) for part in map(parts.read_part, finished)]
+    rows = [(part.start, part.stop) for part in map(store.read_part, finished)]
     assert rows == [(0, 3), (3, 6)]
     (dead,) = set(folder.iterdir()) - set(finished)  # the third part, cut short
     shard = interrupted_part_writer(folder, "stuck")
@@ -328,7 +330,7 @@ def test_kill_during_a_part_write_then_resume_leaves_no_trace(
     finally:
         shard.kill()
         shard.wait(timeout=60)
-    parts.remove_parts(folder)  # as the next finished sweep or merge would
+    store.remove_parts(folder)  # as the next finished sweep or merge would
     assert not folder.exists()
 
 
@@ -347,7 +349,7 @@ def test_disk_full_while_saving_a_later_chunk_keeps_the_earlier_parts(
     --resume reuses them once there is room again."""
     out = tmp_path / "r.nc"
     out.write_bytes(b"earlier result")
-    write_part, calls = parts.write_part, []
+    write_part, calls = store.write_part, []
 
     def fill_up_at_the_third(*args, **kwargs):
         calls.append(args[3:5])  # (start, stop)
@@ -355,13 +357,14 @@ def test_disk_full_while_saving_a_later_chunk_keeps_the_earlier_parts(
             disk_full()
         return write_part(*args, **kwargs)
 
-    monkeypatch.setattr(parts, "write_part", fill_up_at_the_third)
+    monkeypatch.setattr(store, "write_part", fill_up_at_the_third)
     with pytest.raises(runner.RunError, match="cannot write a part .* No space left on device"):
-        runner.run_sweep(quick, out=out, chunk_size=2, threads=1, show_progress=False)
+        runner.run_sweep(quick, out=out, chunk_size=2, resources=Resources(threads=1),
+                         show_progress=False)  # fmt: skip
     assert calls == [(0, 2), (2, 4), (4, 6)]  # the sweep stopped at the failing write
     assert out.read_bytes() == b"earlier result"
-    kept = sorted(parts.parts_dir_for(out).iterdir())
-    assert [(p.start, p.stop) for p in map(parts.read_part, kept)] == [(0, 2), (2, 4)]
+    kept = sorted(store.parts_dir_for(out).iterdir())
+    assert [(p.start, p.stop) for p in map(store.read_part, kept)] == [(0, 2), (2, 4)]
     monkeypatch.undo()
     result = runner.run_sweep(quick, out=out, chunk_size=2, resume=True, show_progress=False)
     assert (result.reused, result.computed) == (4, 5)
@@ -377,7 +380,7 @@ def test_disk_full_while_writing_the_result_keeps_the_parts(
     with pytest.raises(runner.RunError, match=r"cannot write .*r\.nc: No space left on device"):
         runner.run_sweep(quick, out=out, chunk_size=4, show_progress=False)
     assert out.read_bytes() == b"earlier result"
-    assert len(list(parts.parts_dir_for(out).glob("*.npz"))) == 3
+    assert len(list(store.parts_dir_for(out).glob("*.npz"))) == 3
     monkeypatch.undo()
     result = runner.run_sweep(quick, out=out, chunk_size=4, resume=True, show_progress=False)
     assert (result.reused, result.computed) == (9, 0)

@@ -10,7 +10,7 @@ from scipy.integrate import solve_ivp
 from sweep import kernels
 from sweep.cli import main
 from sweep.config import ConfigError, config_mapping, load_config, parse_config
-from sweep.grid import system_arrays
+from sweep.grid import build_grid
 from sweep.runner import compute
 from sweep.trace import (
     compute_trace,
@@ -26,7 +26,8 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 def kernel_final_state(config):
     """(results row, y_final row) of the one system of ``config`` from the sweep's grid kernel."""
-    params, y0, settings, _ = system_arrays(config)
+    g = build_grid(config)
+    params, y0, settings = g.params, g.y0, g.settings
     results = np.empty((1, kernels.N_RESULTS))
     y_final = np.empty_like(y0)
     kernels.integrate_grid_serial(params, y0, settings, results, y_final)
@@ -106,7 +107,7 @@ def test_trace_ends_at_the_kernels_final_state(make_config, at):
     result, y_final = kernel_final_state(pinned)
     nb = pinned.blocks
     V = pinned.fixed["V"]
-    _, _, _, time_unit = system_arrays(pinned)
+    time_unit = build_grid(pinned).time_unit
     # Same kernel, same arithmetic (recording only interpolates): agreement to rounding.
     np.testing.assert_allclose(ds["lnv"].isel(time=-1).values, y_final[:nb], rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(

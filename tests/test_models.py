@@ -1,4 +1,5 @@
-"""Beyond quasi-static: radiation damping, inertia and the slip law (issue 3).
+"""The three models and two state laws: radiation damping, inertia and the slip law
+beside the quasi-static aging law (issue 3), one block and coupled blocks.
 
 Every reference here is independent of the code under test: the right-hand side
 is rewritten from the physics brief (``physics_rhs``, the inertial model in the
@@ -18,16 +19,21 @@ import math
 
 import numpy as np
 import pytest
-import yaml
-from conftest import assert_as_printed, assert_transition_at, readme_numbers
+from conftest import (
+    PAPER_A,
+    PAPER_B,
+    assert_as_printed,
+    assert_transition_at,
+    kc_w,
+    make_config,
+    readme_numbers,
+)
 from scipy.integrate import solve_ivp
 
-from sweep import kernels, model
-from sweep.cli import main
-from sweep.config import load_config, parse_config
+from sweep import kernels, physics
 from sweep.runner import compute
 
-A, B = 0.03, 0.08
+A, B = PAPER_A, PAPER_B
 V, D0 = 0.1, 1.0  # µm/s, µm
 T_UNIT = D0 / V  # s
 MODEL_CODES = {"quasi-static": 0, "quasi-dynamic": 1, "inertial": 2}
@@ -36,27 +42,13 @@ LAW_CODES = {"aging": 0, "slip": 1}
 SCIPY = {"method": "LSODA", "rtol": 1e-10, "atol": 1e-12}
 
 
-def kc_w(model_name, eta_w=0.0, m_w=0.0):
-    """The brief's critical stiffness Kc/W (µm⁻¹) for η/W (s/µm), m/W (s²/µm)."""
-    if model_name == "quasi-dynamic":
-        return ((B - A) - eta_w * V) / D0
-    if model_name == "inertial":
-        return (B - A) / D0 * (1.0 + m_w * V**2 / (A * D0))
-    return (B - A) / D0
-
-
-def make_config(model_name, law, sweep, blocks=1, parameters=None, **sections):
-    """A validated config for the paper's A, B, V, D0 (extra sections as dicts)."""
-    raw = {
-        "name": "test",
-        "blocks": blocks,
-        "model": model_name,
-        "state_law": law,
-        "parameters": {"A": A, "B": B, "mu0": 0.4, "V": V, "Phi0": 1.0, "D0": D0}
-        | (parameters or {}),
-        "sweep": sweep,
-    } | sections
-    return parse_config(yaml.safe_dump(raw, sort_keys=False), source="<test>")
+def model_config(model_name, law, sweep, blocks=1, parameters=None, **sections):
+    """``conftest.make_config`` for ``model_name`` and ``law``: ``sweep`` replaces the base
+    axes, and the integrator keeps its defaults (the inertial model's rosenbrock, t_end
+    3000 D0/V) unless ``sections`` set them."""
+    base = {"model": model_name, "state_law": law, "blocks": blocks, "sweep": None,
+            "integrator": None}  # fmt: skip
+    return make_config(base, sweep=sweep, parameters=parameters or {}, **sections)
 
 
 def physics_rhs(model_name, law, y, nb, kappa1, kappa2=0.0, eta_hat=0.0, mass_hat=0.0):
@@ -155,7 +147,7 @@ def test_analytic_jacobian_matches_finite_differences(model_name, law, nb):
 @pytest.mark.parametrize("nb", [1, 2, 3])
 @pytest.mark.parametrize("model_name", sorted(MODEL_CODES))
 def test_kernel_linearisation_has_the_linear_theory_eigenvalues(model_name, nb):
-    """Eigenvalues of the kernel's Jacobian at steady sliding = ``model.eigenvalues``
+    """Eigenvalues of the kernel's Jacobian at steady sliding = ``physics.eigenvalues``
     (the theory stored in every result), for the chain's normal modes."""
     p = param_row(0.045, 0.02, eta_hat=0.01, mass_hat=0.05)
     n = n_vars(model_name, nb)
@@ -166,7 +158,9 @@ def test_kernel_linearisation_has_the_linear_theory_eigenvalues(model_name, nb):
         y, kernel_rhs(y, p, model_name, "aging", nb), p, code, 0, nb, np.empty(nb), jac
     )
     got = np.sort_complex(np.linalg.eigvals(jac))
-    want = np.sort_complex(model.eigenvalues(model_name, nb, A, B, 0.045, 0.02, 0.01, 0.05).ravel())
+    want = np.sort_complex(
+        physics.eigenvalues(model_name, nb, A, B, 0.045, 0.02, 0.01, 0.05).ravel()
+    )
     # eigenvalues of 2×2 / 3×3 blocks vs of the full matrix: rounding only
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
 
@@ -182,7 +176,7 @@ def test_stored_linear_theory(model_name, eta_w, m_w):
     inertial onset period 2π sqrt(A/(B − A)) D0/V does not depend on the mass."""
     kc = kc_w(model_name, eta_w, m_w)
     params = {"eta_W": eta_w} if model_name == "quasi-dynamic" else {"m_W": m_w}
-    config = make_config(
+    config = model_config(
         model_name, "aging", {"K_W": [0.99 * kc, 1.01 * kc]}, parameters=params,
         integrator={"t_end": 1.0},
     )  # fmt: skip
@@ -304,7 +298,7 @@ def test_limit_cycle_matches_scipy(model_name, law, value, k_ratio):
     kernel takes friction's extremes at step ends only, steps up to 0.5 D0/V)."""
     name = "eta_W" if model_name == "quasi-dynamic" else "m_W"
     kc = kc_w(model_name, **{name.lower(): value})
-    config = make_config(
+    config = model_config(
         model_name, law, {"K_W": [k_ratio * kc]}, parameters={name: value},
         initial={"v_over_V": 1.0, "phi_over_phi_ss": 1.01},
     )  # fmt: skip
@@ -338,7 +332,7 @@ def test_inertial_arrest_is_resolved():
     kc = kc_w("inertial", m_w=0.01)
     runs = []
     for rtol in (1e-7, 1e-9):
-        config = make_config(
+        config = model_config(
             "inertial", "aging", {"K_W": [0.05 * kc]}, parameters={"m_W": 0.01},
             integrator={"rtol": rtol, "atol": rtol * 1e-2, "t_end": 20000.0},
         )  # fmt: skip
@@ -362,7 +356,7 @@ def test_onset_amplitude_grows_from_zero_with_damping_but_quasi_static_runs_away
     runs away instead (the degenerate Hopf of the brief, section 4)."""
     ratios = np.array([0.999, 0.99, 0.98])
     qd = compute(
-        make_config(
+        model_config(
             "quasi-dynamic", "aging", {"K_W": (ratios * kc_w("quasi-dynamic", 0.4)).tolist()},
             parameters={"eta_W": 0.4},
             # growth e-folds in 2(A + η̂)/(κc − κ) = 14000 D0/V at 0.999: a long run,
@@ -372,7 +366,7 @@ def test_onset_amplitude_grows_from_zero_with_damping_but_quasi_static_runs_away
         show_progress=False,
     )  # fmt: skip
     qs = compute(
-        make_config(
+        model_config(
             "quasi-static", "aging", {"K_W": (ratios * kc_w("quasi-static")).tolist()},
             integrator={"t_end": 60000.0},
         ),
@@ -422,7 +416,7 @@ def run_transition(model_name, law, blocks):
     k_axis, other = SWEEPS[model_name]
     params = {"k2_W": 0.05} if blocks == 2 else {}
     ds = compute(
-        make_config(
+        model_config(
             model_name, law, {"K_W": k_axis} | other, blocks=blocks, parameters=params,
             # perturb block 0 only: both normal modes of two blocks are excited
             initial={"v_over_V": [1.0] * blocks, "phi_over_phi_ss": [1.01] + [1.0] * (blocks - 1)},
@@ -465,7 +459,7 @@ def test_beating_modes_are_not_steady():
     for many cycles; the in-phase envelope keeps the run from being called steady."""
     kc = kc_w("inertial", m_w=10.0)
     ds = compute(
-        make_config(
+        model_config(
             "inertial", "aging", {"K_W": [0.99 * kc]}, blocks=2,
             parameters={"m_W": 10.0, "k2_W": 0.01},
             initial={"v_over_V": [1.0, 1.0], "phi_over_phi_ss": [1.01, 1.0]},
@@ -500,7 +494,7 @@ def test_phase_lag_and_sync_error_of_shifted_blocks(damped_cycle, shift):
     sol, t0, period = ref["sol"], ref["t_peaks"][-3], ref["period"]
     y_a, y_b = sol.sol(t0), sol.sol(t0 + shift * period)
     ds = compute(
-        make_config(
+        model_config(
             "quasi-dynamic", "aging", {"K_W": [kappa / D0]}, blocks=2,
             parameters={"eta_W": 0.1, "k2_W": 0.0},
             initial={"v_over_V": np.exp([y_a[0], y_b[0]]).tolist(),
@@ -533,7 +527,7 @@ def test_coupled_blocks_synchronise_in_phase(model_name, param, value, law):
     so the limit cycle is in phase: phase_lag → 0 and sync_error → 0."""
     kc = kc_w(model_name, **{param.lower(): value})
     ds = compute(
-        make_config(
+        model_config(
             model_name, law, {"K_W": [0.9 * kc]}, blocks=2,
             parameters={param: value, "k2_W": 0.05},
             initial={"v_over_V": [1.0, 1.0], "phi_over_phi_ss": [1.01, 1.0]},
@@ -555,7 +549,7 @@ def test_weakly_coupled_blocks_lock_in_anti_phase():
     steady (without the amplitude check of kernels.decay_confirmed it was)."""
     kc = kc_w("quasi-dynamic", 0.1)
     ds = compute(
-        make_config(
+        model_config(
             "quasi-dynamic", "aging", {"K_W": [0.775 * kc, 0.85 * kc]}, blocks=2,
             parameters={"eta_W": 0.1, "k2_W": 0.001},
             initial={"v_over_V": [1.0, 1.0], "phi_over_phi_ss": [1.01, 1.0]},
@@ -566,105 +560,3 @@ def test_weakly_coupled_blocks_lock_in_anti_phase():
     # the relative phase still creeps by < 1e-2 of a period when the envelope settles
     np.testing.assert_allclose(np.abs(ds.phase_lag.values), 0.5, atol=0.01)
     assert np.all(ds.sync_error.values > 0.5 * ds.lnv_amplitude.values)
-
-
-# --- configs ------------------------------------------------------------------------------
-
-
-def test_inertial_model_defaults_to_rosenbrock():
-    base = {"K_W": [0.05]}
-    assert (
-        make_config("inertial", "aging", base, parameters={"m_W": 1.0}).integrator.method
-        == "rosenbrock"
-    )
-    assert (
-        make_config("quasi-dynamic", "aging", base, parameters={"eta_W": 0.1}).integrator.method
-        == "dopri5"
-    )
-    explicit = make_config(
-        "inertial", "aging", base, parameters={"m_W": 1.0}, integrator={"method": "dopri5"}
-    )
-    assert explicit.integrator.method == "dopri5"
-
-
-def raw_config(model_name="quasi-dynamic", law="aging", parameters=None, sweep=None, **other):
-    """A raw config mapping with the parameters ``model_name`` needs, then changes."""
-    params = {"A": A, "B": B, "mu0": 0.4, "V": V, "Phi0": 1.0, "D0": D0}
-    params |= {"quasi-dynamic": {"eta_W": 0.1}, "inertial": {"m_W": 1.0}}.get(model_name, {})
-    params |= parameters or {}
-    sweep = sweep or {"K_W": [0.04]}
-    for name in sweep:
-        params.pop(name, None)
-    raw = {"blocks": 1, "model": model_name, "state_law": law}
-    return raw | {"parameters": params, "sweep": sweep} | other
-
-
-BAD_CONFIGS = [
-    (raw_config(parameters={"eta_W": -0.1}), "parameters.eta_W must be in [0, inf), got -0.1"),
-    (
-        raw_config(sweep={"K_W": [0.04], "eta_W": [0.1, -0.2]}),
-        "sweep.eta_W[1] must be in [0, inf), got -0.2",
-    ),
-    (
-        raw_config("inertial", parameters={"m_W": -1.0}),
-        "parameters.m_W must be in [0, inf), got -1",
-    ),
-    (
-        raw_config("inertial", parameters={"m_W": 0.0}),
-        "parameters.m_W must be in (0, inf) for model inertial, got 0",
-    ),
-    (
-        raw_config("inertial", sweep={"K_W": [0.04], "m_W": [0.0, 1.0]}),
-        "sweep.m_W must be in (0, inf) for model inertial, got 0",
-    ),
-    (
-        raw_config("dynamic"),
-        "model must be one of quasi-static, quasi-dynamic, inertial; got 'dynamic'",
-    ),
-    (raw_config(law="ruina"), "state_law must be one of aging, slip; got 'ruina'"),
-    (
-        raw_config(integrator={"method": "radau"}),
-        "integrator.method must be one of dopri5, rk4, rosenbrock; got 'radau'",
-    ),
-    (
-        raw_config("quasi-static", parameters={"eta_W": 0.1}),
-        "parameters.eta_W only applies to model quasi-dynamic",
-    ),
-]
-
-
-@pytest.mark.parametrize("raw, message", BAD_CONFIGS)
-def test_bad_values_are_rejected(tmp_path, capsys, raw, message):
-    """Exit status 2, the file and the offending key in the message, nothing written."""
-    path = tmp_path / "bad.yaml"
-    path.write_text(yaml.safe_dump(raw))
-    out = tmp_path / "out.nc"
-    assert main(["run", str(path), "--out", str(out), "--quiet"]) == 2
-    err = capsys.readouterr().err
-    assert message in err
-    assert str(path) in err
-    assert not out.exists()
-
-
-@pytest.mark.parametrize(
-    "name, model_name, law, second",
-    [
-        ("quasidynamic", "quasi-dynamic", "aging", "eta_W"),
-        ("inertial", "inertial", "aging", "m_W"),
-        ("slip_law", "quasi-dynamic", "slip", "eta_W"),
-    ],
-)
-def test_shipped_configs(name, model_name, law, second):
-    """The new configs: model and law as named, a K/W × (η/W or m/W) grid whose
-    K/W axis brackets Kc for every value of the second axis, with no grid point on
-    Kc; m/W spans at least two decades."""
-    config = load_config(f"configs/{name}.yaml")
-    assert (config.model, config.state_law) == (model_name, law)
-    axes = {a.name: np.array(a.values) for a in config.axes}
-    assert set(axes) == {"K_W", second}
-    for value in axes[second]:
-        kc = kc_w(model_name, **{second.lower(): value})
-        assert axes["K_W"].min() < kc < axes["K_W"].max()
-        assert np.abs(axes["K_W"] / kc - 1).min() > 1e-3
-    if second == "m_W":
-        assert axes["m_W"].max() / axes["m_W"].min() >= 100.0

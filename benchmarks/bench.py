@@ -14,7 +14,12 @@ Prints and writes ``results/bench.json``:
   the 2-thread speed-up; JIT compile time measured separately, in a fresh
   process with the cache off and on.
 
-Timings are not asserted anywhere; ``--quick`` shrinks every size for a smoke test.
+Timings are not asserted anywhere; ``--quick`` shrinks every size and
+``--smoke`` makes them tiny (``tests/test_bench.py`` runs every code path so). The
+physics comes from the package: the paper's parameters from ``configs/paper.yaml``
+and Kc from ``sweep.physics``; the SciPy loops' right-hand side (:func:`scipy_rhs`)
+is the tests' reference ``sweep.physics.log_form_rhs`` on scalars, checked equal to it
+in ``tests/test_bench.py``. Run it as ``python benchmarks/bench.py`` (``make bench``).
 """
 
 import argparse
@@ -29,14 +34,18 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from . import kernels
-from .config import load_config, parse_config, with_changes
-from .grid import system_arrays
-from .runner import integrate_chunks
-from .variables import REGIMES
+from sweep import kernels, physics
+from sweep.backends import DaskTasks, NumbaThreads, load_kernels
+from sweep.config import load_config, parse_config, with_changes
+from sweep.distributed import connect
+from sweep.grid import build_grid
+from sweep.runner import compute, integrate_in_memory
+from sweep.variables import REGIMES
 
-PAPER = {"A": 0.03, "B": 0.08, "mu0": 0.4, "V": 0.1, "Phi0": 1.0, "D0": 1.0}
-KC_W = (PAPER["B"] - PAPER["A"]) / PAPER["D0"]  # um^-1
+ROOT = Path(__file__).resolve().parent.parent
+#: The seed paper's fixed parameters (A, B, mu0, V, Phi0, D0; physical units).
+PAPER = load_config(ROOT / "configs" / "paper.yaml").fixed
+KC_W = float(physics.critical_kappa("quasi-static", PAPER["A"], PAPER["B"])) / PAPER["D0"]  # um^-1
 
 
 def one_block_config(
@@ -72,20 +81,24 @@ def engine_run(config, threads=1, repeats=1, passes=1):
     Best of ``repeats`` timings, each of ``passes`` back-to-back sweeps (sweeps of
     a fraction of a second are otherwise at the mercy of scheduler jitter).
     """
-    params, y0, settings, _ = system_arrays(config)
-    integrate_chunks(params[:1], y0[:1], settings, threads=threads)  # JIT warm-up
+    g = build_grid(config)
+    params, y0, settings = g.params, g.y0, g.settings
+    integrate_in_memory(params[:1], y0[:1], settings, threads=threads)  # JIT warm-up
     out = {}
 
     def run():
         for _ in range(passes):
-            out["results"], _ = integrate_chunks(params, y0, settings, threads=threads)
+            out["results"], _ = integrate_in_memory(params, y0, settings, threads=threads)
 
     seconds = _best_of(repeats, run) / passes
     return out["results"], seconds
 
 
 def scipy_rhs(t, y, A, B, kappa):
-    """Log-form one-block quasi-static aging law (physics brief, section 2)."""
+    """The one-block quasi-static aging case of ``sweep.physics.log_form_rhs``, on
+    scalars with ``math``: the numpy reference costs 32 instead of 9 µs per call under
+    LSODA (2-element arrays), which would make the SciPy loops about 3.5x slower than a
+    user's need be. ``tests/test_bench.py`` checks that the two agree."""
     lnv, psi = y
     e = math.exp(lnv)
     dpsi = math.exp(-psi) - e
@@ -220,9 +233,7 @@ def bench_block_scaling(n_systems, t_end, sizes=(2, 32)):
 
 
 def _critical_k_w(model, extra):
-    from .model import critical_kappa, dimensionless
-
-    d = dimensionless(
+    d = physics.dimensionless(
         PAPER["A"],
         PAPER["B"],
         PAPER["D0"],
@@ -232,7 +243,10 @@ def _critical_k_w(model, extra):
         extra.get("eta_W", 0.0),
         extra.get("m_W", 0.0),
     )
-    return float(critical_kappa(model, d["A"], d["B"], d["eta_hat"], d["mass_hat"])) / PAPER["D0"]
+    return (
+        float(physics.critical_kappa(model, d["A"], d["B"], d["eta_hat"], d["mass_hat"]))
+        / PAPER["D0"]
+    )
 
 
 def _plain_rk4_source():
@@ -423,7 +437,7 @@ def bench_sweep(config_path):
     """Wall time and runs/s of a whole config on 1 and 2 threads (JIT warm; best of 5)."""
     config = load_config(config_path)
     n = math.prod(config.shape)
-    out = {"config": str(config_path), "runs": n}
+    out = {"config": os.path.relpath(config_path, ROOT), "runs": n}
     for threads in (1, 2):
         _, seconds = engine_run(config, threads=threads, repeats=5, passes=5)
         out[f"seconds_{threads}_thread"] = seconds
@@ -451,73 +465,113 @@ def bench_compile(config_path):
     return out
 
 
-def bench_dask(config_path, workers=2):
-    """A LocalCluster of ``workers`` processes against numba threads on one config."""
-    from .distributed import compare_backends
+def time_compute(config, threads=None, client=None):
+    """Wall time (s) to compute ``config`` in memory, kernels compiled beforehand."""
+    (NumbaThreads(threads) if client is None else DaskTasks(client)).compile()
+    start = time.perf_counter()
+    compute(config, threads, show_progress=False, client=client)
+    return time.perf_counter() - start
 
-    times = compare_backends(load_config(config_path), workers=workers)
+
+def bench_dask(config_path, workers=2):
+    """Wall times (s) of computing a config on 1 and ``workers`` numba threads and on a
+    LocalCluster of ``workers`` processes (kernels compiled beforehand).
+
+    ``threads_1``, ``threads_n``, ``speedup`` (threads_1 / threads_n),
+    ``cluster_start`` (starting the LocalCluster and its workers), ``cluster`` (the
+    computation on it) and ``cluster_over_threads``.
+    """
+    config = load_config(config_path)
+    times = {"threads_1": time_compute(config, threads=1)}
+    times["threads_n"] = time_compute(config, threads=workers)
+    times["speedup"] = times["threads_1"] / times["threads_n"]
+    start = time.perf_counter()
+    with connect(local_workers=workers) as client:
+        client.wait_for_workers(workers)
+        client.run(load_kernels)
+        times["cluster_start"] = time.perf_counter() - start
+        times["cluster"] = time_compute(config, client=client)
     times["cluster_over_threads"] = times["cluster"] / times["threads_n"]
     return times
 
 
+#: Problem sizes: the figures of the README (``full``), a quicker look (``quick``) and
+#: the smallest that still runs every code path (``smoke``, for the test suite).
+SIZES = {
+    "full": {"scipy": (41, 2000), "single_purpose": (401, 2000), "scipy_hard": (101, 2000),
+             "threads_large": (10_000, 2000), "throughput": (16, 500), "rk4": 2_000_000,
+             "block_scaling": (8, 500),
+             "configs": ("oneblock", "twoblock"), "dask": "twoblock", "compile": "twoblock"},
+    "quick": {"scipy": (6, 300), "single_purpose": (21, 300), "scipy_hard": (5, 2000),
+              "threads_large": (200, 2000), "throughput": (2, 50), "rk4": 10_000,
+              "block_scaling": (2, 50),
+              "configs": ("quick", "quick"), "dask": "quick", "compile": "quick"},
+    "smoke": {"scipy": (3, 100), "single_purpose": (3, 100), "scipy_hard": (2, 100),
+              "threads_large": (4, 100), "throughput": (1, 10), "rk4": 1_000,
+              "block_scaling": (1, 10),
+              "configs": ("quick",), "dask": "quick", "compile": "quick"},
+}  # fmt: skip
+
+
+def repo_config(name):
+    """The path of a config in the repository's ``configs/`` folder."""
+    return ROOT / "configs" / f"{name}.yaml"
+
+
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m sweep.bench", description=__doc__)
-    parser.add_argument("--quick", action="store_true", help="tiny sizes (smoke test)")
-    parser.add_argument("--out", default="results/bench.json", help="where to write the figures")
+    parser = argparse.ArgumentParser(prog="python benchmarks/bench.py", description=__doc__)
+    sizes = parser.add_mutually_exclusive_group()
+    sizes.add_argument("--quick", action="store_const", const="quick", dest="size",
+                       help="small sizes (a quicker look)")  # fmt: skip
+    sizes.add_argument("--smoke", action="store_const", const="smoke", dest="size",
+                       help="tiny sizes: runs every code path (tests/test_bench.py)")  # fmt: skip
+    parser.add_argument("--out", default=str(ROOT / "results" / "bench.json"),
+                        help="where to write the figures")  # fmt: skip
     args = parser.parse_args(argv)
-    quick = args.quick
-    figures = {"quick": quick, "machine_cores": os.cpu_count()}
-    figures["scipy"] = bench_scipy(n_points=6 if quick else 41, t_end=300 if quick else 2000)
+    size = SIZES[args.size or "full"]
+    figures = {"quick": args.size is not None, "machine_cores": os.cpu_count()}
+    figures["scipy"] = bench_scipy(*size["scipy"])
     _print_scipy(figures["scipy"])
-    figures["single_purpose"] = sp = bench_single_purpose(
-        n_points=21 if quick else 401, t_end=300 if quick else 2000
-    )
+    figures["single_purpose"] = sp = bench_single_purpose(*size["single_purpose"])
     _print_single_purpose(sp)
-    figures["scipy_hard"] = h = bench_scipy_hard(n_points=5 if quick else 101, t_end=2000)
+    figures["scipy_hard"] = h = bench_scipy_hard(*size["scipy_hard"])
     print(
         f"K/Kc 0.8-1.2, {h['grid_points']} runs: engine with early exit "
         f"{h['speedup_per_core']:.0f}x faster per core than a SciPy LSODA loop"
     )
-    figures["threads_large"] = tl = bench_threads_large(
-        n_points=200 if quick else 10_000, t_end=2000
-    )
+    figures["threads_large"] = tl = bench_threads_large(*size["threads_large"])
     print(
         f"{tl['grid_points']}-point one-block sweep: {tl['seconds_1_thread']:.2f} s on 1 "
         f"thread, {tl['seconds_2_thread']:.2f} s on 2: speed-up {tl['speedup_2_threads']:.2f}x"
     )
-    figures["throughput"] = bench_throughput(
-        n_systems=2 if quick else 16, t_end=50 if quick else 500
-    )
+    figures["throughput"] = bench_throughput(*size["throughput"])
     _print_throughput(figures["throughput"])
-    figures["block_scaling"] = bench_block_scaling(
-        n_systems=2 if quick else 8, t_end=50 if quick else 500
-    )
+    figures["block_scaling"] = bench_block_scaling(*size["block_scaling"])
     _print_block_scaling(figures["block_scaling"])
-    figures["rk4"] = bench_rk4_reference(n_steps=10_000 if quick else 2_000_000)
-    r = figures["rk4"]
+    figures["rk4"] = r = bench_rk4_reference(size["rk4"])
     print(
         f"RK4 kernel {r['engine_ns_per_step']:.0f} ns/step vs plain loop "
         f"{r['plain_ns_per_step']:.0f} ns/step: ratio {r['engine_over_plain']:.2f}"
     )
-    for name in ("oneblock", "twoblock"):
-        figures[name] = t = bench_sweep("configs/quick.yaml" if quick else f"configs/{name}.yaml")
+    for name, config in zip(("oneblock", "twoblock"), size["configs"], strict=False):
+        figures[name] = t = bench_sweep(repo_config(config))
         print(
             f"{t['config']} ({t['runs']} runs): {t['seconds_1_thread']:.2f} s on 1 thread "
             f"({t['runs_per_second_1_thread']:.0f} runs/s), {t['seconds_2_thread']:.2f} s on 2 "
             f"({t['runs_per_second_2_thread']:.0f} runs/s), speed-up {t['speedup_2_threads']:.2f}x"
         )
-    figures["dask"] = d = bench_dask("configs/quick.yaml" if quick else "configs/twoblock.yaml")
+    figures["dask"] = d = bench_dask(repo_config(size["dask"]))
     print(
         f"LocalCluster of 2 workers: start {d['cluster_start']:.1f} s, sweep {d['cluster']:.2f} s "
         f"= {d['cluster_over_threads']:.1f}x the 2-thread time ({d['threads_n']:.2f} s)"
     )
-    figures["compile"] = bench_compile("configs/quick.yaml" if quick else "configs/twoblock.yaml")
-    c = figures["compile"]
+    figures["compile"] = c = bench_compile(repo_config(size["compile"]))
     print(
         f"JIT compile {c['compile_seconds']:.1f} s (fresh process: {c['cache_off_seconds']:.1f} s "
         f"with cache off, {c['cache_warm_seconds']:.1f} s with a warm cache)"
     )
-    _print_targets(figures)
+    if "twoblock" in figures:
+        _print_targets(figures)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(figures, indent=2) + "\n")
     print(f"wrote {args.out}")

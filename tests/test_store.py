@@ -13,7 +13,7 @@ from conftest import (
     without_provenance,
 )
 
-from sweep import parts, runner
+from sweep import runner, store
 from sweep.config import parse_config
 
 
@@ -27,14 +27,14 @@ def one_part(quick, tmp_path):
     """A part holding rows 3:5 of a 9-system sweep, with recognisable numbers."""
     rng = np.random.default_rng(0)
     results, y_final = rng.normal(size=(2, 15)), rng.normal(size=(2, 2))
-    path = parts.write_part(tmp_path, quick, parts.config_hash(quick), 3, 5, 9, results, y_final)
+    path = store.write_part(tmp_path, quick, store.config_hash(quick), 3, 5, 9, results, y_final)
     return path, results, y_final
 
 
 def test_part_round_trip(quick, one_part):
     path, results, y_final = one_part
-    part = parts.read_part(path)
-    assert (part.start, part.stop, part.n, part.config_hash) == (3, 5, 9, parts.config_hash(quick))
+    part = store.read_part(path)
+    assert (part.start, part.stop, part.n, part.config_hash) == (3, 5, 9, store.config_hash(quick))
     np.testing.assert_array_equal(part.results, results)
     np.testing.assert_array_equal(part.y_final, y_final)
     assert parse_config(part.config_text, part.config_source) == quick
@@ -67,8 +67,8 @@ def test_damaged_part_is_rejected(one_part, damage):
     path = one_part[0]
     damage(path)
     (damaged,) = path.parent.iterdir()
-    with pytest.raises(parts.PartError, match=damaged.name):
-        parts.read_part(damaged)
+    with pytest.raises(store.PartError, match=damaged.name):
+        store.read_part(damaged)
 
 
 def test_changed_numbers_with_intact_zip_fail_the_checksum(one_part):
@@ -84,13 +84,13 @@ def test_changed_numbers_with_intact_zip_fail_the_checksum(one_part):
         np.savez(f, results=changed, y_final=y_final, meta=meta)
     with np.load(path) as data:  # the archive itself is sound
         np.testing.assert_array_equal(data["results"], changed)
-    with pytest.raises(parts.PartError, match=rf"{path.name}: checksum mismatch"):
-        parts.read_part(path)
+    with pytest.raises(store.PartError, match=rf"{path.name}: checksum mismatch"):
+        store.read_part(path)
 
 
 def test_hash_follows_the_numbers_not_the_wording():
     text = QUICK.read_text()
-    base = parts.config_hash(parse_config(text))
+    base = store.config_hash(parse_config(text))
     same = [
         text.replace("name: quick", "name: other").replace("t_end: 2000.0", "t_end: 2000"),
         text.replace("output: results/quick.nc", "output: elsewhere/x.nc") + "\n# a comment\n",
@@ -105,15 +105,15 @@ def test_hash_follows_the_numbers_not_the_wording():
         text.replace("v_cap_over_V: 1.0e6", "v_cap_over_V: 1.0e5"),
     ]
     for variant in same:
-        assert variant != text and parts.config_hash(parse_config(variant)) == base
+        assert variant != text and store.config_hash(parse_config(variant)) == base
     for variant in changed:
-        assert variant != text and parts.config_hash(parse_config(variant)) != base
+        assert variant != text and store.config_hash(parse_config(variant)) != base
 
 
 def test_truncated_part_is_reported_and_recomputed(quick, quick_reference_file, tmp_path, caplog):
     out = tmp_path / "r.nc"
     runner.run_sweep(quick, out=out, chunk_size=3, shard=(0, 1), show_progress=False)
-    victim = sorted(parts.parts_dir_for(out).glob("*.npz"))[1]  # rows 3:6
+    victim = sorted(store.parts_dir_for(out).glob("*.npz"))[1]  # rows 3:6
     victim.write_bytes(b"")
     with caplog.at_level(logging.INFO, logger="sweep"):
         result = runner.run_sweep(quick, out=out, chunk_size=3, resume=True, show_progress=False)
@@ -131,7 +131,7 @@ def test_changed_config_never_uses_old_parts(quick, tmp_path, caplog):
     assert "ignoring 3 parts of another config" in caplog.text
     assert (result.reused, result.computed) == (0, 9)
     assert_same_file(out, reference_file(changed, tmp_path / "reference.nc"))
-    assert not parts.parts_dir_for(out).exists()  # old and new parts cleaned up
+    assert not store.parts_dir_for(out).exists()  # old and new parts cleaned up
 
 
 def test_merge_uses_the_complete_config_and_ignores_others(
@@ -142,21 +142,21 @@ def test_merge_uses_the_complete_config_and_ignores_others(
     other = parse_config(QUICK.read_text().replace("t_end: 2000.0", "t_end: 1500.0"))
     runner.run_sweep(other, out=out, chunk_size=4, shard=(0, 2), show_progress=False)
     merged = tmp_path / "merged.nc"
-    ds = runner.merge_parts([parts.parts_dir_for(out)], merged)
+    ds = runner.merge_parts([store.parts_dir_for(out)], merged)
     xr.testing.assert_identical(without_provenance(ds), quick_reference)
     assert_same_file(merged, quick_reference_file)
-    left = list(parts.parts_dir_for(out).glob("*.npz"))
-    assert len(left) == 2 and all(parts.config_hash(other) in f.name for f in left)
+    left = list(store.parts_dir_for(out).glob("*.npz"))
+    assert len(left) == 2 and all(store.config_hash(other) in f.name for f in left)
 
 
 def test_merge_never_uses_a_corrupt_part(quick, tmp_path):
     out = tmp_path / "r.nc"
     runner.run_sweep(quick, out=out, chunk_size=4, shard=(0, 1), show_progress=False)
-    victim = sorted(parts.parts_dir_for(out).glob("*.npz"))[2]  # rows 8:9
+    victim = sorted(store.parts_dir_for(out).glob("*.npz"))[2]  # rows 8:9
     victim.write_bytes(victim.read_bytes()[:100])
     merged = tmp_path / "merged.nc"
     with pytest.raises(runner.RunError, match=r"corrupt part.*rows 8:9 missing") as info:
-        runner.merge_parts([parts.parts_dir_for(out)], merged)
+        runner.merge_parts([store.parts_dir_for(out)], merged)
     assert victim.name in str(info.value)
     assert not merged.exists()
 
@@ -180,24 +180,24 @@ def test_temp_files_of_killed_writers_are_removed_live_ones_kept(quick, tmp_path
         else:
             live, writer = temp, result
     try:
-        done = parts.write_part(folder, quick, parts.config_hash(quick), 0, 9, 9,
+        done = store.write_part(folder, quick, store.config_hash(quick), 0, 9, 9,
                                 np.zeros((9, 15)), np.zeros((9, 2)))  # fmt: skip
         (folder / "notes.txt").write_text("not ours")
-        assert parts.remove_parts(folder) == 2  # the part and the dead writer's file
+        assert store.remove_parts(folder) == 2  # the part and the dead writer's file
         assert set(folder.iterdir()) == {live, elsewhere, folder / "notes.txt"}
         assert not dead.exists() and not done.exists()
     finally:
         writer.kill()
         writer.wait(timeout=60)
     (folder / "notes.txt").unlink()
-    parts.remove_parts(folder)  # the stuck writer is gone now: only elsewhere's file stays
+    store.remove_parts(folder)  # the stuck writer is gone now: only elsewhere's file stays
     assert set(folder.iterdir()) == {elsewhere}
 
 
 def test_merge_removes_temp_files_of_killed_writers(quick, quick_reference, tmp_path):
     out = tmp_path / "r.nc"
     runner.run_sweep(quick, out=out, chunk_size=4, shard=(0, 1), show_progress=False)
-    folder = parts.parts_dir_for(out)
+    folder = store.parts_dir_for(out)
     interrupted_part_writer(folder, "killed")
     assert len(list(folder.iterdir())) == 4  # 3 parts and the killed writer's file
     merged = tmp_path / "merged.nc"
@@ -209,8 +209,8 @@ def test_merge_removes_temp_files_of_killed_writers(quick, quick_reference, tmp_
 # A process that takes an output's lock, says so, and holds it until killed.
 LOCK_HOLDER = """
 import sys, time
-from sweep import parts
-with parts.output_lock(sys.argv[1], shared=sys.argv[2] == "shared"):
+from sweep import store
+with store.output_lock(sys.argv[1], shared=sys.argv[2] == "shared"):
     print("locked", flush=True)
     time.sleep(60)
 """
@@ -253,7 +253,7 @@ def test_concurrent_runs_on_one_output_refuse_naming_the_other(quick, tmp_path, 
         runner.run_sweep(quick, out=out, show_progress=False, shard=(0, 2))
     assert main(["run", str(QUICK), "--out", str(out), "--quiet"]) == 1
     assert out.read_bytes() == b"earlier result"
-    assert not parts.parts_dir_for(out).exists()
+    assert not store.parts_dir_for(out).exists()
 
     shared = tmp_path / "s.nc"
     other = lock_holder(shared, "shared")

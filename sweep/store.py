@@ -1,4 +1,10 @@
-"""The chunk store: finished chunks of a sweep as small, self-checking files.
+"""Files on disk: the chunk store of a sweep, its output lock and atomic writes.
+
+Every file rsf-sweep writes goes through :func:`replaced_atomically` (written
+beside the target, synced, renamed), and every output path is probed first
+(:func:`check_writable`).
+
+Finished chunks of a sweep are kept as small, self-checking files.
 
 A sweep's systems (rows of the C-ordered grid) are computed in chunks; each
 finished chunk is written at once to a *part* file in a working directory
@@ -30,16 +36,18 @@ import hashlib
 import json
 import os
 import re
+import secrets
 import socket
 import sys
+import tempfile
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .atomic import replaced_atomically
+from ._version import __version__
+from .errors import InputError, OutputBusy, PartError
 
 #: Bumped when the layout of a part file changes.
 PART_FORMAT = 1
@@ -48,7 +56,7 @@ PART_FORMAT = 1
 NUMERIC_MODULES = (
     "kernels.py",
     "grid.py",
-    "model.py",
+    "physics.py",
     "linear.py",
     "heterogeneity.py",
     "accelerate.py",
@@ -57,10 +65,6 @@ PART_NAME = re.compile(r"^(?P<hash>[0-9a-f]{16})_(?P<start>\d+)-(?P<stop>\d+)_of
 TEMP_PREFIX = ".part-"
 #: A temporary part file: ``.part-<host>-<pid>-<random>.tmp`` (see ``replaced_atomically``).
 TEMP_NAME = re.compile(r"^\.part-(?P<host>.+)-(?P<pid>\d+)-[0-9a-f]+\.tmp$")
-
-
-class PartError(ValueError):
-    """A part file that cannot be used; the message says why."""
 
 
 def config_hash(config):
@@ -91,10 +95,6 @@ def config_hash(config):
     for name in NUMERIC_MODULES:
         digest.update((here / name).read_bytes())
     return digest.hexdigest()[:16]
-
-
-class OutputBusy(RuntimeError):
-    """Another process holds the lock of the output; the message names it."""
 
 
 @contextmanager
@@ -361,3 +361,73 @@ def fill_from_parts(entries, results, y_final, have, wanted):
         have[start:stop] |= take
         used.append(path)
     return used, bad
+
+
+def check_writable(path, source="<config>", key="output", suffix=".nc"):
+    """Raise :class:`~sweep.errors.InputError` unless a file can be created at ``path``.
+
+    ``suffix``: the file type, or a tuple of those allowed (e.g. ``(".png",
+    ".pdf", ".svg")``). Creates missing parent directories and a probe file
+    (removed at once), so the answer is the file system's, not a guess from
+    permission bits (which root ignores).
+    """
+    path = Path(path)
+    suffixes = (suffix,) if isinstance(suffix, str) else tuple(suffix)
+    allowed = " or ".join(suffixes)
+    if path.suffix not in suffixes:
+        raise InputError(source, [f"{key} {path} must be a file name ending in {allowed}"])
+    if path.is_dir():
+        raise InputError(
+            source, [f"{key} {path} is a directory; give a file path ending in {allowed}"]
+        )
+    blocking = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
+    if blocking is not None:
+        raise InputError(
+            source, [f"{key} {path} cannot be written: {blocking} is a file, not a directory"]
+        )
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.probe-"):
+            pass
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        raise InputError(source, [f"{key} {path} cannot be written: {reason}"]) from None
+    if path.exists() and not os.access(path, os.W_OK):
+        raise InputError(source, [f"{key} {path} exists and is not writable"])
+
+
+@contextmanager
+def replaced_atomically(path, prefix=None):
+    """Yield a fresh temporary path in ``path``'s folder; on success rename it to ``path``.
+
+    The temporary file is created with mode 0666 less the umask, like any file the
+    user makes, and named ``<prefix><pid>-<random>.tmp`` (default prefix
+    ``.<name>.``). If the block raises, Ctrl-C included, it is removed and
+    ``path`` is left as it was: a failed write never damages an earlier file.
+    The data and then the rename are synced to disk, so a crash right after
+    cannot leave a truncated file under the final name.
+    """
+    path = Path(path)
+    prefix = f".{path.name}." if prefix is None else prefix
+    tmp = path.with_name(f"{prefix}{os.getpid()}-{secrets.token_hex(4)}.tmp")
+    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+    try:
+        yield tmp
+        _sync(tmp)
+        os.replace(tmp, path)
+        _sync(path.parent)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def _sync(path):
+    """fsync a file or folder (folders: where the file system allows it)."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    except OSError:
+        if not os.path.isdir(path):
+            raise
+    finally:
+        os.close(fd)

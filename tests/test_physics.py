@@ -1,4 +1,4 @@
-"""The model's linear theory (sweep/model.py) against the physics brief's closed forms,
+"""The model's linear theory (sweep/physics.py) against the physics brief's closed forms,
 and the kernels' right-hand side against that theory (fixed point, Jacobian)."""
 
 import numpy as np
@@ -6,7 +6,7 @@ import pytest
 from conftest import PAPER_A, PAPER_B
 from scipy.optimize import brentq
 
-from sweep import kernels, model
+from sweep import kernels, physics
 
 A, B = PAPER_A, PAPER_B
 MODEL_CODES = {
@@ -65,7 +65,7 @@ FD_TOL = 1e-7
 @pytest.mark.parametrize("kind", sorted(RHS_KERNELS))
 @pytest.mark.parametrize("nb", [1, 2, 3])
 @pytest.mark.parametrize("law", sorted(LAW_CODES))
-@pytest.mark.parametrize("model_name", model.MODELS)
+@pytest.mark.parametrize("model_name", physics.MODELS)
 def test_steady_sliding_is_a_fixed_point(model_name, law, nb, kind):
     """ℓ = ψ = 0 (and σ = 0) is steady sliding: every derivative vanishes exactly."""
     y = np.zeros(n_vars(model_name, nb))
@@ -75,16 +75,16 @@ def test_steady_sliding_is_a_fixed_point(model_name, law, nb, kind):
 
 @pytest.mark.parametrize("kind", sorted(RHS_KERNELS))
 @pytest.mark.parametrize("law", sorted(LAW_CODES))
-@pytest.mark.parametrize("model_name", model.MODELS)
+@pytest.mark.parametrize("model_name", physics.MODELS)
 def test_one_block_jacobian_is_mode_jacobian(model_name, law, kind):
     jac = fd_jacobian(RHS_KERNELS[kind], param_row(), model_name, law, 1)
-    expected = model.mode_jacobian(model_name, A, B, KAPPA1, ETA_HAT, MASS_HAT)
+    expected = physics.mode_jacobian(model_name, A, B, KAPPA1, ETA_HAT, MASS_HAT)
     np.testing.assert_allclose(jac, expected, rtol=FD_TOL, atol=FD_TOL)
 
 
 def test_quasi_static_jacobian_closed_form():
     """The brief's J = [[(B − κ)/A, B/A], [−1, −1]], trace (B − A − κ)/A, det κ/A."""
-    jac = model.mode_jacobian("quasi-static", A, B, KAPPA1)
+    jac = physics.mode_jacobian("quasi-static", A, B, KAPPA1)
     np.testing.assert_allclose(jac, [[(B - KAPPA1) / A, B / A], [-1.0, -1.0]], rtol=1e-15)
     assert np.trace(jac) == pytest.approx((B - A - KAPPA1) / A, rel=1e-14)
     assert np.linalg.det(jac) == pytest.approx(KAPPA1 / A, rel=1e-12)
@@ -92,16 +92,16 @@ def test_quasi_static_jacobian_closed_form():
 
 def one_block_eigs(model_name, kappa):
     """Eigenvalues of the one-block Jacobian with stiffness κ (numpy on mode_jacobian)."""
-    return np.linalg.eigvals(model.mode_jacobian(model_name, A, B, kappa, ETA_HAT, MASS_HAT))
+    return np.linalg.eigvals(physics.mode_jacobian(model_name, A, B, kappa, ETA_HAT, MASS_HAT))
 
 
 @pytest.mark.parametrize("law", sorted(LAW_CODES))
-@pytest.mark.parametrize("model_name", model.MODELS)
+@pytest.mark.parametrize("model_name", physics.MODELS)
 def test_two_block_eigenvalues_are_in_phase_and_anti_phase_modes(model_name, law):
     """Two blocks: the in-phase pair is the one-block pair (κ1), the anti-phase pair the
     one-block pair with κ1 + 2κ2 (physics brief, section 3 and erratum 3)."""
     jac = fd_jacobian(kernels.rhs, param_row(), model_name, law, 2)
-    lam = model.eigenvalues(model_name, 2, A, B, KAPPA1, KAPPA2, ETA_HAT, MASS_HAT)
+    lam = physics.eigenvalues(model_name, 2, A, B, KAPPA1, KAPPA2, ETA_HAT, MASS_HAT)
     np.testing.assert_allclose(
         sorted_eigs(np.linalg.eigvals(jac)), sorted_eigs(lam), rtol=1e-6, atol=1e-6
     )
@@ -111,7 +111,7 @@ def test_two_block_eigenvalues_are_in_phase_and_anti_phase_modes(model_name, law
     np.testing.assert_allclose(sorted_eigs(lam[1]), sorted_eigs(anti_phase), rtol=1e-12)
 
 
-@pytest.mark.parametrize("model_name", model.MODELS)
+@pytest.mark.parametrize("model_name", physics.MODELS)
 def test_three_block_chain_eigenvalues(model_name):
     """Open chain of three: mode stiffnesses κ1 + κ2 λ_L with λ_L = 0, 1, 3."""
     jac = fd_jacobian(kernels.rhs, param_row(), model_name, "aging", 3)
@@ -131,9 +131,9 @@ def test_quasi_static_eigenvalues_closed_form():
     tr, det = (B - A - kappa) / A, kappa / A
     root = np.sqrt((tr**2 / 4 - det).astype(complex))
     expected = np.stack([tr / 2 + root, tr / 2 - root], axis=-1)
-    lam = model.eigenvalues("quasi-static", 1, A, B, kappa)[:, 0, :]
+    lam = physics.eigenvalues("quasi-static", 1, A, B, kappa)[:, 0, :]
     np.testing.assert_allclose(np.sort_complex(lam), np.sort_complex(expected), rtol=1e-12)
-    growth = model.linear_growth_rate("quasi-static", 1, A, B, kappa)
+    growth = physics.linear_growth_rate("quasi-static", 1, A, B, kappa)
     np.testing.assert_allclose(growth, (B - A - kappa) / (2 * A), rtol=1e-12, atol=1e-15)
 
 
@@ -142,7 +142,7 @@ def bisect_kappa_c(model_name, n_blocks=1, kappa2=0.0, eta_hat=0.0, mass_hat=0.0
 
     def growth(kappa):
         return float(
-            model.linear_growth_rate(model_name, n_blocks, A, B, kappa, kappa2, eta_hat, mass_hat)
+            physics.linear_growth_rate(model_name, n_blocks, A, B, kappa, kappa2, eta_hat, mass_hat)
         )
 
     return brentq(growth, 1e-4, 100.0, xtol=1e-14, rtol=1e-13)
@@ -160,7 +160,7 @@ CRITICAL_CASES = (
 def test_critical_kappa(model_name, eta_hat, mass_hat, expected):
     """κc from the closed form = the zero crossing of max Re λ (bisection); the
     inertial case over M̂ from 1e-3 to 1 (three decades)."""
-    kc = model.critical_kappa(model_name, A, B, eta_hat, mass_hat)
+    kc = physics.critical_kappa(model_name, A, B, eta_hat, mass_hat)
     assert kc == pytest.approx(expected, rel=1e-14)
     # brentq converges to ~1e-13 relative; the growth rate is smooth and simple at κc
     assert bisect_kappa_c(model_name, 1, 0.0, eta_hat, mass_hat) == pytest.approx(kc, rel=1e-9)
@@ -176,17 +176,19 @@ def test_paper_critical_stiffness_and_physical_units():
     """Kc/W = (B − A)/D0: 0.05 µm⁻¹ for D0 = 1 µm and 0.5 µm⁻¹ for D0 = 0.1 µm (erratum 1);
     with mass, Kc = W(B − A)/D0 · (1 + m V²/(W A D0))."""
     for D0, kc_w in ((1.0, 0.05), (0.1, 0.5)):
-        dl = model.dimensionless(A, B, D0, 0.1, kc_w)
-        assert model.critical_kappa("quasi-static", A, B) == pytest.approx(dl["kappa1"], rel=1e-12)
+        dl = physics.dimensionless(A, B, D0, 0.1, kc_w)
+        assert physics.critical_kappa("quasi-static", A, B) == pytest.approx(
+            dl["kappa1"], rel=1e-12
+        )
     m_W, V, D0 = 2.0, 0.1, 1.0  # s² µm⁻¹, µm/s, µm
-    dl = model.dimensionless(A, B, D0, V, 0.05, m_W=m_W)
+    dl = physics.dimensionless(A, B, D0, V, 0.05, m_W=m_W)
     assert dl["mass_hat"] == pytest.approx(m_W * V**2 / D0, rel=1e-15)
-    kc_w = model.critical_kappa("inertial", A, B, mass_hat=dl["mass_hat"]) / D0
+    kc_w = physics.critical_kappa("inertial", A, B, mass_hat=dl["mass_hat"]) / D0
     assert kc_w == pytest.approx((B - A) / D0 * (1 + m_W * V**2 / (A * D0)), rel=1e-14)
 
 
 def test_dimensionless_groups():
-    dl = model.dimensionless(A, B, D0=2.0, V=0.5, K_W=0.03, k2_W=0.01, eta_W=0.2, m_W=3.0)
+    dl = physics.dimensionless(A, B, D0=2.0, V=0.5, K_W=0.03, k2_W=0.01, eta_W=0.2, m_W=3.0)
     assert dl["kappa1"] == pytest.approx(0.06)  # K D0/W
     assert dl["kappa2"] == pytest.approx(0.02)  # k2 D0/W
     assert dl["eta_hat"] == pytest.approx(0.1)  # η V/W
@@ -200,10 +202,10 @@ def test_onset_frequency_does_not_depend_on_mass(model_name, mass_hat):
     """ω at onset = sqrt((B − A)/A) V/D0, with or without mass (physics brief, section 4);
     the kernel's Jacobian at κc has the pair ±iω."""
     omega = np.sqrt((B - A) / A)
-    assert model.onset_angular_frequency(model_name, A, B, mass_hat=mass_hat) == pytest.approx(
+    assert physics.onset_angular_frequency(model_name, A, B, mass_hat=mass_hat) == pytest.approx(
         omega, rel=1e-12
     )
-    kc = model.critical_kappa(model_name, A, B, mass_hat=mass_hat)
+    kc = physics.critical_kappa(model_name, A, B, mass_hat=mass_hat)
     jac = fd_jacobian(kernels.rhs, param_row(kc, 0.0, 0.0, mass_hat), model_name, "aging", 1)
     lam = np.linalg.eigvals(jac)
     pair = lam[np.argmax(np.abs(lam.imag))]
@@ -214,11 +216,11 @@ def test_onset_frequency_does_not_depend_on_mass(model_name, mass_hat):
 
 def test_paper_onset_period():
     """2π/ω = 4.87 D0/V for A = 0.03, B = 0.08 (physics brief, section 3)."""
-    period = 2 * np.pi / model.onset_angular_frequency("quasi-static", A, B)
+    period = 2 * np.pi / physics.onset_angular_frequency("quasi-static", A, B)
     assert round(period, 2) == 4.87
 
 
 def test_no_instability_without_weakening():
     """B ≤ A (velocity strengthening): κc ≤ 0, no onset frequency."""
-    assert model.critical_kappa("quasi-static", 0.03, 0.02) < 0
-    assert np.isnan(model.onset_angular_frequency("quasi-static", 0.03, 0.02))
+    assert physics.critical_kappa("quasi-static", 0.03, 0.02) < 0
+    assert np.isnan(physics.onset_angular_frequency("quasi-static", 0.03, 0.02))

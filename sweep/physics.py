@@ -196,3 +196,24 @@ def onset_angular_frequency(model, A, B, eta_hat=0.0, mass_hat=0.0):
     lam = np.linalg.eigvals(mode_jacobian(model, A, B, kc, eta_hat, mass_hat))
     omega = np.abs(lam.imag).max(axis=-1)
     return np.where(kc > 0, omega, np.nan)
+
+
+def log_form_rhs(t, y, A, B, kappa1, kappa2=0.0, n_blocks=1, law="aging", eta_hat=0.0):
+    """Right-hand side of the log form (physics brief, section 2), plain numpy.
+
+    State ``y = (ℓ_1 … ℓ_N, ψ_1 … ψ_N)``, time in D0/V; an open chain with κ2 on
+    each coupling spring; ``eta_hat`` > 0 adds radiation damping (quasi-dynamic).
+    Written independently of ``sweep.kernels``: the reference the tests integrate with
+    SciPy, and the right-hand side of the SciPy loops in ``benchmarks/bench.py``.
+    """
+    lnv, psi = y[:n_blocks], y[n_blocks:]
+    v = np.exp(lnv)
+    if law == "aging":
+        dpsi = np.exp(-psi) - v
+    else:  # slip law: dΦ/dt = −(vΦ/D0) ln(vΦ/D0), i.e. ψ' = −e^ℓ (ℓ + ψ)
+        dpsi = -v * (lnv + psi)
+    coupling = np.zeros(n_blocks)
+    coupling[1:] += v[:-1] - v[1:]
+    coupling[:-1] += v[1:] - v[:-1]
+    dlnv = (kappa1 * (1.0 - v) + kappa2 * coupling - B * dpsi) / (A + eta_hat * v)
+    return np.concatenate([dlnv, dpsi])
