@@ -227,12 +227,9 @@ class Config:
 
     @property
     def nblock_outputs(self):
-        """Whether results carry the N-block outputs (sync_order, slip_participation,
-        per-block parameters): for configs that name a coupling, per-block values or
-        an ensemble; older two- and three-block configs keep their variables."""
-        return self.blocks > 1 and (
-            self.coupling_key is not None or self.heterogeneous or self.members > 1
-        )
+        """Whether results carry the N-block outputs (sync_order, slip_participation):
+        for more than one block."""
+        return self.blocks > 1
 
     @property
     def features(self):

@@ -16,9 +16,10 @@ def computed():
     return flatten(compute_all())
 
 
-def test_reference_covers_every_case(computed):
+def test_every_reference_number_is_still_computed(computed):
+    """Variables may be added (new outputs); none of the reference's may vanish."""
     with np.load(REFERENCE) as ref:
-        assert sorted(ref.files) == sorted(computed)
+        assert set(ref.files) <= set(computed), sorted(set(ref.files) - set(computed))
 
 
 def test_numbers_are_bit_identical(computed):

@@ -174,3 +174,19 @@ def test_extending_an_ensemble_updates_its_regime_fractions(tmp_path):
     assert n == 6 and not (out.regime == REGIMES.index("undecided")).all()
     counts = [(out.regime == k).mean("member") for k in range(len(REGIMES))]
     np.testing.assert_array_equal(out.regime_fraction.transpose("regime_name", "K_W"), counts)
+
+
+@pytest.mark.parametrize("model_name", ["quasi-static", "inertial"])
+def test_sixty_four_unequal_blocks_run(model_name):
+    """64 unequal blocks, every pair coupled (the dense Jacobian of the Rosenbrock
+    method for the inertial model): the runs end with finite statistics and a
+    critical stiffness near the one-block value (spreads of a few per cent)."""
+    extra = {"m_W": 0.01} if model_name == "inertial" else {}
+    cfg = nblock(64, "all", model=model_name, parameters={"k2_W": 0.01, **extra},
+                 spread={"D0": 0.05, "A": 0.05, "seed": 3}, sweep={"K_W": [0.045, 0.055]},
+                 integrator={"t_end": 5.0})  # fmt: skip
+    ds = sweep.run(cfg, threads=2, progress=False)
+    assert np.isfinite(ds.lnv_final).all() and (ds.n_steps > 0).all()
+    kc = ds.critical_K_W.values
+    assert kc[0] == kc[1] and abs(kc[0] / KC_W - 1) < 0.2  # inertia raises Kc by 1 + M/A
+    assert ds.D0_block.sizes["block"] == 64
