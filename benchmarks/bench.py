@@ -35,7 +35,7 @@ import numpy as np
 import yaml
 
 from sweep import kernels, physics
-from sweep.backends import DaskTasks, NumbaThreads, load_kernels
+from sweep.backends import DaskTasks, LocalThreads, load_kernels
 from sweep.config import load_config, parse_config, with_changes
 from sweep.distributed import connect
 from sweep.grid import build_grid
@@ -467,14 +467,14 @@ def bench_compile(config_path):
 
 def time_compute(config, threads=None, client=None):
     """Wall time (s) to compute ``config`` in memory, kernels compiled beforehand."""
-    (NumbaThreads(threads) if client is None else DaskTasks(client)).compile()
+    (LocalThreads(threads) if client is None else DaskTasks(client)).compile()
     start = time.perf_counter()
     compute(config, threads, show_progress=False, client=client)
     return time.perf_counter() - start
 
 
 def bench_dask(config_path, workers=2):
-    """Wall times (s) of computing a config on 1 and ``workers`` numba threads and on a
+    """Wall times (s) of computing a config on 1 and ``workers`` local threads and on a
     LocalCluster of ``workers`` processes (kernels compiled beforehand).
 
     ``threads_1``, ``threads_n``, ``speedup`` (threads_1 / threads_n),

@@ -30,8 +30,13 @@ Decisions (each tested in ``tests/test_accelerate.py``):
   argument is increfed and decrefed on every step: RK4 1.7x and DOPRI5 1.4x the time
   per step (measured). Rare work (a crossing of the cap, recording) is a plain call
   in the loop's own branch, which costs nothing per step.
-* Threads have one owner: on one machine ``prange`` in the parallel grid kernel;
-  under Dask each task calls the serial grid kernel and Dask owns the threads.
+* Threads have one owner, and numba's own thread pool is not used: on one machine
+  ``backends.LocalThreads`` runs the serial grid kernel (``nogil``) on Python threads
+  that take small batches of systems as they come free; under Dask each task calls
+  the same kernel and Dask owns the threads. The ``prange`` kernel this replaced
+  took 15 s (CPU) more to compile on a cold cache on top of the serial one's
+  33 s, and split its loop into equal contiguous blocks, which needed a shuffle of
+  the rows to share the costly runs near Kc between threads.
 """
 
 import os
@@ -42,8 +47,6 @@ import numba
 CACHE = os.environ.get("SWEEP_NUMBA_CACHE", "1") != "0"
 
 _COMMON = {"nogil": True, "cache": CACHE, "fastmath": False, "error_model": "numpy"}
-
-prange = numba.prange
 
 
 def jit(func):
@@ -56,18 +59,7 @@ def jit_inline(func):
     return numba.njit(inline="always", **_COMMON)(func)
 
 
-def parallel_jit(func):
-    """Compile a kernel whose ``prange`` loop runs on numba's thread pool."""
-    return numba.njit(parallel=True, **_COMMON)(func)
-
-
 def thread_count(n_threads):
-    """Threads a run asks for: ``n_threads``, or all available when None."""
+    """Threads a run asks for: ``n_threads``, or when None all cores numba sees
+    (``NUMBA_NUM_THREADS`` overrides, as for numba itself)."""
     return numba.config.NUMBA_NUM_THREADS if n_threads is None else int(n_threads)
-
-
-def set_threads(n_threads):
-    """Set how many numba threads the parallel kernels use (None: all available)."""
-    n = thread_count(n_threads)
-    numba.set_num_threads(n)
-    return n

@@ -18,7 +18,7 @@ def run(config, *, threads=None, client=None, progress=True):
         a mapping as the YAML would read, or a :class:`~sweep.config.Config`
         (e.g. from :func:`~sweep.config.with_changes`).
     threads : int, optional
-        numba threads (default: all cores); not with ``client``.
+        threads on this machine (default: all cores); not with ``client``.
     client : distributed.Client, Cluster or str, optional
         Run the chunks as tasks on this Dask client, on a new client of this
         cluster (e.g. a ``LocalCluster``), or on the scheduler at this address
@@ -44,7 +44,7 @@ def run(config, *, threads=None, client=None, progress=True):
 
     config = load_config(config)
     if client is not None and threads is not None:
-        raise InputError(config.source, ["threads is for numba threads; Dask workers own theirs"])
+        raise InputError(config.source, ["threads is for local threads; Dask workers own theirs"])
     _check_threads(config.source, threads)
     if client is None:
         backend = nullcontext(None)

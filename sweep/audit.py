@@ -65,7 +65,7 @@ def audit_result(result, sample=20, near_kc=0.01, t_end=None, seed=0, threads=No
     seed : int
         Seed of the random draw.
     threads : int, optional
-        numba threads (default: all cores).
+        threads (default: all cores).
     source : str, optional
         Name of the result in error messages (default: its path).
 

@@ -1,4 +1,4 @@
-"""Where the chunks run: numba threads on this machine, or Dask tasks on a cluster.
+"""Where the chunks run: threads on this machine, or Dask tasks on a cluster.
 
 Both backends offer the same small protocol, so the runner does not care which
 one it has:
@@ -10,13 +10,15 @@ one it has:
   finishes;
 * ``threads``: the threads that work on the chunks (for chunk sizes and logs).
 
-Threads have one owner (``sweep/accelerate.py``): :class:`NumbaThreads` calls the
-parallel grid kernel (``prange`` owns the cores); :class:`DaskTasks` submits the
-serial one as tasks (``sweep/distributed.py``) and Dask owns the threads.
+Both call the same serial grid kernel, and threads have one owner
+(``sweep/accelerate.py``): :class:`LocalThreads` runs it on its own Python threads
+(the kernel releases the GIL); :class:`DaskTasks` submits it as tasks
+(``sweep/distributed.py``) and Dask owns the threads.
 """
 
 import logging
 import threading
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -34,7 +36,7 @@ GRID_SIGNATURE = (
 
 @dataclass(frozen=True)
 class Resources:
-    """What a run may use: ``threads`` numba threads (None: all cores), or Dask: the
+    """What a run may use: ``threads`` threads on this machine (None: all cores), or Dask: the
     scheduler at ``scheduler`` (an address, a Client or a Cluster) or a new LocalCluster
     of ``dask_local`` single-threaded worker processes."""
 
@@ -65,49 +67,71 @@ def compile_grid_kernel(kernel):
         notice.cancel()
 
 
-def load_kernels(parallel=False):
-    """Load (or compile) the serial grid kernel in this process, e.g. on every Dask
-    worker; with ``parallel``, the threaded one as well (to warm the cache before job
-    arrays)."""
+def load_kernels():
+    """Load (or compile) the grid kernel in this process, e.g. on every Dask worker
+    or to warm the cache before job arrays."""
     from . import kernels
 
     compile_grid_kernel(kernels.integrate_grid_serial)
-    if parallel:
-        compile_grid_kernel(kernels.integrate_grid_parallel)
 
 
-class NumbaThreads:
-    """Chunks on numba's thread pool: ``prange`` over the systems of each chunk."""
+#: Systems per batch a thread takes: small, so that the costly runs near Kc, which
+#: sit next to each other in the grid, are shared out; a kernel call costs ~10 µs,
+#: a system 0.1-10 ms.
+BATCH = 4
+
+
+class LocalThreads:
+    """Chunks on this machine: ``threads`` Python threads call the grid kernel on
+    batches of :data:`BATCH` systems, each taking the next batch as it comes free."""
 
     def __init__(self, threads=None):
         self.threads = accelerate.thread_count(threads)
-        self._asked = threads
 
     def __str__(self):
-        return "numba threads"
+        return "threads"
 
     def compile(self):
-        from . import kernels
-
-        compile_grid_kernel(kernels.integrate_grid_parallel)
+        load_kernels()
 
     def run(self, params, y0, settings, ranges, stop=None):
         """Integrate ``ranges`` of systems one after another; yield each as it finishes.
 
-        Each chunk's rows are shuffled (:func:`balanced_order`) so that threads share
-        the costly runs; run lengths differ by orders of magnitude between steady and
-        runaway runs. ``stop`` is checked by the caller between chunks.
+        ``stop`` is checked by the caller between chunks.
         """
-        from .kernels import N_RESULTS, integrate_grid_parallel
-
-        accelerate.set_threads(self._asked)
         for a, b in ranges:
-            order = balanced_order(b - a)  # row a + order[j] is computed in place j
-            shuffled = np.empty((b - a, N_RESULTS)), np.empty((b - a, y0.shape[1]))
-            integrate_grid_parallel(params[a + order], y0[a + order], settings, *shuffled)
-            results, y_final = np.empty_like(shuffled[0]), np.empty_like(shuffled[1])
-            results[order], y_final[order] = shuffled
-            yield a, b, results, y_final
+            yield (a, b, *integrate_rows(params[a:b], y0[a:b], settings, self.threads))
+
+
+def integrate_rows(params, y0, settings, threads):
+    """``(results, y_final)`` of every row, computed by the grid kernel on ``threads``
+    threads, each taking the next batch of :data:`BATCH` rows as it comes free."""
+    from .kernels import N_RESULTS, integrate_grid_serial
+
+    n = params.shape[0]
+    results, y_final = np.empty((n, N_RESULTS)), np.empty_like(y0)
+    batches = iter(range(0, n, BATCH))
+    take = threading.Lock()
+
+    def work():
+        while True:
+            with take:
+                lo = next(batches, None)
+            if lo is None:
+                return
+            hi = min(lo + BATCH, n)
+            integrate_grid_serial(
+                params[lo:hi], y0[lo:hi], settings, results[lo:hi], y_final[lo:hi]
+            )
+
+    n_workers = min(threads, -(-n // BATCH))
+    if n_workers <= 1:
+        work()  # in this thread: signals reach Python between kernel calls
+    else:
+        with ThreadPoolExecutor(n_workers) as pool:
+            for done in [pool.submit(work) for _ in range(n_workers)]:
+                done.result()
+    return results, y_final
 
 
 class DaskTasks:
@@ -138,23 +162,9 @@ class DaskTasks:
         return submit_chunks(self.client, params, y0, settings, ranges, stop)
 
 
-def balanced_order(n_rows):
-    """A fixed shuffle of ``n_rows`` rows that spreads costly runs over the threads.
-
-    Costly runs (slow decay or growth near Kc) sit next to each other in the grid,
-    and numba's OpenMP layer splits a ``prange`` into equal contiguous blocks
-    (``numba.set_parallel_chunksize(1)`` made no difference there): on
-    ``configs/twoblock.yaml`` two threads were 1.15x faster than one in grid
-    order and 1.85x after this shuffle. Every system is integrated
-    independently, so the numbers do not change; only the order in which the
-    threads meet them does.
-    """
-    return np.random.default_rng(0).permutation(n_rows)
-
-
 @contextmanager
 def open_backend(resources=None, client=None):
-    """The backend for ``resources`` (default: all numba threads), open for the block.
+    """The backend for ``resources`` (default: threads on all cores), open for the block.
 
     ``client``: an open Dask client to use instead (left open). A Dask backend
     connects first (:func:`sweep.distributed.connect`) and closes what it opened.
@@ -168,4 +178,4 @@ def open_backend(resources=None, client=None):
         with connect(resources.scheduler, resources.dask_local) as opened:
             yield DaskTasks(opened)
     else:
-        yield NumbaThreads(resources.threads)
+        yield LocalThreads(resources.threads)

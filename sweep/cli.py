@@ -92,7 +92,7 @@ def build_parser():
         "config", help="YAML config file, or the name of a packaged example (rsf-sweep examples)"
     )
     run.add_argument("--out", help="output NetCDF path (default: the config's output)")
-    run.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
+    run.add_argument("--threads", type=_threads, help="threads (default: all cores)")
     run.add_argument("--chunk-size", type=_positive_int, help="systems per chunk")
     run.add_argument("--quiet", action="store_true", help="no progress output")
     run.add_argument("--resume", action="store_true", help="reuse finished chunks of this config")
@@ -131,7 +131,7 @@ def add_check_commands(sub):
         help="new end time, in the config's t_unit (default: 4x the time undecided runs reached)",
     )  # fmt: skip
     ext.add_argument("--out", help="output NetCDF (default: replace RESULT)")
-    ext.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
+    ext.add_argument("--threads", type=_threads, help="threads (default: all cores)")
     aud = sub.add_parser(
         "audit",
         help="rerun a sample of a result's points for longer and compare the regimes",
@@ -154,7 +154,7 @@ def add_check_commands(sub):
         help="end time of the reruns, in the config's t_unit (default: 10x the file's)",
     )  # fmt: skip
     aud.add_argument("--seed", type=int, default=0, help="seed of the random sample (default 0)")
-    aud.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
+    aud.add_argument("--threads", type=_threads, help="threads (default: all cores)")
 
 
 def _assignment(text):
@@ -233,7 +233,7 @@ def add_figure_commands(sub):
         "--format", choices=("png", "pdf", "svg"), default="png", help="file type (default png)"
     )
     _add_dpi(figs)
-    figs.add_argument("--threads", type=_threads, help="numba threads (default: all cores)")
+    figs.add_argument("--threads", type=_threads, help="threads (default: all cores)")
 
 
 def summary_lines(ds):
@@ -257,7 +257,7 @@ def cmd_run(args):
 
     config = load_config(args.config)
     if args.threads and (args.scheduler or args.dask_local):
-        print("error: --threads is for numba threads; Dask workers own theirs", file=sys.stderr)
+        print("error: --threads is for local threads; Dask workers own theirs", file=sys.stderr)
         return EXIT_BAD_INPUT
     try:
         with stop_on_signals() as stop:

@@ -112,7 +112,7 @@ def extend_result(result, t_end=None, threads=None, source=None):
         old horizon (``max_t_end``, up to which unsettled runs already went on;
         the end time without early exit). Default: 4 × that horizon.
     threads : int, optional
-        numba threads (default: all cores).
+        threads (default: all cores).
     source : str, optional
         Name of the result in error messages (default: its path).
 

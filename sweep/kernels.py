@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from .accelerate import jit, jit_inline, parallel_jit, prange
+from .accelerate import jit, jit_inline
 
 # --- codes shared with the Python side --------------------------------------
 QUASI_STATIC, QUASI_DYNAMIC, INERTIAL = 0, 1, 2
@@ -1228,13 +1228,4 @@ def integrate_grid_serial(params, y0, settings, results, y_final):
     no_t = np.empty(0)
     no_y = np.empty((0, y0.shape[1]))
     for s in range(params.shape[0]):
-        integrate_system(params[s], y0[s], settings, results[s], y_final[s], 0.0, no_t, no_y)
-
-
-@parallel_jit
-def integrate_grid_parallel(params, y0, settings, results, y_final):
-    """Integrate every system on numba's thread pool (one system per iteration)."""
-    for s in prange(params.shape[0]):
-        no_t = np.empty(0)
-        no_y = np.empty((0, y0.shape[1]))
         integrate_system(params[s], y0[s], settings, results[s], y_final[s], 0.0, no_t, no_y)

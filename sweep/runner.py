@@ -5,8 +5,8 @@ integrated independently and deterministically, so results do not depend on
 the chunk size, the number of threads or workers, sharding or resumption.
 
 A sweep of ``n`` systems (rows of the C-ordered grid) is cut into chunks of
-``chunk_size`` rows. Chunks run on numba's thread pool (``prange`` over the
-systems of a chunk) or as Dask tasks (``sweep/backends.py``). Each
+``chunk_size`` rows. Chunks run on threads of this process (batches of a
+chunk's systems) or as Dask tasks (``sweep/backends.py``). Each
 finished chunk is saved at once as a part file (``sweep/store.py``); with
 ``resume=True`` the rows already saved are read back instead of recomputed.
 The NetCDF is written once every row is known, and the parts are removed only
@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from . import store
-from .backends import DaskTasks, NumbaThreads, open_backend
+from .backends import DaskTasks, LocalThreads, open_backend
 from .config import parse_config
 from .dataset import build_dataset, write_netcdf
 from .errors import ConfigError, InputError, Interrupted, PartError, RunError
@@ -93,7 +93,7 @@ class SweepResult:
 def default_chunk_size(n_systems, n_threads=1, dask_threads=0):
     """Systems per chunk when none is given.
 
-    On numba threads: large enough to keep ``n_threads`` busy (runs differ in
+    On local threads: large enough to keep ``n_threads`` busy (runs differ in
     length by orders of magnitude, and every chunk ends with a barrier), small
     enough for about 100 chunks. On Dask (``dask_threads`` > 0, the cluster's
     total threads): at least 4 tasks per thread and about 100 in all.
@@ -148,10 +148,10 @@ def integrate_in_memory(params, y0, settings, threads=None, chunk_size=None, pro
                         backend=None):  # fmt: skip
     """Integrate every system (row) of the kernels' arrays, chunk by chunk, in memory.
 
-    On ``backend`` (default: :class:`~sweep.backends.NumbaThreads` with ``threads``).
+    On ``backend`` (default: :class:`~sweep.backends.LocalThreads` with ``threads``).
     Returns ``(results, y_final)``.
     """
-    backend = backend or NumbaThreads(threads)
+    backend = backend or LocalThreads(threads)
     backend.compile()
     n = params.shape[0]
     chunk_size = chunk_size or _default_chunk_size(n, backend, shard=None)
@@ -166,11 +166,11 @@ def compute(config, threads=None, chunk_size=None, show_progress=True, client=No
             command="run"):  # fmt: skip
     """Run every system of ``config`` and return the result Dataset (nothing written).
 
-    ``threads``: numba threads (default: all), or ``client``: an open Dask client.
+    ``threads``: local threads (default: all cores), or ``client``: an open Dask client.
     ``command``: what is running it, for the file's ``history`` (``dataset.provenance``).
     """
     grid = build_grid(config)
-    backend = NumbaThreads(threads) if client is None else DaskTasks(client)
+    backend = LocalThreads(threads) if client is None else DaskTasks(client)
     # compiled here, not first in integrate_in_memory: before the progress clock
     backend.compile()
     progress = Progress(grid.n, desc=config.name, enabled=show_progress)

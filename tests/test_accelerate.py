@@ -25,7 +25,7 @@ def kernel_functions():
 KERNELS = sorted(kernel_functions())
 #: Entry points the runner and the tests call, one per integrator: the discovery must
 #: find at least these (a guard against discovering nothing).
-ENTRY_POINTS = {"integrate_grid_parallel", "integrate_grid_serial", "integrate_system",
+ENTRY_POINTS = {"integrate_grid_serial", "integrate_system",
                 "step_rk4", "step_dopri5", "step_rosenbrock"}  # fmt: skip
 NO_JIT = pytest.mark.skipif(numba.config.DISABLE_JIT, reason="NUMBA_DISABLE_JIT=1: no dispatchers")
 
@@ -45,8 +45,8 @@ def test_kernel_options(name):
     assert options["nogil"] is True  # Dask threads run kernels side by side
     assert options["fastmath"] is False  # runaway detection must see NaN and inf
     assert options["error_model"] == "numpy"  # x/0 → inf, not an exception
-    # one owner of the threads: only the grid kernel the thread runner calls is parallel
-    assert options.get("parallel", False) == (name == "integrate_grid_parallel")
+    # one owner of the threads: the backends' (local or Dask), never numba's pool
+    assert options.get("parallel", False) is False
 
 
 @NO_JIT
@@ -104,11 +104,7 @@ def test_nan_and_inf_survive_compiled_code():
     assert np.isnan(dydt).all()
 
 
-def test_set_threads():
-    top = numba.config.NUMBA_NUM_THREADS
-    try:
-        assert accelerate.set_threads(1) == 1 and numba.get_num_threads() == 1
-        # None: every core (the CLI's default), not whatever an earlier run set
-        assert accelerate.set_threads(None) == top and numba.get_num_threads() == top
-    finally:
-        numba.set_num_threads(top)
+def test_thread_count():
+    # None: every core numba sees (the CLI's default); a number is taken as it is
+    assert accelerate.thread_count(None) == numba.config.NUMBA_NUM_THREADS
+    assert accelerate.thread_count(3) == 3

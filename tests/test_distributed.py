@@ -115,7 +115,7 @@ def test_api_runs_on_a_client_a_cluster_or_not_a_client(quick, quick_reference_f
     assert local_client.status == "running"
     with pytest.raises(sweep.InputError, match="must be a dask distributed Client"):
         sweep.run(quick, client=3, progress=False)
-    with pytest.raises(sweep.InputError, match="threads is for numba threads"):
+    with pytest.raises(sweep.InputError, match="threads is for local threads"):
         sweep.run(quick, client=local_client, threads=1, progress=False)
 
 

@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sweep import grid, kernels, runner
+from sweep.backends import LocalThreads
 
 A, B = PAPER_A, PAPER_B
 
@@ -154,19 +155,18 @@ def test_results_do_not_depend_on_chunking_property(mixed_reference, chunk_size,
     assert same(ds, mixed_reference)
 
 
-def test_serial_and_parallel_kernels_agree():
-    """The serial grid kernel (used under Dask) gives the parallel kernel's numbers."""
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_local_threads_give_the_serial_kernels_numbers(threads):
+    """Batches handed out to threads (sweep.backends.LocalThreads) give every row the
+    numbers of one serial kernel call over the whole grid, whatever the chunks."""
     g = grid.build_grid(make_config(MIXED))
-    params, y0, shared = g.params, g.y0, g.settings
-    n = params.shape[0]
-    out = {}
-    for name, kernel in (
-        ("serial", kernels.integrate_grid_serial),
-        ("parallel", kernels.integrate_grid_parallel),
-    ):
-        results = np.full((n, kernels.N_RESULTS), -1.0)
-        y_final = np.full_like(y0, -1.0)
-        kernel(params, y0, shared, results, y_final)
-        out[name] = (results, y_final)
-    assert np.array_equal(out["serial"][0], out["parallel"][0], equal_nan=True)
-    assert np.array_equal(out["serial"][1], out["parallel"][1], equal_nan=True)
+    n = g.params.shape[0]
+    results = np.full((n, kernels.N_RESULTS), -1.0)
+    y_final = np.full_like(g.y0, -1.0)
+    kernels.integrate_grid_serial(g.params, g.y0, g.settings, results, y_final)
+    ranges = [(0, 3), (3, n)]
+    chunks = list(LocalThreads(threads).run(g.params, g.y0, g.settings, ranges))
+    assert [(a, b) for a, b, _, _ in chunks] == ranges
+    for a, b, res, yf in chunks:
+        assert np.array_equal(res, results[a:b], equal_nan=True)
+        assert np.array_equal(yf, y_final[a:b], equal_nan=True)

@@ -23,7 +23,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from sweep import kernels, runner, store
-from sweep.backends import NumbaThreads, Resources, compile_grid_kernel
+from sweep.backends import LocalThreads, Resources, compile_grid_kernel
 from sweep.cli import main
 from sweep.config import load_config, parse_config
 from sweep.grid import build_grid
@@ -225,11 +225,11 @@ def test_signals_during_a_kernel_are_seen_when_it_returns():
             os.kill(os.getpid(), signal.SIGINT)
 
     try:
-        compile_grid_kernel(kernels.integrate_grid_parallel)
+        compile_grid_kernel(kernels.integrate_grid_serial)
         sender = threading.Thread(target=send_two)
         start = time.perf_counter()
         sender.start()
-        (chunk,) = NumbaThreads(threads=1).run(g.params, g.y0, g.settings, [(0, 8)])
+        (chunk,) = LocalThreads(threads=1).run(g.params, g.y0, g.settings, [(0, 8)])
         returned = time.perf_counter()
         sender.join()
         time.sleep(0.05)  # a pending signal would be handled here
