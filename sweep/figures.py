@@ -190,10 +190,75 @@ def _fixed(ds):
     return {k: values[k] for k in ("A", "B", "D0", "V", "k2_W") if k in values}
 
 
+#: Sizes, couplings, spread (relative, of D0) and seeds of the critical-stiffness panel of
+#: the N-block figure; the other settings (A, B, D0, k2/W) are the heterogeneous config's.
+NBLOCK_SIZES = (3, 4, 6, 8, 12, 16, 32)
+NBLOCK_COUPLINGS = ("chain", "ring", "all")
+NBLOCK_SPREAD = 0.2
+NBLOCK_SEEDS = range(10)
+
+
+def critical_ratios(
+    config, sizes=NBLOCK_SIZES, couplings=NBLOCK_COUPLINGS, spread=NBLOCK_SPREAD, seeds=NBLOCK_SEEDS
+):
+    """Critical stiffness of unequal blocks relative to identical blocks with their
+    mean D0, (B − A)/⟨D0_i⟩, from the linear theory for every block count, coupling and
+    spread seed (D0_i = D0 (1 + ``spread`` ξ_i)); ``config`` gives the other parameters.
+    Returns a DataArray (coupling, blocks, seed)."""
+    import xarray as xr
+
+    from . import grid, heterogeneity, linear
+
+    raw = config_mapping(config)
+    raw["sweep"] = {"K_W": [float(config.axes[0].values[0])]}
+    raw["initial"] = {"v_over_V": 1.0, "phi_over_phi_ss": 1.0}
+    out = np.empty((len(couplings), len(sizes), len(seeds)))
+    for i, coupling in enumerate(couplings):
+        for j, n in enumerate(sizes):
+            for k, seed in enumerate(seeds):
+                raw |= {"blocks": n, "coupling": coupling}
+                raw["spread"] = {"D0": spread, "distribution": "uniform", "seed": seed}
+                cfg = parse_config(raw, f"{config.source} (N = {n}, {coupling}, seed {seed})")
+                phys = grid.physical_parameters(cfg)
+                kc_w = linear.theory(cfg, phys)["kappa_c"][0] / phys["D0"][0]
+                mean_d0 = heterogeneity.block_values(cfg, phys)["D0"][0].mean()
+                out[i, j, k] = kc_w * mean_d0 / (phys["B"][0] - phys["A"][0])
+    title = (
+        f"D0 spread {spread:g} (uniform, seeds {seeds[0]}–{seeds[-1]}), "
+        f"k2/W = {float(raw['parameters']['k2_W']):g} µm⁻¹: Jacobian Kc"
+    )
+    return xr.DataArray(
+        out,
+        dims=("coupling", "blocks", "seed"),
+        name="Kc_ratio",
+        coords={"coupling": list(couplings), "blocks": list(sizes), "seed": list(seeds)},
+        attrs={"title": title},
+    )
+
+
+def figure_nblock(nblock="nblock", heterogeneous="heterogeneous", threads=None):
+    """Many contact points: the critical stiffness against N and coupling, and the
+    ensemble regime maps of ``heterogeneous`` (K/W × spread of D0) and ``nblock``
+    (K/W × k2/W); returns the Figure."""
+    from .plots import plot_nblock
+    from .runner import compute
+
+    spread_config, coupling_config = load_config(heterogeneous), load_config(nblock)
+    sizes = critical_ratios(spread_config)
+    spread = compute(spread_config, threads=threads, show_progress=False)
+    coupling = compute(coupling_config, threads=threads, show_progress=False)
+    caption = (
+        "identical blocks lose steady sliding at the one-block Kc for every N and "
+        "coupling; unequal ones at their own Kc, with bounded stick-slip below it"
+    )
+    return plot_nblock(sizes, spread, coupling, caption)
+
+
 def make_figures(
     paper="paper",
     twoblock="twoblock",
     bifurcation=("bifurcation_qs", "bifurcation_qd"),
+    nblock=("nblock", "heterogeneous"),
     out_dir="results",
     threads=None,
     suffix=".png",
@@ -213,6 +278,8 @@ def make_figures(
     config = load_config(paper)
     phase_config = load_config(twoblock)
     bifurcation_configs = [load_config(p) for p in bifurcation]
+    for path in nblock:
+        load_config(path)
     check_writable(out_dir / f"fig1_one_block{suffix}", str(out_dir), "--out-dir", suffix)
     paths = [
         save_figure(figure_one_block(config), out_dir / f"fig1_one_block{suffix}", dpi),
@@ -228,4 +295,6 @@ def make_figures(
     )
     fig = plot_bifurcation(sweeps, caption)
     paths.append(save_figure(fig, out_dir / f"bifurcation{suffix}", dpi))
+    fig = figure_nblock(*nblock, threads=threads)
+    paths.append(save_figure(fig, out_dir / f"nblock{suffix}", dpi))
     return paths

@@ -32,7 +32,7 @@ def result(request):
 def test_variables_follow_the_table(result):
     config, ds = result
     dims = tuple(a.name for a in config.axes)
-    expected = {v.name for v in variables_for(config.blocks, config.model)}
+    expected = {v.name for v in variables_for(config.blocks, config.model, config.features)}
     assert set(ds.data_vars) == expected
     assert ("sync_error" in ds) == (config.blocks >= 2)
     for name in expected:

@@ -139,10 +139,12 @@ def test_config_mapping_round_trips_the_nblock_keys():
     assert again.features == ("nblock", "heterogeneous", "ensemble")
 
 
-def test_older_configs_have_no_nblock_features():
-    """A chain without the new keys keeps its variables (tests/test_bit_identity.py)."""
-    assert nblock_config().features == ()
+def test_every_multi_block_config_has_the_nblock_outputs():
+    """A chain without the new keys gets the N-block outputs too (sync_order,
+    slip_participation: any result of two or more blocks); one block does not."""
+    assert nblock_config().features == ("nblock",)
     assert nblock_config(coupling="chain").features == ("nblock",)
+    assert make_config().features == ()
 
 
 def test_parts_of_other_couplings_or_blocks_are_not_reused():

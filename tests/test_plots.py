@@ -25,7 +25,7 @@ from sweep.variables import REGIMES
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-PAPER_FIGURES = ("fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation")
+PAPER_FIGURES = ("fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation", "nblock")
 
 
 def small(path, name, **changes):
@@ -247,15 +247,68 @@ def test_make_figures_on_small_configs(tmp_path):
         integrator={"t_end": 500.0},
     )
     qs = small(CONFIGS / "bifurcation_qs.yaml", "qs_small", sweep={"K_W": [0.04, 0.045, 0.055]})
+    nblock, heterogeneous = small_nblock_configs()
     paths = []
-    for config in (paper, twoblock, qs):
+    for config in (paper, twoblock, qs, nblock, heterogeneous):
         path = tmp_path / f"{config.name}.yaml"
         path.write_text(config.text)
         paths.append(path)
-    out = make_figures(paths[0], paths[1], (paths[2],), out_dir=tmp_path / "figures", threads=1)
+    out = make_figures(
+        paths[0], paths[1], (paths[2],), nblock=paths[3:], out_dir=tmp_path / "figures", threads=1
+    )
     assert [p.stem for p in out] == list(PAPER_FIGURES)
     for path in out:
         assert_png(path)
+
+
+def small_nblock_configs():
+    """configs/nblock.yaml and configs/heterogeneous.yaml on 2 x 2 grids that include
+    points where their four starts disagree (in the full maps)."""
+    nblock = small(
+        CONFIGS / "nblock.yaml",
+        "nblock_small",
+        sweep={"K_W": [0.0495, 0.054], "k2_W": [0.01, 0.03]},
+    )
+    heterogeneous = small(
+        CONFIGS / "heterogeneous.yaml",
+        "heterogeneous_small",
+        sweep={"K_W": [0.0435, 0.054], "spread_D0": [0.0, 0.25]},
+    )
+    return nblock, heterogeneous
+
+
+def test_nblock_figure_draws_the_ensemble_and_kc():
+    """Panels 2 and 3: the regime of most starts in each cell (hatched where they
+    disagree), the stored critical_K_W as a dashed line; panel 1 one curve per coupling."""
+    import xarray as xr
+    from matplotlib.patches import Rectangle
+
+    from sweep.plots import plot_nblock
+
+    nblock, heterogeneous = (compute(c, show_progress=False) for c in small_nblock_configs())
+    sizes = xr.DataArray(
+        np.ones((2, 3, 2)),
+        dims=("coupling", "blocks", "seed"),
+        coords={"coupling": ["chain", "all"], "blocks": [3, 4, 8]},
+    )
+    fig = plot_nblock(sizes, heterogeneous, nblock)
+    assert len(fig.axes[0].get_lines()) == 3  # two couplings and the identical-block line
+    for ax, ds in zip(fig.axes[1:], (heterogeneous, nblock), strict=True):
+        mixed = int((ds.regime_fraction.max("regime_name") < 1).sum())
+        hatched = [p for p in ax.patches if isinstance(p, Rectangle) and p.get_hatch()]
+        assert len(hatched) == mixed > 0
+        kc = ds.critical_K_W.isel(K_W=0).values
+        np.testing.assert_array_equal(ax.get_lines()[0].get_xdata(), kc)
+        dominant = ds.regime_fraction.argmax("regime_name").transpose(*ax_dims(ds)).values
+        np.testing.assert_array_equal(
+            np.asarray(ax.collections[0].get_array()).ravel(), dominant.ravel()
+        )
+
+
+def ax_dims(ds):
+    """The (y, x) dimensions of a regime map of ``ds``."""
+    xdim, ydim = (d for d in ds.regime_fraction.dims if d != "regime_name")
+    return ydim, xdim
 
 
 @pytest.mark.parametrize("name", PAPER_FIGURES)

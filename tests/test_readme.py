@@ -23,12 +23,16 @@ from conftest import (
     QUICK,
     ROOT,
     assert_as_printed,
+    config_dict,
     readme_numbers,
     scipy_runaway_time,
 )
+from nblock_reference import Chain, start_state, window_amplitudes
+from nblock_reference import run as scipy_run
 from scipy.integrate import solve_ivp
+from test_classification import ANTI
 
-from sweep import figures
+from sweep import figures, run
 from sweep.config import Classification, Integrator, config_mapping, load_config, parse_config
 from sweep.physics import log_form_rhs
 from sweep.runner import compute
@@ -208,3 +212,116 @@ def test_config_reference_states_each_setting_as_declared(section, cls):
             assert set(spec.allowed) <= set(words), f"{section}.{field.name}: {spec.allowed}"
         if spec.units != "1":
             assert spec.units in comment, f"{section}.{field.name}: no unit {spec.units}"
+
+
+# --- Many contact points (issue 14) ------------------------------------------------------
+
+
+def test_unequal_chain_critical_stiffness():
+    """ "Kc/W = 0.0470 µm⁻¹ (identical blocks with their mean D0: 0.0484 µm⁻¹)": the
+    engine's critical_K_W of the D0 = 1.0/1.3/0.8 µm chain, the independent reference's
+    bisection, and (B − A)/⟨D0⟩."""
+    kc, kc_mean = readme_numbers(
+        r"k2/W = 0.02 µm⁻¹ have Kc/W = ([\d.]+) µm⁻¹ \(identical blocks with their mean D0: "
+        r"([\d.]+) µm⁻¹\)"
+    )
+    d0 = [1.0, 1.3, 0.8]
+    ds = sweep_chain(d0, [0.05])
+    assert_as_printed(float(ds.critical_K_W[0]), kc)
+    assert_as_printed(Chain(PAPER_A, PAPER_B, d0, 0.05, 0.02).critical_K_W(), kc)
+    assert_as_printed((PAPER_B - PAPER_A) / np.mean(d0), kc_mean)
+
+
+def sweep_chain(d0, k_w, **sections):
+    """The engine on three quasi-static blocks in a chain (k2/W = 0.02 µm⁻¹) with D0
+    ``d0`` (µm, list or scalar), K/W values ``k_w``, start Φ/Φss = 1.01, t_end 3000 D0/V."""
+    cfg = config_dict(
+        {"blocks": 3, "coupling": "chain", "parameters": {"D0": d0, "k2_W": 0.02},
+         "sweep": {"K_W": list(k_w)}, "integrator": {"t_end": 3000.0}}, **sections
+    )  # fmt: skip
+    return run(cfg, progress=False)
+
+
+def test_unequal_chain_cycle_at_0_97_kc():
+    """ "ln(v/V) between −1.810 and 1.692 (max |ln Φ/Φss| 1.22), period 53.2 s,
+    sync_order 0.959; … run away (at 2586 s in phase …)": the engine at 0.97 of the
+    chain's critical_K_W, and the identical blocks with the mean D0 at 0.97 of theirs;
+    max |ln Φ/Φss| (not an engine output) from the SciPy reference (DOP853 rtol 1e-10,
+    τ 300–400)."""
+    low, high, psi, period, order, t_run = readme_numbers(
+        r"a cycle with ln\(v/V\) between −([\d.]+) and ([\d.]+) \(max \|ln Φ/Φss\| ([\d.]+)\), "
+        r"period ([\d.]+) s, `sync_order` ([\d.]+); identical blocks with the mean D0 at 0.97 "
+        r"of their Kc run away \(at (\d+) s in phase"
+    )
+    d0 = [1.0, 1.3, 0.8]
+    kc = float(sweep_chain(d0, [0.05]).critical_K_W[0])
+    row = sweep_chain(d0, [0.97 * kc]).isel(K_W=0)
+    assert REGIMES[int(row.regime)] == "stick_slip"
+    assert_as_printed(-float(row.lnv_min), low)
+    assert_as_printed(float(row.lnv_max), high)
+    assert_as_printed(float(row.period), period)
+    assert_as_printed(float(row.sync_order), order)
+    chain = Chain(PAPER_A, PAPER_B, d0, 0.97 * kc, 0.02)
+    sol, _ = scipy_run(chain, start_state(3), 400.0)
+    assert_as_printed(window_amplitudes(chain, sol, 300.0)[0], psi)
+    mean_d0 = float(np.mean(d0))
+    same = sweep_chain(mean_d0, [0.97 * (PAPER_B - PAPER_A) / mean_d0]).isel(K_W=0)
+    assert REGIMES[int(same.regime)] == "runaway"
+    assert_as_printed(float(same.t_runaway), t_run)
+
+
+def test_two_weakly_coupled_blocks_sync_order():
+    """ "(`sync_order` 0.919, one block per slip)": the engine on the anti-phase start of
+    test_classification (K/Kc = 0.99, k2/W = 0.001 µm⁻¹, t_end 8000 D0/V)."""
+    (order,) = readme_numbers(r"out-of-phase cycle \(`sync_order` ([\d.]+), one block per slip\)")
+    cfg = config_dict(
+        {"blocks": 2, "coupling": "chain", "parameters": {"k2_W": 0.001},
+         "sweep": {"K_W": [0.99 * (PAPER_B - PAPER_A)]}, "initial": ANTI,
+         "integrator": {"t_end": 8000.0}, "classification": {"max_t_end": 8000.0}},
+    )  # fmt: skip
+    row = run(cfg, progress=False).isel(K_W=0)
+    assert REGIMES[int(row.regime)] == "stick_slip"
+    assert_as_printed(float(row.sync_order), order)
+    assert float(row.slip_participation) == 0.5
+
+
+@pytest.mark.slow
+def test_critical_stiffness_against_n_and_coupling():
+    """ "within 1.2 % of the mean-D0 value … from 0.946 to 1.082 times it": the left panel's
+    numbers (``figures.critical_ratios`` of configs/heterogeneous.yaml, as make figures)."""
+    (all_pct,) = readme_numbers(r"all-to-all coupling it stays within ([\d.]+) % of the mean-D0")
+    low, high = readme_numbers(r"along a chain it ranges from ([\d.]+) to ([\d.]+) times it")
+    sizes, n_low, n_high = readme_numbers(
+        r"D0 spread by (\d+) %, k2/W = 0.02 µm⁻¹, ten seeds.*?every N from (\d+) to (\d+);"
+    )
+    ratios = figures.critical_ratios(load_config(ROOT / "configs" / "heterogeneous.yaml"))
+    assert (int(sizes), len(ratios.seed)) == (round(100 * figures.NBLOCK_SPREAD), 10)
+    assert (int(n_low), int(n_high)) == (min(ratios.blocks), max(ratios.blocks))
+    everyone = 100 * float(abs(ratios.sel(coupling="all") - 1).max())
+    assert everyone <= float(all_pct) and everyone > float(all_pct) - 0.1
+    chain = ratios.sel(coupling="chain")
+    assert_as_printed(float(chain.min()), low)
+    assert_as_printed(float(chain.max()), high)
+
+
+@pytest.mark.slow
+def test_nblock_configs_counts():
+    """Run and regime counts of configs/heterogeneous.yaml and configs/nblock.yaml as the
+    README states them (the figure's middle and right panels)."""
+    n_het, n_nb = readme_numbers(
+        r"K/W × k2/W, (\d+) runs\) and `configs/heterogeneous.yaml` .*?K/W × spread, (\d+) runs\)"
+    )[::-1]
+    cells, mixed, stick, away, undecided = readme_numbers(
+        r"of the (\d+) grid points of `configs/heterogeneous.yaml`, the four starts disagree at "
+        r"(\d+) .*?; (\d+) runs stick-slip, (\d+) run away, (\d+) stay undecided"
+    )
+    (nb_undecided,) = readme_numbers(r"(\d+) of its \d+ runs stay undecided at `max_t_end`")
+    het = compute(load_config(ROOT / "configs" / "heterogeneous.yaml"), show_progress=False)
+    nb = compute(load_config(ROOT / "configs" / "nblock.yaml"), show_progress=False)
+    assert (het.regime.size, nb.regime.size) == (int(n_het), int(n_nb))
+    frac = het.regime_fraction
+    assert frac.isel(regime_name=0).size == int(cells)
+    assert int((frac.max("regime_name") < 1).sum()) == int(mixed)
+    counts = [int((het.regime == REGIMES.index(r)).sum()) for r in REGIMES[1:]]
+    assert counts == [int(stick), int(away), int(undecided)]
+    assert int((nb.regime == REGIMES.index("undecided")).sum()) == int(nb_undecided)
