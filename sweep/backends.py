@@ -28,12 +28,6 @@ from . import accelerate
 
 log = logging.getLogger(__name__)
 
-#: Numba signature of the grid kernels as the backends call them (C-contiguous float64).
-GRID_SIGNATURE = (
-    "(float64[:, ::1], float64[:, ::1], float64[::1], float64[:, ::1], float64[:, ::1])"
-)
-
-
 @dataclass(frozen=True)
 class Resources:
     """What a run may use: ``threads`` threads on this machine (None: all cores), or Dask: the
@@ -51,18 +45,27 @@ class Resources:
 
 
 def compile_grid_kernel(kernel):
-    """Compile (or load from the numba cache) a grid kernel for :data:`GRID_SIGNATURE`.
+    """Compile (or load from the numba cache) a grid kernel for the array types every
+    run passes (C-contiguous, writable float64).
 
-    Says "compiling kernels (first run only)" when that takes longer than a second
-    (a cold cache; loading a warm one takes about a second). Nothing to do under
-    ``NUMBA_DISABLE_JIT=1``, where kernels are plain Python.
+    It is compiled by a call on zero systems, not with ``kernel.compile(signature)``:
+    numba files the two under different cache keys, and a process that had only
+    called the kernel would leave Dask workers nothing to load (they then compile,
+    and write the cache at once: numba#4807). Says "compiling kernels (first run
+    only)" when this takes longer than a second (a cold cache; loading a warm one
+    takes about a second). Nothing to do under ``NUMBA_DISABLE_JIT=1``.
     """
     if not hasattr(kernel, "compile"):
         return
+    from .kernels import N_PARAMS, N_RESULTS, N_SETTINGS
+
     notice = threading.Timer(1.0, log.info, ("compiling kernels (first run only) ...",))
     notice.start()
     try:
-        kernel.compile(GRID_SIGNATURE)
+        kernel(
+            np.empty((0, N_PARAMS)), np.empty((0, 2)), np.zeros(N_SETTINGS),
+            np.empty((0, N_RESULTS)), np.empty((0, 2)),
+        )  # fmt: skip
     finally:
         notice.cancel()
 

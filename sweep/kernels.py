@@ -985,6 +985,14 @@ def write_result(result, regime, t, n_steps, n_rejected, tau_runaway, nb, win, l
 
 
 @jit
+def step_scratch(n):
+    """Scratch of the explicit steps for a state of ``n`` values: f, ynew, fnew, ytmp
+    and the stages k2 … k6."""
+    return (np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n),
+            np.empty(n), np.empty(n), np.empty(n))  # fmt: skip
+
+
+@jit
 def rosenbrock_scratch(method, n):
     """Scratch of the RODAS4 step (stages, matrix, pivots); empty for other methods."""
     if method == ROSENBROCK:
@@ -1051,13 +1059,10 @@ def new_cycle_state(y, nb):
 
 @jit
 def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
-    """Integrate one system from ``y0`` and write its statistics into ``result``.
-
-    ``p``: dimensionless parameters (``P_*`` columns); ``settings``: the ``S_*``
-    entries; ``result``: the ``R_*`` columns; ``y_final``: the state at the end.
-    Recording (for traces): the state every ``rec_dt`` (D0/V, interpolated) and
-    at the end goes into ``rec_t``/``rec_y`` while they have room; sweeps pass
-    empty buffers. The count is ``result[R_N_RECORDED]``.
+    """Integrate one system (parameters ``p``: ``P_*``) from ``y0``; its statistics go
+    to ``result`` (``R_*``), its final state to ``y_final``. Traces: the state every
+    ``rec_dt`` (D0/V, interpolated) and at the end goes to ``rec_t``/``rec_y`` while
+    they have room (sweeps pass empty buffers); the count is ``result[R_N_RECORDED]``.
     """
     model = int(settings[S_MODEL])
     law = int(settings[S_LAW])
@@ -1082,15 +1087,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
 
     n = y0.size
     y = y0.copy()
-    f = np.empty(n)
-    ynew = np.empty(n)
-    fnew = np.empty(n)
-    ytmp = np.empty(n)
-    k2 = np.empty(n)
-    k3 = np.empty(n)
-    k4 = np.empty(n)
-    k5 = np.empty(n)
-    k6 = np.empty(n)
+    f, ynew, fnew, ytmp, k2, k3, k4, k5, k6 = step_scratch(n)
     ev = np.empty(nb)
     k_ros, mat, perm = rosenbrock_scratch(method, n)
     # the current cycle (win) and the last completed one (last): W_* rows per block;
