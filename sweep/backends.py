@@ -28,6 +28,7 @@ from . import accelerate
 
 log = logging.getLogger(__name__)
 
+
 @dataclass(frozen=True)
 class Resources:
     """What a run may use: ``threads`` threads on this machine (None: all cores), or Dask: the
