@@ -79,10 +79,12 @@ def load_kernels():
     compile_grid_kernel(kernels.integrate_grid_serial)
 
 
-#: Systems per batch a thread takes: small, so that the costly runs near Kc, which
-#: sit next to each other in the grid, are shared out; a kernel call costs ~10 µs,
-#: a system 0.1-10 ms.
-BATCH = 4
+#: Systems per batch a thread takes as it comes free: small, so that the costly runs
+#: near Kc, which sit next to each other in the grid, are shared out, yet large
+#: against the ~10 µs a kernel call costs in Python. 2-thread speed-up on a 10⁴-point
+#: one-block sweep (benchmarks/bench.py): batches of 4: 1.65-1.67x; 8: 1.86x;
+#: 16: 1.78-1.84x; 64: 1.40x (each chunk waits for its slowest batch).
+BATCH = 8
 
 
 class LocalThreads:
