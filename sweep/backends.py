@@ -83,7 +83,8 @@ def load_kernels():
 #: near Kc, which sit next to each other in the grid, are shared out, yet large
 #: against the ~10 µs a kernel call costs in Python. 2-thread speed-up on a 10⁴-point
 #: one-block sweep (benchmarks/bench.py): batches of 4: 1.65-1.67x; 8: 1.86x;
-#: 16: 1.78-1.84x; 64: 1.40x (each chunk waits for its slowest batch).
+#: 16: 1.78-1.84x; 64: 1.40x (each chunk waits for its slowest batch). Small chunks
+#: get smaller batches, at least four per thread.
 BATCH = 8
 
 
@@ -111,12 +112,14 @@ class LocalThreads:
 
 def integrate_rows(params, y0, settings, threads):
     """``(results, y_final)`` of every row, computed by the grid kernel on ``threads``
-    threads, each taking the next batch of :data:`BATCH` rows as it comes free."""
+    threads, each taking the next batch of rows (:data:`BATCH`, fewer for small
+    chunks) as it comes free."""
     from .kernels import N_RESULTS, integrate_grid_serial
 
     n = params.shape[0]
     results, y_final = np.empty((n, N_RESULTS)), np.empty_like(y0)
-    batches = iter(range(0, n, BATCH))
+    size = max(1, min(BATCH, n // (4 * threads)))
+    batches = iter(range(0, n, size))
     take = threading.Lock()
 
     def work():
@@ -125,12 +128,12 @@ def integrate_rows(params, y0, settings, threads):
                 lo = next(batches, None)
             if lo is None:
                 return
-            hi = min(lo + BATCH, n)
+            hi = min(lo + size, n)
             integrate_grid_serial(
                 params[lo:hi], y0[lo:hi], settings, results[lo:hi], y_final[lo:hi]
             )
 
-    n_workers = min(threads, -(-n // BATCH))
+    n_workers = min(threads, -(-n // size))
     if n_workers <= 1:
         work()  # in this thread: signals reach Python between kernel calls
     else:
