@@ -118,7 +118,8 @@ def integrate_rows(params, y0, settings, threads):
 
     n = params.shape[0]
     results, y_final = np.empty((n, N_RESULTS)), np.empty_like(y0)
-    size = max(1, min(BATCH, n // (4 * threads)))
+    # one thread: one call (signals reach Python when it returns, as documented)
+    size = max(1, n) if threads == 1 else max(1, min(BATCH, n // (4 * threads)))
     batches = iter(range(0, n, size))
     take = threading.Lock()
 
