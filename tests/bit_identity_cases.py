@@ -1,9 +1,9 @@
 """Small runs whose every number must stay bit-identical across refactoring.
 
-``python tests/bit_identity_cases.py`` writes ``tests/data/bit_identity.npz`` from the
-code as it is; ``tests/test_bit_identity.py`` compares the code as it is now with
-that file. Regenerate it only in a commit that says which numbers changed and why
-(a changed method, controller or classifier), never to make the test pass.
+``tests/test_bit_identity.py`` runs this file twice on the same machine: as it stands
+in the reference commit (``python tests/bit_identity_cases.py`` writes
+``tests/data/bit_identity.npz`` beside that copy) and as it is now, and compares
+every number. Keep the ``__main__`` block: a later reference commit needs it.
 """
 
 import sys
