@@ -35,8 +35,9 @@ import numpy as np
 import yaml
 
 from sweep import kernels, physics
-from sweep.backends import DaskTasks, LocalThreads, load_kernels
+from sweep.backends import DaskTasks, LocalThreads
 from sweep.config import load_config, parse_config, with_changes
+from sweep.dispatch import load_kernel
 from sweep.distributed import connect
 from sweep.grid import build_grid
 from sweep.runner import compute, integrate_in_memory
@@ -467,7 +468,8 @@ def bench_compile(config_path):
 
 def time_compute(config, threads=None, client=None):
     """Wall time (s) to compute ``config`` in memory, kernels compiled beforehand."""
-    (LocalThreads(threads) if client is None else DaskTasks(client)).compile()
+    g = build_grid(config)
+    (LocalThreads(threads) if client is None else DaskTasks(client)).compile(g.params, g.settings)
     start = time.perf_counter()
     compute(config, threads, show_progress=False, client=client)
     return time.perf_counter() - start
@@ -488,7 +490,8 @@ def bench_dask(config_path, workers=2):
     start = time.perf_counter()
     with connect(local_workers=workers) as client:
         client.wait_for_workers(workers)
-        client.run(load_kernels)
+        g = build_grid(config)
+        client.run(load_kernel, g.params, g.settings)
         times["cluster_start"] = time.perf_counter() - start
         times["cluster"] = time_compute(config, client=client)
     times["cluster_over_threads"] = times["cluster"] / times["threads_n"]

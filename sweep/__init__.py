@@ -9,14 +9,15 @@ Importing the package compiles nothing; kernels compile on first use::
     ds2 = sweep.run(cfg, threads=2)
     sweep.plot_variable(ds, "period")            # a matplotlib Figure
 
-Configs: :func:`load_config`, :func:`with_changes`, :func:`examples.names`;
+Kernels: :func:`compile_kernels` (warm numba's cache before job arrays);
+configs: :func:`load_config`, :func:`with_changes`, :func:`examples.names`;
 figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
 :func:`plot_trace` (``sweep/plots.py``); traces: ``sweep.trace.compute_trace``.
 """
 
 from . import examples
 from ._version import __version__ as __version__
-from .api import run
+from .api import compile_kernels, run
 from .config import Config, load_config, parse_config, with_changes
 from .errors import ConfigError, InputError, RunError, SweepError
 
@@ -39,6 +40,7 @@ def __getattr__(name):
 
 
 __all__ = [
+    "compile_kernels",
     "Config",
     "ConfigError",
     "InputError",

@@ -58,6 +58,17 @@ def run(config, *, threads=None, client=None, progress=True):
         )
 
 
+def compile_kernels(config):
+    """Compile the kernel that ``config`` (as for :func:`run`) uses, or load it from
+    numba's on-disk cache, in this process. Run it once before job-array tasks or
+    workers on other nodes start, so that they only read the cache. Returns None."""
+    from .dispatch import load_kernel
+    from .grid import build_grid
+
+    grid = build_grid(load_config(config))
+    load_kernel(grid.params, grid.settings)
+
+
 def _check_threads(source, threads):
     """Raise :class:`~sweep.errors.InputError` unless ``threads`` is None or in [1, cores]."""
     import numba

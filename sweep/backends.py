@@ -3,8 +3,8 @@
 Both backends offer the same small protocol, so the runner does not care which
 one it has:
 
-* ``compile()``: compile (or load from numba's cache) the grid kernel it calls,
-  in this process, before any chunk runs;
+* ``compile(params, settings)``: compile (or load from numba's cache) the grid
+  kernel of the run's variant, in this process, before any chunk runs;
 * ``run(params, y0, settings, ranges, stop)``: integrate row ``ranges`` of the
   kernels' arrays, yielding ``(start, stop, results, y_final)`` per range as each
   finishes;
@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import accelerate
+from .dispatch import integrate_grid, load_kernel
 
 log = logging.getLogger(__name__)
 
@@ -43,40 +44,6 @@ class Resources:
     def dask(self):
         """Whether the chunks run as Dask tasks."""
         return self.scheduler is not None or self.dask_local is not None
-
-
-def compile_grid_kernel(kernel):
-    """Compile (or load from the numba cache) a grid kernel for the array types every
-    run passes (C-contiguous, writable float64).
-
-    It is compiled by a call on zero systems, not with ``kernel.compile(signature)``:
-    numba files the two under different cache keys, and a process that had only
-    called the kernel would leave Dask workers nothing to load (they then compile,
-    and write the cache at once: numba#4807). Says "compiling kernels (first run
-    only)" when this takes longer than a second (a cold cache; loading a warm one
-    takes about a second). Nothing to do under ``NUMBA_DISABLE_JIT=1``.
-    """
-    if not hasattr(kernel, "compile"):
-        return
-    from .kernels import N_PARAMS, N_RESULTS, N_SETTINGS
-
-    notice = threading.Timer(1.0, log.info, ("compiling kernels (first run only) ...",))
-    notice.start()
-    try:
-        kernel(
-            np.empty((0, N_PARAMS)), np.empty((0, 2)), np.zeros(N_SETTINGS),
-            np.empty((0, N_RESULTS)), np.empty((0, 2)),
-        )  # fmt: skip
-    finally:
-        notice.cancel()
-
-
-def load_kernels():
-    """Load (or compile) the grid kernel in this process, e.g. on every Dask worker
-    or to warm the cache before job arrays."""
-    from . import kernels
-
-    compile_grid_kernel(kernels.integrate_grid_serial)
 
 
 #: Systems per batch a thread takes as it comes free: small, so that the costly runs
@@ -98,8 +65,8 @@ class LocalThreads:
     def __str__(self):
         return "threads"
 
-    def compile(self):
-        load_kernels()
+    def compile(self, params, settings):
+        load_kernel(params, settings)
 
     def run(self, params, y0, settings, ranges, stop=None):
         """Integrate ``ranges`` of systems one after another; yield each as it finishes.
@@ -114,7 +81,7 @@ def integrate_rows(params, y0, settings, threads):
     """``(results, y_final)`` of every row, computed by the grid kernel on ``threads``
     threads, each taking the next batch of rows (:data:`BATCH`, fewer for small
     chunks) as it comes free."""
-    from .kernels import N_RESULTS, integrate_grid_serial
+    from .kernels import N_RESULTS
 
     n = params.shape[0]
     results, y_final = np.empty((n, N_RESULTS)), np.empty_like(y0)
@@ -130,9 +97,7 @@ def integrate_rows(params, y0, settings, threads):
             if lo is None:
                 return
             hi = min(lo + size, n)
-            integrate_grid_serial(
-                params[lo:hi], y0[lo:hi], settings, results[lo:hi], y_final[lo:hi]
-            )
+            integrate_grid(params[lo:hi], y0[lo:hi], settings, results[lo:hi], y_final[lo:hi])
 
     n_workers = min(threads, -(-n // size))
     if n_workers <= 1:
@@ -160,10 +125,10 @@ class DaskTasks:
 
         return worker_threads(self.client)
 
-    def compile(self):
+    def compile(self, params, settings):
         """Compile the serial kernel here, before any task, so only this process writes
         numba's cache (numba#4807); workers on the same machine then load it."""
-        load_kernels()
+        load_kernel(params, settings)
 
     def run(self, params, y0, settings, ranges, stop=None):
         """Integrate ``ranges`` as Dask tasks; yield each in completion order."""

@@ -29,17 +29,18 @@ POLL = 0.5
 def chunk_task(params, y0, settings):
     """Task body: integrate the systems of one chunk one after another.
 
-    Arguments as for ``kernels.integrate_grid_serial``; arrays arriving from
+    Arguments as for ``dispatch.integrate_grid``; arrays arriving from
     the network may be read-only or strided, and are made C-contiguous and
     writable so the kernel's compiled signature (and cache entry) is reused.
     Returns ``(results, y_final)``.
     """
-    from .kernels import N_RESULTS, integrate_grid_serial
+    from .dispatch import integrate_grid
+    from .kernels import N_RESULTS
 
     params, y0, settings = (np.require(a, np.float64, ["C", "W"]) for a in (params, y0, settings))
     results = np.empty((params.shape[0], N_RESULTS))
     y_final = np.empty_like(y0)
-    integrate_grid_serial(params, y0, settings, results, y_final)
+    integrate_grid(params, y0, settings, results, y_final)
     return results, y_final
 
 

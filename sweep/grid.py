@@ -73,6 +73,7 @@ def settings_array(config):
     s[kernels.S_CONFIRM_CYCLES] = cls.confirm_cycles
     s[kernels.S_EARLY_EXIT] = 1.0 if cls.early_exit else 0.0
     s[kernels.S_SLIP_LNV] = math.log(cls.slip_v_over_V)
+    s[kernels.S_COUPLING] = COUPLING_CODES[config.coupling]
     return s
 
 
@@ -148,7 +149,6 @@ def build_grid(config):
     max_t_end = config.classification.max_t_end
     max_t_end = 10.0 * integ.t_end if max_t_end is None else max_t_end
     params[:, kernels.P_TAU_MAX] = max_t_end * to_tau
-    params[:, kernels.P_COUPLING] = COUPLING_CODES[config.coupling]
     if config.heterogeneous:
         for k, values in enumerate(block_parameters(config, phys)):
             start = kernels.N_PARAMS + k * nb

@@ -15,6 +15,7 @@ not depend on run length. Extrema are located inside a step with the cubic
 interpolant of the step (DOPRI5's dense output; cubic Hermite for RK4 and RODAS4).
 """
 
+import functools
 import math
 
 import numpy as np
@@ -51,9 +52,8 @@ HISTORY = 4
     P_MAX_STEP,  # largest adaptive step (D0/V)
     P_TAU_MAX,  # unsettled runs continue up to this time (D0/V), ≥ P_TAU_END
     P_LIN_GROWTH,  # max Re λ of the linearisation at steady sliding (V/D0)
-    P_COUPLING,  # CHAIN | RING | ALL
-) = range(12)
-N_PARAMS = 12
+) = range(11)
+N_PARAMS = 11
 # Rows whose blocks differ have N_BLOCK_PARAMS × nb more columns after N_PARAMS:
 # column N_PARAMS + k nb + i holds quantity k of block i (B_* below). Without them
 # (p.size == N_PARAMS) every block takes P_A, P_B, P_KAPPA1 and rate factor 1.
@@ -70,7 +70,7 @@ N_BLOCK_PARAMS = 4
     S_MODEL,  # QUASI_STATIC | QUASI_DYNAMIC | INERTIAL
     S_LAW,  # AGING | SLIP
     S_METHOD,  # DOPRI5 | RK4 | ROSENBROCK
-    S_NBLOCKS,  # number of blocks in the chain
+    S_NBLOCKS,  # number of blocks
     S_RTOL,  # relative tolerance of the adaptive methods
     S_ATOL,  # absolute tolerance of the adaptive methods
     S_MAX_STEPS,  # step budget per run (accepted + rejected)
@@ -80,8 +80,9 @@ N_BLOCK_PARAMS = 4
     S_CONFIRM_CYCLES,  # consecutive cycles a verdict must hold to settle a run early
     S_EARLY_EXIT,  # 1: stop as soon as the regime is settled
     S_SLIP_LNV,  # a block slips (slip events, R_SLIP_PARTICIPATION) while ℓ_i exceeds this
-) = range(13)
-N_SETTINGS = 13
+    S_COUPLING,  # CHAIN | RING | ALL
+) = range(14)
+N_SETTINGS = 14
 
 # --- columns of the per-system statistics array -----------------------------
 (
@@ -187,18 +188,16 @@ _RODAS_C = np.array(
 
 
 @jit_inline
-def rhs(y, p, model, law, nb, ev, dydt):
+def rhs(y, p, model, law, coupling, het, nb, ev, dydt):
     """Time derivative (per D0/V) of the log-form state ``y`` into ``dydt``.
 
-    ``p`` is one row of the parameter array (with per-block columns where blocks
-    differ); ``ev`` is scratch for e^ℓ (length nb).
+    ``p`` is one row of the parameter array, with per-block columns where blocks
+    differ (``het`` true); ``ev`` is scratch for e^ℓ (length nb).
     """
     A = p[P_A]
     B = p[P_B]
     kappa1 = p[P_KAPPA1]
     kappa2 = p[P_KAPPA2]
-    coupling = int(p[P_COUPLING])
-    het = p.size > N_PARAMS
     total = 0.0  # Σ e^ℓ_j: every pair coupled
     for i in range(nb):
         ev[i] = np.exp(y[i])
@@ -240,7 +239,7 @@ def rhs(y, p, model, law, nb, ev, dydt):
 
 
 @jit
-def jacobian(y, f, p, model, law, nb, ev, jac):
+def jacobian(y, f, p, model, law, coupling, het, nb, ev, jac):
     """Analytic Jacobian ∂(dy/dτ)/∂y of :func:`rhs` at ``y`` into ``jac`` (n × n).
 
     ``f`` = rhs(y) (its ℓ rows enter the quasi-dynamic and inertial entries);
@@ -250,8 +249,6 @@ def jacobian(y, f, p, model, law, nb, ev, jac):
     B = p[P_B]
     kappa1 = p[P_KAPPA1]
     kappa2 = p[P_KAPPA2]
-    coupling = int(p[P_COUPLING])
-    het = p.size > N_PARAMS
     jac[:, :] = 0.0
     for i in range(nb):
         ev[i] = np.exp(y[i])
@@ -361,24 +358,26 @@ def lu_solve(a, perm, b, x):
 
 
 @jit_inline
-def step_rk4(y, f, h, p, model, law, nb, ev, k2, k3, k4, ytmp, ynew):
+def step_rk4(y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, ytmp, ynew):
     """One classical RK4 step of size h from (y, f = rhs(y)) into ``ynew``."""
     n = y.size
     for j in range(n):
         ytmp[j] = y[j] + 0.5 * h * f[j]
-    rhs(ytmp, p, model, law, nb, ev, k2)
+    rhs(ytmp, p, model, law, coupling, het, nb, ev, k2)
     for j in range(n):
         ytmp[j] = y[j] + 0.5 * h * k2[j]
-    rhs(ytmp, p, model, law, nb, ev, k3)
+    rhs(ytmp, p, model, law, coupling, het, nb, ev, k3)
     for j in range(n):
         ytmp[j] = y[j] + h * k3[j]
-    rhs(ytmp, p, model, law, nb, ev, k4)
+    rhs(ytmp, p, model, law, coupling, het, nb, ev, k4)
     for j in range(n):
         ynew[j] = y[j] + h / 6.0 * (f[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
 
 
 @jit_inline
-def step_dopri5(y, f, h, p, model, law, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, fnew, rtol, atol):
+def step_dopri5(
+    y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, fnew, rtol, atol
+):
     """One Dormand–Prince 5(4) step; returns the scaled RMS error estimate.
 
     ``f`` = rhs(y) on entry; on return ``ynew`` holds the 5th-order solution and
@@ -388,24 +387,24 @@ def step_dopri5(y, f, h, p, model, law, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, 
     n = y.size
     for j in range(n):
         ytmp[j] = y[j] + h * _A21 * f[j]
-    rhs(ytmp, p, model, law, nb, ev, k2)
+    rhs(ytmp, p, model, law, coupling, het, nb, ev, k2)
     for j in range(n):
         ytmp[j] = y[j] + h * (_A31 * f[j] + _A32 * k2[j])
-    rhs(ytmp, p, model, law, nb, ev, k3)
+    rhs(ytmp, p, model, law, coupling, het, nb, ev, k3)
     for j in range(n):
         ytmp[j] = y[j] + h * (_A41 * f[j] + _A42 * k2[j] + _A43 * k3[j])
-    rhs(ytmp, p, model, law, nb, ev, k4)
+    rhs(ytmp, p, model, law, coupling, het, nb, ev, k4)
     for j in range(n):
         ytmp[j] = y[j] + h * (_A51 * f[j] + _A52 * k2[j] + _A53 * k3[j] + _A54 * k4[j])
-    rhs(ytmp, p, model, law, nb, ev, k5)
+    rhs(ytmp, p, model, law, coupling, het, nb, ev, k5)
     for j in range(n):
         ytmp[j] = y[j] + h * (
             _A61 * f[j] + _A62 * k2[j] + _A63 * k3[j] + _A64 * k4[j] + _A65 * k5[j]
         )
-    rhs(ytmp, p, model, law, nb, ev, k6)
+    rhs(ytmp, p, model, law, coupling, het, nb, ev, k6)
     for j in range(n):
         ynew[j] = y[j] + h * (_B1 * f[j] + _B3 * k3[j] + _B4 * k4[j] + _B5 * k5[j] + _B6 * k6[j])
-    rhs(ynew, p, model, law, nb, ev, fnew)
+    rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
     err2 = 0.0
     for j in range(n):
         e = h * (_E1 * f[j] + _E3 * k3[j] + _E4 * k4[j] + _E5 * k5[j] + _E6 * k6[j] + _E7 * fnew[j])
@@ -415,7 +414,9 @@ def step_dopri5(y, f, h, p, model, law, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, 
 
 
 @jit
-def step_rosenbrock(y, f, h, p, model, law, nb, ev, k, mat, perm, ytmp, ynew, fnew, rtol, atol):
+def step_rosenbrock(
+    y, f, h, p, model, law, coupling, het, nb, ev, k, mat, perm, ytmp, ynew, fnew, rtol, atol
+):
     """One linearly implicit RODAS4 step (order 4, embedded order 3, L-stable).
 
     Solves (I/(γh) − J) k_s = f(y + Σ a_sj k_j) + Σ c_sj k_j / h for six stages
@@ -426,7 +427,7 @@ def step_rosenbrock(y, f, h, p, model, law, nb, ev, k, mat, perm, ytmp, ynew, fn
     scaled RMS error estimate (acceptable when ≤ 1, non-finite on overflow).
     """
     n = y.size
-    jacobian(y, f, p, model, law, nb, ev, mat)
+    jacobian(y, f, p, model, law, coupling, het, nb, ev, mat)
     diag = 1.0 / (_RODAS_GAMMA * h)
     for i in range(n):
         for j in range(n):
@@ -443,7 +444,7 @@ def step_rosenbrock(y, f, h, p, model, law, nb, ev, k, mat, perm, ytmp, ynew, fn
                 for r in range(s):
                     acc += _RODAS_A[s, r] * k[r, j]
                 ytmp[j] = acc
-            rhs(ytmp, p, model, law, nb, ev, fnew)
+            rhs(ytmp, p, model, law, coupling, het, nb, ev, fnew)
         for j in range(n):
             acc = 0.0
             for r in range(s):
@@ -455,7 +456,7 @@ def step_rosenbrock(y, f, h, p, model, law, nb, ev, k, mat, perm, ytmp, ynew, fn
         ynew[j] = ytmp[j] + k[5, j]
         scale = atol + rtol * max(abs(y[j]), abs(ynew[j]))
         err2 += (k[5, j] / scale) ** 2
-    rhs(ynew, p, model, law, nb, ev, fnew)
+    rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
     return math.sqrt(err2 / n)
 
 
@@ -1057,16 +1058,19 @@ def new_cycle_state(y, nb):
     return cs
 
 
-@jit
-def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
+@jit_inline
+def integrate_system(
+    p, y0, settings, result, y_final, rec_dt, rec_t, rec_y, model, law, method, coupling, het
+):
     """Integrate one system (parameters ``p``: ``P_*``) from ``y0``; its statistics go
     to ``result`` (``R_*``), its final state to ``y_final``. Traces: the state every
     ``rec_dt`` (D0/V, interpolated) and at the end goes to ``rec_t``/``rec_y`` while
     they have room (sweeps pass empty buffers); the count is ``result[R_N_RECORDED]``.
+
+    ``model``, ``law``, ``method``, ``coupling`` and ``het`` (per-block columns in
+    ``p``) are the kernel's variant: constants of :func:`grid_kernel`, so numba drops
+    every branch of the others before typing.
     """
-    model = int(settings[S_MODEL])
-    law = int(settings[S_LAW])
-    method = int(settings[S_METHOD])
     nb = int(settings[S_NBLOCKS])
     rtol = settings[S_RTOL]
     atol = settings[S_ATOL]
@@ -1101,7 +1105,7 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
 
     n_rec = record_start(y, rec_t, rec_y)
 
-    rhs(y, p, model, law, nb, ev, f)
+    rhs(y, p, model, law, coupling, het, nb, ev, f)
     t = 0.0
     h = p[P_DT] if method == RK4 else min(1e-3, max_step, tau_end)
     n_steps = 0
@@ -1122,15 +1126,17 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
         err = 0.0  # RK4: every step is accepted
         if method == DOPRI5:
             err = step_dopri5(
-                y, f, h, p, model, law, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, fnew, rtol, atol
-            )
+                y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew,
+                fnew, rtol, atol,
+            )  # fmt: skip
         elif method == ROSENBROCK:
             err = step_rosenbrock(
-                y, f, h, p, model, law, nb, ev, k_ros, mat, perm, ytmp, ynew, fnew, rtol, atol
-            )
+                y, f, h, p, model, law, coupling, het, nb, ev, k_ros, mat, perm, ytmp, ynew,
+                fnew, rtol, atol,
+            )  # fmt: skip
         else:
-            step_rk4(y, f, h, p, model, law, nb, ev, k2, k3, k4, ytmp, ynew)
-            rhs(ynew, p, model, law, nb, ev, fnew)
+            step_rk4(y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, ytmp, ynew)
+            rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
         h_next = next_step_size(method, h, err, max_step)
         if not (err <= 1.0):
             n_rejected += 1
@@ -1219,10 +1225,25 @@ def integrate_system(p, y0, settings, result, y_final, rec_dt, rec_t, rec_y):
     result[R_N_RECORDED] = record_end(t, y, rec_t, rec_y, n_rec)
 
 
-@jit
-def integrate_grid_serial(params, y0, settings, results, y_final):
-    """Integrate every system (rows of ``params``/``y0``) one after another."""
-    no_t = np.empty(0)
-    no_y = np.empty((0, y0.shape[1]))
-    for s in range(params.shape[0]):
-        integrate_system(params[s], y0[s], settings, results[s], y_final[s], 0.0, no_t, no_y)
+@functools.cache
+def grid_kernel(model, law, method, coupling, het):
+    """The serial grid kernel of one variant: model, state law, method and coupling
+    codes (int) and whether blocks differ (``het``, bool).
+
+    Built and compiled on first use, one per variant: the codes are constants of
+    the closure, so numba drops the other variants' branches of every inlined
+    helper before typing (a cold compile types only what the config uses), and
+    numba's cache keys each variant by their values. Sweeps and traces call the
+    same kernel: ``integrate_grid(params, y0, settings, results, y_final, rec_dt,
+    rec_t, rec_y)`` integrates every row one after another; a trace passes one row
+    and recording buffers, sweeps empty buffers (see :func:`integrate_system`).
+    """
+
+    def integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y):
+        for s in range(params.shape[0]):
+            integrate_system(
+                params[s], y0[s], settings, results[s], y_final[s], rec_dt, rec_t, rec_y,
+                model, law, method, coupling, het,
+            )  # fmt: skip
+
+    return jit(integrate_grid)

@@ -131,7 +131,7 @@ def run_chunks(backend, params, y0, settings, ranges, results, y_final, progress
 
     After each chunk: ``save(start, stop)`` (e.g. write a part), then
     ``progress.update``. Stops early, between chunks, once ``stop`` is set. The
-    caller compiles the backend's kernel first (``backend.compile()``).
+    caller compiles the backend's kernel first (``backend.compile``).
     """
     chunks = backend.run(params, y0, settings, ranges, stop)
     with closing(chunks):
@@ -154,7 +154,7 @@ def integrate_in_memory(params, y0, settings, threads=None, chunk_size=None, pro
     Returns ``(results, y_final)``.
     """
     backend = backend or LocalThreads(threads)
-    backend.compile()
+    backend.compile(params, settings)
     n = params.shape[0]
     chunk_size = chunk_size or _default_chunk_size(n, backend, shard=None)
     results = np.empty((n, N_RESULTS))
@@ -174,7 +174,7 @@ def compute(config, threads=None, chunk_size=None, show_progress=True, client=No
     grid = build_grid(config)
     backend = LocalThreads(threads) if client is None else DaskTasks(client)
     # compiled here, not first in integrate_in_memory: before the progress clock
-    backend.compile()
+    backend.compile(grid.params, grid.settings)
     progress = Progress(grid.n, desc=config.name, enabled=show_progress)
     try:
         results, y_final = integrate_in_memory(
@@ -249,7 +249,7 @@ def run_sweep(config, out=None, *, resources=None, chunk_size=None, resume=False
             log.info("%s: computing %d runs in %d chunks on %s", config.name, left, len(todo),
                      backend)  # fmt: skip
             # compiled here, not first in run_chunks: before the progress clock
-            backend.compile()
+            backend.compile(grid.params, grid.settings)
             progress = Progress(total, config.name, enabled=show_progress, initial=total - left)
             try:
                 run_chunks(backend, grid.params, grid.y0, grid.settings, todo, run.results,

@@ -2,7 +2,7 @@
 
 A trace pins every sweep axis of a config to one value (``--at K_W=0.046``),
 integrates that one system with the same kernel as a sweep
-(``kernels.integrate_system``, recording the state on a fine uniform time grid)
+(``dispatch.integrate_grid``, recording the state on a fine uniform time grid)
 and keeps a decimated time series: in each of ``points`` time bins the first
 sample and the samples where some block's ln(v/V) is largest and smallest, so
 slip peaks and stick troughs survive decimation, plus the final state. The
@@ -22,6 +22,7 @@ import xarray as xr
 from . import kernels, physics
 from .config import ConfigError, config_mapping, parse_config
 from .dataset import derived_fields, parameter_attrs, parameter_coords, provenance
+from .dispatch import integrate_grid
 from .grid import build_grid
 from .physics import PARAMETERS
 from .variables import REGIMES, variables_for
@@ -117,9 +118,7 @@ def compute_trace(config, points=4000):
     result = np.empty((1, kernels.N_RESULTS))
     y_final = np.empty_like(y0)
     rec_dt = params[0, kernels.P_TAU_END] / (fine - 1)
-    kernels.integrate_system(
-        params[0], y0[0], settings, result[0], y_final[0], rec_dt, rec_t, rec_y
-    )  # fmt: skip
+    integrate_grid(params[:1], y0[:1], settings, result, y_final, rec_dt, rec_t, rec_y)
     n = int(result[0, kernels.R_N_RECORDED])
     nb = config.blocks
     keep = decimate(rec_y[:n, :nb], points)

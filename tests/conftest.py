@@ -19,6 +19,7 @@ from scipy.integrate import solve_ivp
 from sweep import grid, kernels, runner
 from sweep.config import load_config, parse_config
 from sweep.dataset import write_netcdf
+from sweep.dispatch import integrate_grid
 from sweep.physics import log_form_rhs
 
 #: The seed paper's friction coefficients (physics brief, section 1).
@@ -103,13 +104,12 @@ def run_recorded(config, rec_dt, index=0):
     n_rec = int(params[index, kernels.P_TAU_END] / rec_dt) + 3
     rec_t = np.zeros(n_rec)
     rec_y = np.zeros((n_rec, y0.shape[1]))
-    result = np.zeros(kernels.N_RESULTS)
-    y_final = np.zeros(y0.shape[1])
-    kernels.integrate_system(
-        params[index], y0[index], settings, result, y_final, rec_dt, rec_t, rec_y,
-    )  # fmt: skip
-    n = int(result[kernels.R_N_RECORDED])
-    return result, rec_t[:n], rec_y[:n]
+    result = np.zeros((1, kernels.N_RESULTS))
+    y_final = np.zeros((1, y0.shape[1]))
+    row = slice(index, index + 1)
+    integrate_grid(params[row], y0[row], settings, result, y_final, rec_dt, rec_t, rec_y)
+    n = int(result[0, kernels.R_N_RECORDED])
+    return result[0], rec_t[:n], rec_y[:n]
 
 
 def scipy_runaway_time(kappa_over_kc, lnv0, psi0, v_cap_over_V=1e6, t_max=3000.0):

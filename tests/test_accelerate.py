@@ -12,21 +12,28 @@ import pytest
 
 from sweep import accelerate, kernels
 
+#: The one plain-Python function of sweep.kernels: it builds the grid kernel of a variant.
+FACTORY = "grid_kernel"
+
 
 def kernel_functions():
-    """Every function defined in ``sweep.kernels``, found by inspecting the module."""
+    """Every jitted function defined in ``sweep.kernels``, found by inspecting the module."""
     return {
         name: obj
         for name, obj in vars(kernels).items()
-        if callable(obj) and getattr(obj, "__module__", None) == kernels.__name__
+        if callable(obj)
+        and getattr(obj, "__module__", None) == kernels.__name__
+        and name != FACTORY
     }
 
 
 KERNELS = sorted(kernel_functions())
-#: Entry points the runner and the tests call, one per integrator: the discovery must
-#: find at least these (a guard against discovering nothing).
-ENTRY_POINTS = {"integrate_grid_serial", "integrate_system",
-                "step_rk4", "step_dopri5", "step_rosenbrock"}  # fmt: skip
+#: Helpers the grid kernels inline, one per integrator: the discovery must find at
+#: least these (a guard against discovering nothing).
+ENTRY_POINTS = {"integrate_system", "step_rk4", "step_dopri5", "step_rosenbrock"}
+#: Model, law, method, coupling codes and unequal blocks of one variant (quasi-static,
+#: aging, DOPRI5, chain, equal blocks).
+VARIANT = (kernels.QUASI_STATIC, kernels.AGING, kernels.DOPRI5, kernels.CHAIN, False)
 NO_JIT = pytest.mark.skipif(numba.config.DISABLE_JIT, reason="NUMBA_DISABLE_JIT=1: no dispatchers")
 
 
@@ -34,11 +41,7 @@ def test_discovery_finds_the_entry_points():
     assert ENTRY_POINTS <= set(KERNELS)
 
 
-@NO_JIT
-@pytest.mark.parametrize("name", KERNELS)
-def test_kernel_options(name):
-    """Every function in sweep.kernels is compiled with the policy (numba's own record)."""
-    dispatcher = getattr(kernels, name)
+def assert_policy(dispatcher):
     assert isinstance(dispatcher, numba.core.registry.CPUDispatcher)  # compiled, nopython
     options = dispatcher.targetoptions
     assert options["nopython"] is True
@@ -47,6 +50,25 @@ def test_kernel_options(name):
     assert options["error_model"] == "numpy"  # x/0 → inf, not an exception
     # one owner of the threads: the backends' (local or Dask), never numba's pool
     assert options.get("parallel", False) is False
+
+
+@NO_JIT
+@pytest.mark.parametrize("name", KERNELS)
+def test_kernel_options(name):
+    """Every function in sweep.kernels is compiled with the policy (numba's own record)."""
+    assert_policy(getattr(kernels, name))
+
+
+@NO_JIT
+def test_grid_kernels_follow_the_policy_one_per_variant():
+    """The factory's grid kernels: the policy, one dispatcher per variant (built once),
+    and the per-system loop inlined into them."""
+    kernel = kernels.grid_kernel(*VARIANT)
+    assert_policy(kernel)
+    assert kernels.grid_kernel(*VARIANT) is kernel
+    other = kernels.grid_kernel(kernels.QUASI_DYNAMIC, *VARIANT[1:])
+    assert other is not kernel
+    assert kernels.integrate_system.targetoptions.get("inline") == "always"
 
 
 @NO_JIT
@@ -61,8 +83,10 @@ def test_rhs_and_explicit_steps_are_inlined(name):
 CACHE_PROBE = """
 import json
 from sweep import kernels
-print(json.dumps({name: type(obj._cache).__name__ for name, obj in vars(kernels).items()
-                  if getattr(obj, "__module__", None) == "sweep.kernels"}))
+report = {name: type(obj._cache).__name__ for name, obj in vars(kernels).items()
+          if getattr(obj, "__module__", None) == "sweep.kernels" and name != "grid_kernel"}
+report["grid_kernel()"] = type(kernels.grid_kernel(0, 0, 0, 0, False)._cache).__name__
+print(json.dumps(report))
 """
 
 
@@ -79,7 +103,7 @@ def test_cache_switch(value, cache):
     )
     assert proc.returncode == 0, proc.stderr
     report = json.loads(proc.stdout)
-    assert sorted(report) == KERNELS
+    assert sorted(report) == sorted([*KERNELS, "grid_kernel()"])
     assert set(report.values()) == {cache}
 
 
@@ -95,12 +119,11 @@ def test_nan_and_inf_survive_compiled_code():
     p = np.zeros(kernels.N_PARAMS)
     p[kernels.P_B], p[kernels.P_KAPPA1] = 0.08, 0.05  # A = 0
     dydt = np.zeros(2)
-    kernels.rhs(np.array([0.1, 0.0]), p, kernels.QUASI_STATIC, kernels.AGING, 1, np.empty(1), dydt)
+    codes = kernels.QUASI_STATIC, kernels.AGING, kernels.CHAIN, False
+    kernels.rhs(np.array([0.1, 0.0]), p, *codes, 1, np.empty(1), dydt)
     assert np.isinf(dydt[0])
     p[kernels.P_A] = 0.03
-    kernels.rhs(
-        np.array([np.nan, 0.0]), p, kernels.QUASI_STATIC, kernels.AGING, 1, np.empty(1), dydt
-    )
+    kernels.rhs(np.array([np.nan, 0.0]), p, *codes, 1, np.empty(1), dydt)
     assert np.isnan(dydt).all()
 
 

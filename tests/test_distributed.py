@@ -10,8 +10,10 @@ import pytest
 from conftest import QUICK, assert_same_file
 
 from sweep import accelerate, runner, store
-from sweep.backends import Resources, load_kernels
+from sweep.backends import Resources
 from sweep.cli import main
+from sweep.config import load_config
+from sweep.dispatch import grid_kernel, load_kernel
 from sweep.grid import build_grid
 
 dask = pytest.importorskip("dask")
@@ -70,14 +72,14 @@ def test_workers_load_the_kernel_from_the_cache(local_client):
     if not accelerate.CACHE:
         pytest.skip("numba cache disabled (SWEEP_NUMBA_CACHE=0)")
 
-    def compile_stats():
-        from sweep import kernels
+    g = build_grid(load_config(QUICK))
 
-        stats = kernels.integrate_grid_serial.stats
+    def compile_stats():
+        stats = grid_kernel(g.params, g.settings).stats
         return len(stats.cache_hits), len(stats.cache_misses)
 
-    load_kernels()
-    local_client.run(load_kernels)
+    load_kernel(g.params, g.settings)
+    local_client.run(load_kernel, g.params, g.settings)
     for hits, misses in local_client.run(compile_stats).values():
         assert (hits, misses) == (1, 0)
 

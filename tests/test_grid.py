@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from sweep import grid, kernels, runner
 from sweep.backends import LocalThreads
+from sweep.dispatch import integrate_grid
 
 A, B = PAPER_A, PAPER_B
 
@@ -163,7 +164,7 @@ def test_local_threads_give_the_serial_kernels_numbers(threads):
     n = g.params.shape[0]
     results = np.full((n, kernels.N_RESULTS), -1.0)
     y_final = np.full_like(g.y0, -1.0)
-    kernels.integrate_grid_serial(g.params, g.y0, g.settings, results, y_final)
+    integrate_grid(g.params, g.y0, g.settings, results, y_final)
     ranges = [(0, 3), (3, n)]
     chunks = list(LocalThreads(threads).run(g.params, g.y0, g.settings, ranges))
     assert [(a, b) for a, b, _, _ in chunks] == ranges

@@ -19,6 +19,8 @@ from sweep import kernels, physics
 from sweep.physics import log_form_rhs
 
 A, B = PAPER_A, PAPER_B
+#: model, state law, coupling codes and unequal blocks of one quasi-static aging block
+CODES = (kernels.QUASI_STATIC, kernels.AGING, kernels.CHAIN, False)
 KAPPA_C = B - A  # D0 = 1 µm: κ = K D0/W = K/W in µm⁻¹
 
 
@@ -376,13 +378,13 @@ def test_dopri5_dense_output_is_fourth_order():
 
     def rhs(y):
         out = np.empty(2)
-        kernels.rhs(y, p, kernels.QUASI_STATIC, kernels.AGING, 1, np.empty(1), out)
+        kernels.rhs(y, p, *CODES, 1, np.empty(1), out)
         return out
 
     def step(y, h):
         k2, k3, k4, k5, k6, ytmp, ynew, fnew = (np.empty(2) for _ in range(8))
         kernels.step_dopri5(
-            y, rhs(y), h, p, kernels.QUASI_STATIC, kernels.AGING, 1, np.empty(1),
+            y, rhs(y), h, p, *CODES, 1, np.empty(1),
             k2, k3, k4, k5, k6, ytmp, ynew, fnew, 1.0, 1.0,
         )  # fmt: skip
         return ynew, fnew, (k3, k4, k5, k6)

@@ -97,7 +97,6 @@ def het_row(nb, coupling, rng, kappa2=0.03):
     p = np.zeros(kernels.N_PARAMS + kernels.N_BLOCK_PARAMS * nb)
     p[kernels.P_KAPPA2] = kappa2
     p[kernels.P_ETA], p[kernels.P_MASS] = ETA_HAT, MASS_HAT
-    p[kernels.P_COUPLING] = COUPLING_CODES[coupling]
     blocks = {
         kernels.B_A: rng.uniform(0.02, 0.04, nb),
         kernels.B_B: rng.uniform(0.06, 0.1, nb),
@@ -109,22 +108,25 @@ def het_row(nb, coupling, rng, kappa2=0.03):
     return p, blocks
 
 
-def kernel_rhs(y, p, model_name, law, nb):
+def kernel_rhs(y, p, model_name, law, nb, coupling):
     out = np.empty_like(y)
     law_code = kernels.AGING if law == "aging" else kernels.SLIP
-    kernels.rhs(y, p, MODEL_CODES[model_name], law_code, nb, np.empty(nb), out)
+    kernels.rhs(
+        y, p, MODEL_CODES[model_name], law_code, COUPLING_CODES[coupling], True, nb, np.empty(nb),
+        out,
+    )  # fmt: skip
     return out
 
 
-def fd_jacobian(y, p, model_name, law, nb, h=1e-6):
+def fd_jacobian(y, p, model_name, law, nb, coupling, h=1e-6):
     """Central differences of the kernels' rhs (error ~h² ≈ 1e-12 × third derivatives)."""
     n = y.size
     jac = np.empty((n, n))
     for j in range(n):
         dy = np.zeros(n)
         dy[j] = h
-        jac[:, j] = (kernel_rhs(y + dy, p, model_name, law, nb)
-                     - kernel_rhs(y - dy, p, model_name, law, nb)) / (2 * h)  # fmt: skip
+        jac[:, j] = (kernel_rhs(y + dy, p, model_name, law, nb, coupling)
+                     - kernel_rhs(y - dy, p, model_name, law, nb, coupling)) / (2 * h)  # fmt: skip
     return jac
 
 
@@ -134,7 +136,7 @@ def test_steady_jacobian_linearises_the_kernels(model_name, coupling, nb):
     differences of kernels.rhs at steady sliding, for unequal blocks."""
     p, blk = het_row(nb, coupling, np.random.default_rng(nb))
     n_vars = 3 * nb if model_name == "inertial" else 2 * nb
-    fd = fd_jacobian(np.zeros(n_vars), p, model_name, "aging", nb)
+    fd = fd_jacobian(np.zeros(n_vars), p, model_name, "aging", nb, coupling)
     ex = extras(model_name)
     jac = linear.steady_jacobian(
         model_name, blk[kernels.B_A], blk[kernels.B_B], blk[kernels.B_KAPPA1],
@@ -152,11 +154,14 @@ def test_kernel_jacobian_with_couplings_and_unequal_blocks(model_name, coupling,
     p, _ = het_row(nb, coupling, rng)
     n_vars = 3 * nb if model_name == "inertial" else 2 * nb
     y = rng.uniform(-0.5, 0.5, n_vars)
-    f = kernel_rhs(y, p, model_name, law, nb)
+    f = kernel_rhs(y, p, model_name, law, nb, coupling)
     jac = np.empty((n_vars, n_vars))
     law_code = kernels.AGING if law == "aging" else kernels.SLIP
-    kernels.jacobian(y, f, p, MODEL_CODES[model_name], law_code, nb, np.empty(nb), jac)
-    fd = fd_jacobian(y, p, model_name, law, nb)
+    kernels.jacobian(
+        y, f, p, MODEL_CODES[model_name], law_code, COUPLING_CODES[coupling], True, nb,
+        np.empty(nb), jac,
+    )  # fmt: skip
+    fd = fd_jacobian(y, p, model_name, law, nb, coupling)
     np.testing.assert_allclose(jac, fd, atol=1e-6 * np.abs(fd).max())  # FD error ~1e-9
 
 
@@ -174,4 +179,5 @@ def test_kernel_rhs_matches_a_laplacian_reference(coupling):
         blk[kernels.B_KAPPA1] * (1 - v) - p[kernels.P_KAPPA2] * linear.laplacian(nb, coupling) @ v
     )
     want = np.concatenate([(load - blk[kernels.B_B] * dpsi) / blk[kernels.B_A], dpsi])
-    np.testing.assert_allclose(kernel_rhs(y, p, "quasi-static", "aging", nb), want, rtol=1e-12)
+    got = kernel_rhs(y, p, "quasi-static", "aging", nb, coupling)
+    np.testing.assert_allclose(got, want, rtol=1e-12)

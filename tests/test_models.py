@@ -84,7 +84,8 @@ def param_row(kappa1, kappa2=0.0, eta_hat=0.0, mass_hat=0.0):
 
 def kernel_rhs(y, p, model_name, law, nb):
     dydt = np.empty_like(y)
-    kernels.rhs(y, p, MODEL_CODES[model_name], LAW_CODES[law], nb, np.empty(nb), dydt)
+    codes = MODEL_CODES[model_name], LAW_CODES[law], kernels.CHAIN, False
+    kernels.rhs(y, p, *codes, nb, np.empty(nb), dydt)
     return dydt
 
 
@@ -129,7 +130,8 @@ def test_analytic_jacobian_matches_finite_differences(model_name, law, nb):
         y = rng.normal(scale=1.0, size=n)
         f = kernel_rhs(y, p, model_name, law, nb)
         jac = np.empty((n, n))
-        kernels.jacobian(y, f, p, MODEL_CODES[model_name], LAW_CODES[law], nb, nbv, jac)
+        codes = MODEL_CODES[model_name], LAW_CODES[law], kernels.CHAIN, False
+        kernels.jacobian(y, f, p, *codes, nb, nbv, jac)
         fd = np.empty((n, n))
         for j in range(n):
             step = 1e-6 * max(1.0, abs(y[j]))
@@ -155,7 +157,16 @@ def test_kernel_linearisation_has_the_linear_theory_eigenvalues(model_name, nb):
     jac = np.empty((n, n))
     code = MODEL_CODES[model_name]
     kernels.jacobian(
-        y, kernel_rhs(y, p, model_name, "aging", nb), p, code, 0, nb, np.empty(nb), jac
+        y,
+        kernel_rhs(y, p, model_name, "aging", nb),
+        p,
+        code,
+        kernels.AGING,
+        kernels.CHAIN,
+        False,
+        nb,
+        np.empty(nb),
+        jac,
     )
     got = np.sort_complex(np.linalg.eigvals(jac))
     want = np.sort_complex(
@@ -227,7 +238,21 @@ def test_rosenbrock_is_fourth_order(model_name, y0, extra):
         ynew, fnew, ytmp = np.empty(n), np.empty(n), np.empty(n)
         for k in range(n_steps):
             err = kernels.step_rosenbrock(
-                y, f, h, p, code, 0, nb, *work, ytmp, ynew, fnew, 1.0, 1.0
+                y,
+                f,
+                h,
+                p,
+                code,
+                kernels.AGING,
+                kernels.CHAIN,
+                False,
+                nb,
+                *work,
+                ytmp,
+                ynew,
+                fnew,
+                1.0,
+                1.0,
             )  # rtol = atol = 1: err is the RMS of the raw estimate over 1 + |y|
             if k == 0:
                 estimates.append(err)

@@ -36,7 +36,7 @@ def n_vars(model_name, nb):
 
 def kernel_rhs(rhs, y, p, model_name, law, nb):
     dydt = np.full(y.size, np.nan)
-    rhs(y, p, MODEL_CODES[model_name], LAW_CODES[law], nb, np.empty(nb), dydt)
+    rhs(y, p, MODEL_CODES[model_name], LAW_CODES[law], kernels.CHAIN, False, nb, np.empty(nb), dydt)
     return dydt
 
 

@@ -22,10 +22,11 @@ from conftest import QUICK, assert_same_file, interrupted_part_writer, reference
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sweep import kernels, runner, store
-from sweep.backends import LocalThreads, Resources, compile_grid_kernel
+from sweep import runner, store
+from sweep.backends import LocalThreads, Resources
 from sweep.cli import main
 from sweep.config import load_config, parse_config
+from sweep.dispatch import load_kernel
 from sweep.grid import build_grid
 
 #: Slow enough per run to kill a sweep part-way: fixed-step RK4 with 1e6 steps per run
@@ -225,7 +226,7 @@ def test_signals_during_a_kernel_are_seen_when_it_returns():
             os.kill(os.getpid(), signal.SIGINT)
 
     try:
-        compile_grid_kernel(kernels.integrate_grid_serial)
+        load_kernel(g.params, g.settings)
         sender = threading.Thread(target=send_two)
         start = time.perf_counter()
         sender.start()

@@ -10,6 +10,7 @@ from scipy.integrate import solve_ivp
 from sweep import kernels
 from sweep.cli import main
 from sweep.config import ConfigError, config_mapping, load_config, parse_config
+from sweep.dispatch import integrate_grid
 from sweep.grid import build_grid
 from sweep.runner import compute
 from sweep.trace import (
@@ -30,7 +31,7 @@ def kernel_final_state(config):
     params, y0, settings = g.params, g.y0, g.settings
     results = np.empty((1, kernels.N_RESULTS))
     y_final = np.empty_like(y0)
-    kernels.integrate_grid_serial(params, y0, settings, results, y_final)
+    integrate_grid(params, y0, settings, results, y_final)
     return results[0], y_final[0]
 
 
