@@ -72,7 +72,8 @@ def audit_result(result, sample=20, near_kc=0.01, t_end=None, seed=0, threads=No
     Returns
     -------
     xarray.Dataset
-        One row per audited point (dimension ``point``): the sweep axes'
+        One row per audited run (dimension ``point``; with an ensemble, every member
+        of each drawn grid point, ``member`` saying which): the sweep axes'
         values (physical units), ``index`` (flat grid index), ``near_kc``
         (audited for being near Kc), ``K_over_Kc``, ``regime_file``,
         ``regime_audit`` and ``agree``. Attributes: the audit settings.
@@ -89,14 +90,18 @@ def audit_result(result, sample=20, near_kc=0.01, t_end=None, seed=0, threads=No
         problems.append(f"--t-end must be in (0, inf), got {t_end}")
     if problems:
         raise InputError(source, problems)
-    rows, near = audit_points(ds, sample, near_kc, seed)
+    points, near_points = audit_points(ds, sample, near_kc, seed)
+    # with an ensemble every member of a drawn grid point is a run of its own
+    members = config.members
+    runs = (points[:, None] * members + np.arange(members)).ravel()
+    rows, near = np.repeat(points, members), np.repeat(near_points, members)
     longer = audit_config(config, t_end)
-    if rows.size:
-        picked = build_grid(longer).rows(rows)
+    if runs.size:
+        picked = build_grid(longer).rows(runs)
         results, _ = integrate_in_memory(picked.params, picked.y0, picked.settings, threads)
     else:
         results = np.empty((0, kernels.N_RESULTS))
-    regime_file = ds["regime"].values.ravel()[rows]
+    regime_file = ds["regime"].values.ravel()[runs]
     regime_audit = results[:, kernels.R_REGIME].astype(np.int8)
     flags = {
         "flag_values": np.arange(len(REGIMES), dtype=np.int8),
@@ -112,6 +117,8 @@ def audit_result(result, sample=20, near_kc=0.01, t_end=None, seed=0, threads=No
         for axis, i in zip(config.axes, index, strict=True)
     }
     coords["index"] = ("point", rows, {"long_name": "flat grid index (C order over the axes)"})
+    if config.initial.ensemble:
+        coords["member"] = ("point", runs % members, {"long_name": "ensemble member"})
     data_vars = {
         "near_kc": ("point", near, {"long_name": f"|K/Kc - 1| <= {near_kc:g}"}),
         "K_over_Kc": ("point", ds["K_over_Kc"].values.ravel()[rows], {"units": "1"}),

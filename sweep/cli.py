@@ -325,24 +325,32 @@ def agreement_lines(audit):
         lines.append(f"{name:<{width + 4}}" + "".join(f"{c:>{width}d}" for c in counts))
     n, agree = in_file.size, int(audit["agree"].sum())
     share = 100.0 * agree / n if n else 100.0
-    lines.append(f"agreement: {agree} of {n} points ({share:.1f} %)")
+    lines.append(f"agreement: {agree} of {n} {_audited(audit)} ({share:.1f} %)")
     return lines
 
 
 def disagreement_lines(audit):
-    """One line per audited point whose regimes differ: axes, K/Kc and both labels."""
+    """One line per audited run whose regimes differ: axes (and ensemble member), K/Kc
+    and both labels."""
     names = audit["regime_file"].attrs["flag_meanings"].split()
     axes = audit.attrs["sweep_axes"].split()
     lines = []
     for i in (audit["agree"].values == 0).nonzero()[0]:
         point = audit.isel(point=i)
         at = " ".join(f"{a}={point[a].item():g}" for a in axes)
+        if "member" in audit.coords:
+            at += f" member={point['member'].item()}"
         lines.append(
             f"  {at}  K/Kc={point['K_over_Kc'].item():.4g}  "
             f"file: {names[int(point['regime_file'])]}  "
             f"long run: {names[int(point['regime_audit'])]}"
         )
     return lines
+
+
+def _audited(audit):
+    """What an audit's rows are: grid points, or runs of an initial-condition ensemble."""
+    return "runs" if "member" in audit.coords else "points"
 
 
 def cmd_audit(args):
@@ -353,7 +361,7 @@ def cmd_audit(args):
     )
     near = int(audit["near_kc"].sum())
     print(
-        f"audited {audit.sizes['point']} points of {args.result} ({near} within "
+        f"audited {audit.sizes['point']} {_audited(audit)} of {args.result} ({near} within "
         f"{audit.attrs['audit_near_kc']:g} of Kc): runs to {audit.attrs['audit_t_end']:g} "
         f"{audit.attrs['audit_t_unit']} without early exit"
     )
@@ -361,7 +369,7 @@ def cmd_audit(args):
         print(line)
     wrong = disagreement_lines(audit)
     if wrong:
-        print("points where the long run disagrees:")
+        print(f"{_audited(audit)} where the long run disagrees:")
         for line in wrong:
             print(line)
         return 1

@@ -30,7 +30,7 @@ from .dataset import (
 from .errors import InputError, RunError
 from .grid import build_grid
 from .runner import integrate_in_memory
-from .store import ZARR_SUFFIX, check_writable
+from .store import ZARR_SUFFIX, check_writable, output_lock
 from .variables import variables_for
 
 #: Variables from linear theory, not from the run: never recomputed.
@@ -198,15 +198,18 @@ def extend_file(path, t_end=None, out=None, threads=None):
     """Extend the result file ``path`` and write it to ``out`` (default: in place).
 
     Returns ``(dataset, n_continued)``; with no undecided run nothing is written
-    and ``n_continued`` is 0.
+    and ``n_continued`` is 0. Holds the lock of ``out`` from reading to writing, so a
+    run or another extend on it refuses with ``OutputBusy``
+    instead of one overwriting the other's result.
     """
     if out is None and Path(path).suffix == ZARR_SUFFIX:
         raise InputError(path, ["extend writes NetCDF: give --out PATH.nc to extend a Zarr store"])
-    ds = read_result(path, needs_config=True)
     out = path if out is None else out
     check_writable(out, path, "--out")
-    extended = extend_result(ds, t_end, threads, source=path)
-    n_continued = undecided_rows(ds).size
-    if n_continued:
-        write_extended(extended, out, path)
+    with output_lock(out):
+        ds = read_result(path, needs_config=True)
+        extended = extend_result(ds, t_end, threads, source=path)
+        n_continued = undecided_rows(ds).size
+        if n_continued:
+            write_extended(extended, out, path)
     return extended, n_continued

@@ -20,7 +20,7 @@ import logging
 import math
 import signal
 import time
-from contextlib import closing, contextmanager
+from contextlib import ExitStack, closing, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -397,9 +397,17 @@ def merge_parts(paths, out):
     then folders left empty. Raises ``InputError`` for paths that are not parts and
     ``RunError`` naming the missing rows when no config is complete. Returns
     the Dataset.
+
+    Holds the lock of ``out`` and of every output whose parts folder it reads
+    (``x.parts`` → ``x.nc``), so a run or shard still working on those parts makes it
+    refuse with ``OutputBusy`` instead of removing parts under it.
     """
     store.check_writable(out, "merge", "--out")
-    with store.output_lock(out):
+    folders = {Path(p) if Path(p).is_dir() else Path(p).parent for p in paths}
+    owners = {store.owner_output(f) for f in folders} - {None}
+    with ExitStack() as locks:
+        for output in sorted({Path(out).resolve()} | {o.resolve() for o in owners}):
+            locks.enter_context(store.output_lock(output))
         return _merge_locked(paths, out)
 
 
@@ -422,7 +430,7 @@ def _merge_locked(paths, out):
         if config is None or store.config_hash(config) != chash:
             problems.append(f"parts {chash}: no readable part of this rsf-sweep version")
             continue
-        n = math.prod(config.shape)
+        n = math.prod(config.run_shape)
         results = np.empty((n, N_RESULTS))
         y_final = np.empty((n, state_size(config)))
         have = np.zeros(n, bool)

@@ -166,6 +166,14 @@ def parts_dir_for(output):
     return output.with_name(output.stem + ".parts")
 
 
+def owner_output(folder):
+    """The output whose parts folder ``folder`` is (``x.parts`` → ``x.nc``), or None."""
+    folder = Path(folder)
+    if folder.suffix != ".parts":
+        return None
+    return folder.with_name(folder.stem + ".nc")
+
+
 def part_name(chash, start, stop, n):
     """File name of the part holding rows ``start:stop`` of an ``n``-system sweep."""
     width = len(str(n))

@@ -264,3 +264,34 @@ def assert_as_printed(value, printed):
     (within half a unit of it): the README may round, but not be wrong."""
     decimals = len(printed.split(".")[1]) if "." in printed else 0
     assert abs(value - float(printed)) <= 0.5 * 10.0**-decimals, (value, printed)
+
+
+# A process that takes an output's lock, says so, and holds it until killed.
+LOCK_HOLDER = """
+import sys, time
+from sweep import store
+with store.output_lock(sys.argv[1], shared=sys.argv[2] == "shared"):
+    print("locked", flush=True)
+    time.sleep(60)
+"""
+
+
+@pytest.fixture
+def lock_holder(tmp_path):
+    """Start a process holding the lock of ``out`` (exclusive or shared); kill it after."""
+    import subprocess
+    import sys
+
+    procs = []
+
+    def start(out, mode="exclusive"):
+        proc = subprocess.Popen([sys.executable, "-c", LOCK_HOLDER, str(out), mode],
+                                stdout=subprocess.PIPE, text=True)  # fmt: skip
+        assert proc.stdout.readline().strip() == "locked"
+        procs.append(proc)
+        return proc
+
+    yield start
+    for proc in procs:
+        proc.kill()
+        proc.wait()

@@ -113,3 +113,24 @@ def test_bad_input_exits_2(tmp_path, capsys):
         with pytest.raises(SystemExit) as info:
             cli.main(["audit", "r.nc", *option])
         assert info.value.code == 2, option
+
+
+def test_ensemble_members_are_audited_as_runs(tmp_path, capsys):
+    """With an ensemble each drawn grid point is audited once per member, each member
+    from its own start: the file's labels and the long runs' are those of a direct
+    sweep of every run (the audit once took grid-point rows for run rows)."""
+    ensemble = {"sweep": {"K_W": [0.03, 0.045, 0.07]}, "integrator": {"t_end": 200.0},
+                "initial": {"ensemble": 3, "seed": 2, "amplitude": 0.5}}  # fmt: skip
+    config = make_config(ensemble)
+    ds = runner.compute(config, show_progress=False)
+    audit = audit_result(ds, sample=2, near_kc=0.0, seed=1)
+    points = np.unique(audit["index"].values)
+    assert points.size == 2 and audit.sizes["point"] == 2 * 3
+    np.testing.assert_array_equal(audit["member"], [0, 1, 2, 0, 1, 2])
+    np.testing.assert_array_equal(audit["regime_file"], ds["regime"].values[points].ravel())
+    long = runner.compute(audit_config(config, audit.attrs["audit_t_end"]), show_progress=False)
+    np.testing.assert_array_equal(audit["regime_audit"], long["regime"].values[points].ravel())
+    np.testing.assert_array_equal(audit["K_W"], np.repeat(ds["K_W"].values[points], 3))
+    write_netcdf(ds, tmp_path / "e.nc")
+    cli.main(["audit", str(tmp_path / "e.nc"), "--sample", "2", "--near-kc", "0", "--seed", "1"])
+    assert "audited 6 runs of" in capsys.readouterr().out

@@ -222,3 +222,15 @@ def test_cli_end_to_end(short_file):
     assert short_file.read_bytes() == before
     with xr.open_dataset(short_file.parent / "longer.nc") as ds:
         assert ds["regime"].values.tolist() == [STICK_SLIP, STEADY, STEADY]
+
+
+def test_extend_in_place_refuses_while_a_run_holds_the_file(short_file, lock_holder):
+    """An extend of a result another process is writing (a run, or another extend)
+    refuses naming that process and leaves the file as it was."""
+    before = short_file.read_bytes()
+    holder = lock_holder(short_file)
+    with pytest.raises(runner.RunError, match=rf"r.nc is in use .* pid {holder.pid} "):
+        extend_file(short_file, t_end=100.0)
+    with pytest.raises(runner.RunError, match=f"pid {holder.pid}"):
+        extend_file(short_file.with_name("elsewhere.nc"), t_end=100.0, out=short_file)
+    assert short_file.read_bytes() == before

@@ -206,37 +206,6 @@ def test_merge_removes_temp_files_of_killed_writers(quick, quick_reference, tmp_
     assert not folder.exists()
 
 
-# A process that takes an output's lock, says so, and holds it until killed.
-LOCK_HOLDER = """
-import sys, time
-from sweep import store
-with store.output_lock(sys.argv[1], shared=sys.argv[2] == "shared"):
-    print("locked", flush=True)
-    time.sleep(60)
-"""
-
-
-@pytest.fixture
-def lock_holder(tmp_path):
-    """Start a process holding the lock of ``out`` (exclusive or shared); kill it after."""
-    import subprocess
-    import sys
-
-    procs = []
-
-    def start(out, mode="exclusive"):
-        proc = subprocess.Popen([sys.executable, "-c", LOCK_HOLDER, str(out), mode],
-                                stdout=subprocess.PIPE, text=True)  # fmt: skip
-        assert proc.stdout.readline().strip() == "locked"
-        procs.append(proc)
-        return proc
-
-    yield start
-    for proc in procs:
-        proc.kill()
-        proc.wait()
-
-
 def test_concurrent_runs_on_one_output_refuse_naming_the_other(quick, tmp_path, lock_holder):
     """A run or merge on an output another process is running refuses at once with a
     message naming that process (exit 1 from the CLI), and leaves the earlier result and
@@ -264,3 +233,39 @@ def test_concurrent_runs_on_one_output_refuse_naming_the_other(quick, tmp_path, 
     other.kill()
     other.wait()
     assert runner.run_sweep(quick, out=shared, show_progress=False, resume=True).dataset is not None
+
+
+@pytest.mark.parametrize("mode", ["exclusive", "shared"])
+def test_merge_refuses_parts_their_owner_is_still_writing(quick, tmp_path, lock_holder, mode):
+    """``merge x.parts --out y.nc`` while a run (``--resume``, exclusive) or a shard
+    (shared) works on x.nc refuses naming that process, and leaves every part in place
+    (it once removed parts under the running sweep, which then crashed)."""
+    out = tmp_path / "x.nc"
+    runner.run_sweep(quick, out=out, chunk_size=4, shard=(0, 1), show_progress=False)
+    parts = sorted(store.parts_dir_for(out).glob("*.npz"))
+    holder = lock_holder(out, mode)
+    with pytest.raises(runner.RunError, match=rf"x.nc is in use .* pid {holder.pid} "):
+        runner.merge_parts([store.parts_dir_for(out)], tmp_path / "y.nc")
+    with pytest.raises(runner.RunError, match=f"pid {holder.pid}"):
+        runner.merge_parts(parts[:1], tmp_path / "y.nc")
+    assert sorted(store.parts_dir_for(out).glob("*.npz")) == parts
+    assert not (tmp_path / "y.nc").exists()
+    holder.kill()
+    holder.wait()
+    assert runner.merge_parts([store.parts_dir_for(out)], tmp_path / "y.nc") is not None
+
+
+def test_sharded_ensemble_merges_to_the_full_run(tmp_path):
+    """Ensemble members are rows of the parts: shards of an ensemble sweep merge into
+    the result of one full run (merge once counted grid points, not runs, and called
+    the parts corrupt)."""
+    config = parse_config(QUICK.read_text().replace(
+        "initial:", "initial:\n  ensemble: 3\n  seed: 4\n  amplitude: 0.3\n  "
+    ).replace("t_end: 2000.0", "t_end: 300.0"))  # fmt: skip
+    assert config.run_shape == (9, 3)
+    out = tmp_path / "e.nc"
+    for i in range(2):
+        runner.run_sweep(config, out=out, chunk_size=5, shard=(i, 2), show_progress=False)
+    merged = runner.merge_parts([store.parts_dir_for(out)], tmp_path / "merged.nc")
+    full = runner.compute(config, show_progress=False)
+    xr.testing.assert_identical(without_provenance(merged), without_provenance(full))
