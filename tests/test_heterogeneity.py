@@ -4,7 +4,7 @@ sweep/grid.py)."""
 
 import numpy as np
 import pytest
-from conftest import make_config
+from conftest import ROOT, make_config
 
 from sweep import grid, heterogeneity, kernels
 from sweep.config import ConfigError, config_mapping, parse_config
@@ -162,3 +162,23 @@ def test_parts_of_other_couplings_or_blocks_are_not_reused():
     ]
     hashes = {store.config_hash(c) for c in variants}
     assert store.config_hash(base) not in hashes and len(hashes) == len(variants)
+
+
+def test_unequal_chain_example_loses_steady_sliding_at_its_own_kc():
+    """configs/unequal_chain.yaml (D0 = 1.0/1.3/0.8 µm, K/W × k2/W, four starts): every
+    start is steady above the stored Jacobian ``critical_K_W`` and none below, within
+    one grid step, for every k2; that Kc moves with k2, towards the smallest D0's
+    one-block (B − A)/D0 = 0.0625 µm⁻¹ as the blocks decouple."""
+    import sweep
+
+    ds = sweep.run(ROOT / "configs" / "unequal_chain.yaml", progress=False)
+    step = float(np.diff(ds["K_W"].values)[0])
+    steady = (ds["regime"] == kernels.STEADY).all("member")
+    for k2 in ds["k2_W"].values:
+        kc = float(ds["critical_K_W"].sel(k2_W=k2).isel(K_W=0))
+        k_w = ds["K_W"].values
+        is_steady = steady.sel(k2_W=k2).values
+        assert is_steady[k_w > kc + step].all() and not is_steady[k_w < kc - step].any(), k2
+    kc = ds["critical_K_W"].isel(K_W=0).values
+    assert np.ptp(kc) > 0.01  # µm⁻¹: the coupling moves Kc by more than ten grid steps
+    assert 0.95 < kc[0] / ((0.08 - 0.03) / 0.8) < 1.0  # k2/W = 0.002 µm⁻¹
