@@ -202,34 +202,46 @@ def bench_throughput(n_systems, t_end):
 
 def bench_block_scaling(n_systems, t_end, sizes=(2, 32)):
     """Block-steps (accepted and rejected steps × blocks) per second per core, per
-    coupling and number of blocks, and each size relative to the smallest.
+    case and number of blocks, relative to the smallest chain of the same model and method.
 
-    Identical quasi-static blocks at K/Kc = 1.02-1.03 (k2/W = 0.05 µm⁻¹), started with
+    Identical blocks near their Kc (k2/W = 0.05 µm⁻¹), started with
     Φ_i/Φss = 1.01 + 0.005 sin(1.7 i) so every mode moves, run to ``t_end`` without
-    early exit.
+    early exit: quasi-static DOPRI5 in a chain, ring and all-to-all (K/Kc = 1.02-1.03),
+    and the inertial model's default RODAS4 in a chain (m/W = 1 s²/µm, K/Kc = 0.95;
+    its Jacobian is dense, so an LU solve costs O(N³) per stage).
     """
+    cases = {
+        "chain": ("quasi-static", {}, 1.02, "dopri5", "chain"),
+        "ring": ("quasi-static", {}, 1.02, "dopri5", "ring"),
+        "all": ("quasi-static", {}, 1.02, "dopri5", "all"),
+        "inertial rodas4 chain": ("inertial", {"m_W": 1.0}, 0.95, "rosenbrock", "chain"),
+    }
     out = {}
-    for coupling in ("chain", "ring", "all"):
+    for label, (model, extra, k_over_kc, method, coupling) in cases.items():
         for blocks in sizes:
             if coupling == "ring" and blocks < 3:
                 continue
-            k_values = np.linspace(1.02, 1.03, n_systems) * KC_W
+            k_values = np.linspace(k_over_kc, k_over_kc * 1.01, n_systems) * _critical_k_w(
+                model, extra
+            )
             config = with_changes(
-                one_block_config(k_values, t_end, blocks=blocks, early=False),
+                one_block_config(k_values, t_end, model, blocks, extra, early=False,
+                                 method=method),
                 {"coupling": coupling,
                  "initial": {"phi_over_phi_ss": [1.01 + 0.005 * math.sin(1.7 * i)
                                                  for i in range(blocks)]}},
             )  # fmt: skip
             results, seconds = engine_run(config, threads=1, repeats=2)
             steps = results[:, kernels.R_N_STEPS].sum() + results[:, kernels.R_N_REJECTED].sum()
-            out[f"{coupling}/{blocks}"] = {
+            out[f"{label}/{blocks}"] = {
                 "steps": int(steps),
                 "block_steps_per_second": steps * blocks / seconds,
                 "ns_per_step": 1e9 * seconds / steps,
             }
-    base = out[f"chain/{sizes[0]}"]["block_steps_per_second"]
-    for value in out.values():
-        value["relative_to_chain_smallest"] = value["block_steps_per_second"] / base
+    for key, value in out.items():
+        base = "inertial rodas4 chain" if key.startswith("inertial") else "chain"
+        reference = out[f"{base}/{sizes[0]}"]["block_steps_per_second"]
+        value["relative_to_smallest_chain"] = value["block_steps_per_second"] / reference
     return out
 
 
@@ -672,9 +684,9 @@ def _print_block_scaling(b):
     for key, value in b.items():
         coupling, blocks = key.rsplit("/", 1)
         print(
-            f"{coupling:<5} {blocks:>2} blocks: {value['block_steps_per_second'] / 1e6:5.2f} M "
+            f"{coupling:<21} {blocks:>2} blocks: {value['block_steps_per_second'] / 1e6:5.2f} M "
             f"block-steps/s per core, {value['ns_per_step']:.0f} ns per step "
-            f"({value['relative_to_chain_smallest']:.2f}x the smallest chain per block-step)"
+            f"({value['relative_to_smallest_chain']:.2f}x the smallest chain per block-step)"
         )
 
 
