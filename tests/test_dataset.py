@@ -236,9 +236,7 @@ TRACE_CF_EXCEPTIONS = {"§3.1 Units", "§4.4 Time Coordinate"}
 def test_result_and_trace_files_pass_the_cf_checker(result, tmp_path):
     """Every CF-1.11 check of the IOOS compliance checker passes, warnings included
     (criteria strict): no _FillValue on coordinates, 32-bit counts, references. Traces:
-    all but :data:`TRACE_CF_EXCEPTIONS`. Skipped without the optional package
-    compliance-checker."""
-    pytest.importorskip("compliance_checker")
+    all but :data:`TRACE_CF_EXCEPTIONS`. compliance-checker is a test dependency."""
     from sweep.trace import compute_trace, pin_config
 
     config, ds = result
