@@ -1068,8 +1068,8 @@ def integrate_system(
     they have room (sweeps pass empty buffers); the count is ``result[R_N_RECORDED]``.
 
     ``model``, ``law``, ``method``, ``coupling`` and ``het`` (per-block columns in
-    ``p``) are the kernel's variant: constants of :func:`grid_kernel`, so numba drops
-    every branch of the others before typing.
+    ``p``) are the kernel's variant: constants of :func:`grid_kernel`, whose inlined
+    copy of this function keeps only that variant's branches.
     """
     nb = int(settings[S_NBLOCKS])
     rtol = settings[S_RTOL]
@@ -1231,9 +1231,12 @@ def grid_kernel(model, law, method, coupling, het):
     codes (int) and whether blocks differ (``het``, bool).
 
     Built and compiled on first use, one per variant: the codes are constants of
-    the closure, so numba drops the other variants' branches of every inlined
-    helper before typing (a cold compile types only what the config uses), and
-    numba's cache keys each variant by their values. Sweeps and traces call the
+    the closure, so once the helpers are inlined numba prunes the other variants'
+    branches before typing (the other methods' steppers are never compiled), and
+    numba's cache keys each variant by their values. The helpers themselves are
+    still prepared for inlining with every branch (their codes are arguments): a
+    prototype with the codes written into the helpers compiled configs/twoblock.yaml
+    in 15.5 s instead of 29.5 s. Sweeps and traces call the
     same kernel: ``integrate_grid(params, y0, settings, results, y_final, rec_dt,
     rec_t, rec_y)`` integrates every row one after another; a trace passes one row
     and recording buffers, sweeps empty buffers (see :func:`integrate_system`).
