@@ -52,7 +52,8 @@ from .errors import InputError, OutputBusy, PartError
 #: Bumped when the layout of a part file changes.
 PART_FORMAT = 1
 #: Modules whose code decides the numbers stored in a part (accelerate.py: fastmath,
-#: error model).
+#: error model; dispatch.py: which compiled variant integrates a run): grid.py and
+#: dispatch.py and everything in the package they import.
 NUMERIC_MODULES = (
     "kernels.py",
     "grid.py",
@@ -60,6 +61,7 @@ NUMERIC_MODULES = (
     "linear.py",
     "heterogeneity.py",
     "accelerate.py",
+    "dispatch.py",
 )
 PART_NAME = re.compile(r"^(?P<hash>[0-9a-f]{16})_(?P<start>\d+)-(?P<stop>\d+)_of_(?P<n>\d+)\.npz$")
 TEMP_PREFIX = ".part-"

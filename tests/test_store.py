@@ -7,6 +7,7 @@ import pytest
 import xarray as xr
 from conftest import (
     QUICK,
+    ROOT,
     assert_same_file,
     interrupted_part_writer,
     reference_file,
@@ -269,3 +270,23 @@ def test_sharded_ensemble_merges_to_the_full_run(tmp_path):
     merged = runner.merge_parts([store.parts_dir_for(out)], tmp_path / "merged.nc")
     full = runner.compute(config, show_progress=False)
     xr.testing.assert_identical(without_provenance(merged), without_provenance(full))
+
+
+def test_part_hash_covers_every_module_that_decides_the_numbers():
+    """``store.NUMERIC_MODULES`` holds grid.py, dispatch.py and every package module
+    they import, directly or not (imports read from the source), so a change to any
+    of them invalidates old parts."""
+    import ast
+
+    folder = ROOT / "sweep"
+    todo, seen = ["grid.py", "dispatch.py"], set()
+    while todo:
+        name = todo.pop()
+        if name in seen:
+            continue
+        seen.add(name)
+        for node in ast.walk(ast.parse((folder / name).read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level == 1:
+                modules = [node.module] if node.module else [a.name for a in node.names]
+                todo.extend(f"{m}.py" for m in modules if (folder / f"{m}.py").exists())
+    assert seen <= set(store.NUMERIC_MODULES), seen - set(store.NUMERIC_MODULES)
