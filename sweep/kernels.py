@@ -336,8 +336,9 @@ def lu_factor(a, perm):
                 a[pk, j] = tmp
         for i in range(k + 1, n):
             a[i, k] /= a[k, k]
-            for j in range(k + 1, n):
-                a[i, j] -= a[i, k] * a[k, j]
+            if a[i, k] != 0.0:  # coupling Jacobians are sparse: skip rows with nothing to do
+                for j in range(k + 1, n):
+                    a[i, j] -= a[i, k] * a[k, j]
 
 
 @jit
@@ -347,13 +348,15 @@ def lu_solve(a, perm, b, x):
     for i in range(n):
         acc = b[perm[i]]
         for j in range(i):
-            acc -= a[i, j] * x[j]
+            if a[i, j] != 0.0:
+                acc -= a[i, j] * x[j]
         x[i] = acc
     for ii in range(n):
         i = n - 1 - ii
         acc = x[i]
         for j in range(i + 1, n):
-            acc -= a[i, j] * x[j]
+            if a[i, j] != 0.0:
+                acc -= a[i, j] * x[j]
         x[i] = acc / a[i, i]
 
 
