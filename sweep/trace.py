@@ -20,7 +20,7 @@ import numpy as np
 import xarray as xr
 
 from . import kernels, physics
-from .config import ConfigError, config_mapping, parse_config
+from .config import ConfigError, with_changes
 from .dataset import derived_fields, parameter_attrs, parameter_coords, provenance
 from .dispatch import integrate_grid
 from .grid import build_grid
@@ -63,16 +63,17 @@ def pin_config(config, at, t_end=None):
             )
     if problems:
         raise ConfigError(source, problems)
-    raw = config_mapping(config)
-    swept = set(raw["sweep"])
-    raw["sweep"] = {name: [float(at[name])] for name in raw["sweep"]}
-    raw["parameters"].update({k: float(v) for k, v in at.items() if k not in swept})
-    raw["classification"]["early_exit"] = False
+    swept = [axis.name for axis in config.axes]
+    changes = {
+        "sweep": {name: [float(at[name])] for name in swept},
+        "parameters": {k: float(v) for k, v in at.items() if k not in swept},
+        "classification": {"early_exit": False},
+    }
     if t_end is not None:
-        raw["integrator"]["t_end"] = float(t_end)
-        raw["classification"]["max_t_end"] = None  # no continuation without early exit
+        changes["integrator"] = {"t_end": float(t_end)}
+        changes["classification"]["max_t_end"] = None  # no continuation without early exit
     # errors name the --at values; the result's provenance names the config file
-    return dataclasses.replace(parse_config(raw, source), source=config.source)
+    return dataclasses.replace(with_changes(config, changes, source), source=config.source)
 
 
 def decimate(lnv, points):
