@@ -90,10 +90,12 @@ class Initial:
     member m starts from ln(v/V) and ln(Φ/Φss) above plus independent uniform
     offsets in ±``amplitude``, drawn once from ``seed`` (the same M starts at every
     grid point); without an ensemble ``seed`` and ``amplitude`` are not used.
+    The defaults are one block's: a config that leaves out ``v_over_V`` or
+    ``phi_over_phi_ss`` starts every block there (v = V, Φ = 1.01 Φss).
     """
 
-    v_over_V: tuple
-    phi_over_phi_ss: tuple
+    v_over_V: tuple = (1.0,)
+    phi_over_phi_ss: tuple = (1.01,)  # a 1 % perturbation of the state (the paper's)
     ensemble: int = 0
     seed: int = 0
     amplitude: float = 0.1
@@ -774,9 +776,12 @@ def _parse_spread(c, raw, blocks, lists, axes):
             c.add(f"{key} is also a sweep axis (sweep.spread_{name}); give it in one place only")
         elif s is not None:
             sizes[name] = s
-    dist = c.choice(spec.get("distribution", "uniform"), "spread.distribution", DISTRIBUTIONS)
-    seed = c.integer(spec.get("seed", 0), "spread.seed", 0)
-    return Spread(tuple(sizes.items()), dist or "uniform", 0 if seed is None else seed)
+    d = Spread()
+    dist = c.choice(spec.get("distribution", d.distribution), "spread.distribution", DISTRIBUTIONS)
+    seed = c.integer(spec.get("seed", d.seed), "spread.seed", 0)
+    if None in (dist, seed):  # a problem was recorded: the config is rejected
+        return d
+    return Spread(tuple(sizes.items()), dist, seed)
 
 
 def _check_spread_values(c, params, spread, axes, blocks):
@@ -828,19 +833,17 @@ def _per_block(c, value, key, blocks):
 
 def _parse_initial(c, raw, blocks):
     spec = c.mapping(raw.get("initial", {}), "initial")
-    c.unknown(spec, "initial", ("v_over_V", "phi_over_phi_ss", "ensemble", "seed", "amplitude"))
-    v = _per_block(c, spec.get("v_over_V", 1.0), "initial.v_over_V", blocks)
-    phi = _per_block(c, spec.get("phi_over_phi_ss", 1.01), "initial.phi_over_phi_ss", blocks)
-    ensemble = c.integer(spec.get("ensemble", 0), "initial.ensemble", 0)
-    seed = c.integer(spec.get("seed", 0), "initial.seed", 0)
-    amplitude = c.number(spec.get("amplitude", 0.1), "initial.amplitude", low=0.0)
-    return Initial(
-        v or (1.0,) * blocks,
-        phi or (1.0,) * blocks,
-        ensemble or 0,
-        seed or 0,
-        0.1 if amplitude is None else amplitude,
-    )
+    d = Initial()
+    c.unknown(spec, "initial", tuple(Initial.__dataclass_fields__))
+    v = _per_block(c, spec.get("v_over_V", d.v_over_V[0]), "initial.v_over_V", blocks)
+    phi = spec.get("phi_over_phi_ss", d.phi_over_phi_ss[0])
+    phi = _per_block(c, phi, "initial.phi_over_phi_ss", blocks)
+    ensemble = c.integer(spec.get("ensemble", d.ensemble), "initial.ensemble", 0)
+    seed = c.integer(spec.get("seed", d.seed), "initial.seed", 0)
+    amplitude = c.number(spec.get("amplitude", d.amplitude), "initial.amplitude", low=0.0)
+    if None in (v, phi, ensemble, seed, amplitude):  # a problem was recorded: rejected
+        return d
+    return Initial(v, phi, ensemble, seed, amplitude)
 
 
 def _parse_integrator(c, raw, model):

@@ -314,8 +314,8 @@ def stored_config(ds, source):
 
     ``source`` names the result file in errors; the Config keeps the original
     config path (``config_path``) as its source. Raises
-    :class:`~sweep.errors.ConfigError` if the text is no longer a valid config
-    or its grid is not the file's.
+    :class:`~sweep.errors.ConfigError` if the text is no longer a valid config,
+    :class:`~sweep.errors.InputError` if its grid is not the file's.
     """
     try:
         config = parse_config(ds.attrs["config_text"], f"{source} (config_text)")
@@ -323,7 +323,7 @@ def stored_config(ds, source):
         raise ConfigError(source, [f"stored config_text: {p}" for p in exc.problems]) from None
     dims = tuple(a.name for a in config.axes) + (("member",) if config.initial.ensemble else ())
     if ds["regime"].dims != dims or ds["regime"].shape != config.run_shape:
-        raise ConfigError(
+        raise InputError(
             source,
             [f"regime has dims {dict(ds['regime'].sizes)}, but the stored config sweeps "
              f"{dict(zip(dims, config.run_shape, strict=True))}"],

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from . import kernels
-from .config import config_mapping, parse_config
+from .config import with_changes
 from .dataset import (
     derived_fields,
     read_result,
@@ -89,15 +89,14 @@ def with_end_time(config, t_end, early_exit=None, source=None):
     """``config`` with end time ``t_end`` (its ``t_unit``), no continuation past it,
     and, if given, ``early_exit``.
 
-    The config text is rewritten to match (``sweep.config.config_mapping``), so a
+    The config text is rewritten to match (``sweep.config.with_changes``), so a
     file's ``config_text`` stays the config that made it.
     """
-    raw = config_mapping(config)
-    raw["integrator"]["t_end"] = float(t_end)
-    raw["classification"]["max_t_end"] = float(t_end)
+    classification = {"max_t_end": float(t_end)}
     if early_exit is not None:
-        raw["classification"]["early_exit"] = bool(early_exit)
-    changed = parse_config(raw, source or config.source)
+        classification["early_exit"] = bool(early_exit)
+    changes = {"integrator": {"t_end": float(t_end)}, "classification": classification}
+    changed = with_changes(config, changes, source or config.source)
     return dataclasses.replace(changed, source=config.source)
 
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import config_mapping, load_config, parse_config
+from .config import load_config, with_changes
 from .dataset import parameter_values
 from .plots import (
     BLOCK_STYLES,
@@ -46,6 +46,8 @@ SYNC_FLOOR = 1e-18
 IN_PHASE = (1.01, 1.01)
 OUT_OF_PHASE = (1.01, 0.99)
 
+#: Keys of ``initial`` that set up an ensemble of random starts.
+ENSEMBLE_KEYS = ("ensemble", "seed", "amplitude")
 #: Rows of the one-block figure: label and changes to the paper config.
 ONE_BLOCK_ROWS = (
     ("quasi-static (the paper's equations)", {}),
@@ -71,18 +73,18 @@ def variant(config, name, model=None, eta_W=None, k2_W=None, phi=None):
     ``phi``: Φ/Φss per block, which also sets the number of blocks (each starts
     at v = V). ``eta_W`` in s/µm, ``k2_W`` in µm⁻¹.
     """
-    raw = config_mapping(config)
-    raw["name"] = name
+    changes = {"name": name}
     if model is not None:
-        raw["model"] = model
-    if eta_W is not None:
-        raw["parameters"]["eta_W"] = eta_W
-    if k2_W is not None:
-        raw["parameters"]["k2_W"] = k2_W
+        changes["model"] = model
+    parameters = {k: v for k, v in (("eta_W", eta_W), ("k2_W", k2_W)) if v is not None}
+    if parameters:
+        changes["parameters"] = parameters
     if phi is not None:
-        raw["blocks"] = len(phi)
-        raw["initial"] = {"v_over_V": [1.0] * len(phi), "phi_over_phi_ss": list(phi)}
-    return parse_config(raw, f"{config.source} ({name})")
+        changes["blocks"] = len(phi)
+        # exactly this start: no ensemble of random starts around it
+        changes["initial"] = {"v_over_V": [1.0] * len(phi), "phi_over_phi_ss": list(phi),
+                              **dict.fromkeys(ENSEMBLE_KEYS)}  # fmt: skip
+    return with_changes(config, changes, f"{config.source} ({name})")
 
 
 def stiffnesses(config):
@@ -209,23 +211,28 @@ def critical_ratios(
 
     from . import grid, heterogeneity, linear
 
-    raw = config_mapping(config)
-    raw["sweep"] = {"K_W": [float(config.axes[0].values[0])]}
-    raw["initial"] = {"v_over_V": 1.0, "phi_over_phi_ss": 1.0}
+    # None removes a key: one K/W, identical starts at steady sliding, a D0 spread only
+    changes = {
+        "sweep": {**dict.fromkeys(a.name for a in config.axes),
+                  "K_W": [float(config.axes[0].values[0])]},
+        "initial": {"v_over_V": 1.0, "phi_over_phi_ss": 1.0, **dict.fromkeys(ENSEMBLE_KEYS)},
+    }  # fmt: skip
     out = np.empty((len(couplings), len(sizes), len(seeds)))
     for i, coupling in enumerate(couplings):
         for j, n in enumerate(sizes):
             for k, seed in enumerate(seeds):
-                raw |= {"blocks": n, "coupling": coupling}
-                raw["spread"] = {"D0": spread, "distribution": "uniform", "seed": seed}
-                cfg = parse_config(raw, f"{config.source} (N = {n}, {coupling}, seed {seed})")
+                changes |= {"blocks": n, "coupling": coupling}
+                changes["spread"] = {**dict.fromkeys(heterogeneity.PER_BLOCK), "D0": spread,
+                                     "distribution": "uniform", "seed": seed}  # fmt: skip
+                source = f"{config.source} (N = {n}, {coupling}, seed {seed})"
+                cfg = with_changes(config, changes, source)
                 phys = grid.physical_parameters(cfg)
                 kc_w = linear.theory(cfg, phys)["kappa_c"][0] / phys["D0"][0]
                 mean_d0 = heterogeneity.block_values(cfg, phys)["D0"][0].mean()
                 out[i, j, k] = kc_w * mean_d0 / (phys["B"][0] - phys["A"][0])
     title = (
         f"D0 spread {spread:g} (uniform, seeds {seeds[0]}–{seeds[-1]}), "
-        f"k2/W = {float(raw['parameters']['k2_W']):g} µm⁻¹: Jacobian Kc"
+        f"k2/W = {config.fixed['k2_W']:g} µm⁻¹: Jacobian Kc"
     )
     return xr.DataArray(
         out,

@@ -470,6 +470,30 @@ _D5, _D6, _D7 = 701980252875 / 199316789632, -1453857185 / 822651844, 69997945 /
 
 
 @jit_inline
+def take_step(method, y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, k5, k6, k_ros,
+              mat, perm, ytmp, ynew, fnew, rtol, atol):  # fmt: skip
+    """One step of size h of ``method`` from (y, f = rhs(y)) into ``ynew``, with ``fnew``
+    = rhs(ynew); returns the error norm of the adaptive methods (the step is acceptable
+    when it is ≤ 1), 0 for RK4, whose every step is accepted. ``method`` is a constant
+    of the variant (:func:`grid_kernel`): numba keeps only its branch."""
+    err = 0.0
+    if method == DOPRI5:
+        err = step_dopri5(
+            y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, fnew,
+            rtol, atol,
+        )  # fmt: skip
+    elif method == ROSENBROCK:
+        err = step_rosenbrock(
+            y, f, h, p, model, law, coupling, het, nb, ev, k_ros, mat, perm, ytmp, ynew, fnew,
+            rtol, atol,
+        )  # fmt: skip
+    else:
+        step_rk4(y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, ytmp, ynew)
+        rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
+    return err
+
+
+@jit_inline
 def dense_r5(method, j, h, f, k3, k4, k5, k6, fnew):
     """Fifth coefficient of the interpolant of component ``j`` over a step of size h:
     DOPRI5's (stages k1 = ``f``, k3 … k6, k7 = ``fnew``), 0 for the other methods
@@ -1062,6 +1086,24 @@ def new_cycle_state(y, nb):
 
 
 @jit_inline
+def read_settings(settings):
+    """The settings array (``S_*``) as typed values: blocks, rtol, atol, step budget,
+    ln of the velocity cap, steady amplitude, accuracy, cycles to confirm (≥ 1),
+    early exit (bool) and ln of the slip threshold."""
+    nb = int(settings[S_NBLOCKS])
+    rtol = settings[S_RTOL]
+    atol = settings[S_ATOL]
+    max_steps = settings[S_MAX_STEPS]
+    lnv_cap = settings[S_LNV_CAP]
+    steady_amp = settings[S_STEADY_AMP]
+    accuracy = settings[S_ACCURACY]
+    n_confirm = max(1, int(settings[S_CONFIRM_CYCLES]))
+    early_exit = settings[S_EARLY_EXIT] > 0.5
+    slip_lnv = settings[S_SLIP_LNV]
+    return nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit, slip_lnv
+
+
+@jit_inline
 def integrate_system(
     p, y0, settings, result, y_final, rec_dt, rec_t, rec_y, model, law, method, coupling, het
 ):
@@ -1074,16 +1116,9 @@ def integrate_system(
     ``p``) are the kernel's variant: constants of :func:`grid_kernel`, whose inlined
     copy of this function keeps only that variant's branches.
     """
-    nb = int(settings[S_NBLOCKS])
-    rtol = settings[S_RTOL]
-    atol = settings[S_ATOL]
-    max_steps = settings[S_MAX_STEPS]
-    lnv_cap = settings[S_LNV_CAP]
-    steady_amp = settings[S_STEADY_AMP]
-    accuracy = settings[S_ACCURACY]
-    n_confirm = max(1, int(settings[S_CONFIRM_CYCLES]))
-    early_exit = settings[S_EARLY_EXIT] > 0.5
-    slip_lnv = settings[S_SLIP_LNV]
+    nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit, slip_lnv = (
+        read_settings(settings)
+    )
     A = p[P_A]
     B = p[P_B]
     tau_end = p[P_TAU_END]
@@ -1126,20 +1161,10 @@ def integrate_system(
         if n_steps + n_rejected >= max_steps:
             break
         h = min(h, tau_stop - t)
-        err = 0.0  # RK4: every step is accepted
-        if method == DOPRI5:
-            err = step_dopri5(
-                y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew,
-                fnew, rtol, atol,
-            )  # fmt: skip
-        elif method == ROSENBROCK:
-            err = step_rosenbrock(
-                y, f, h, p, model, law, coupling, het, nb, ev, k_ros, mat, perm, ytmp, ynew,
-                fnew, rtol, atol,
-            )  # fmt: skip
-        else:
-            step_rk4(y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, ytmp, ynew)
-            rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
+        err = take_step(
+            method, y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, k5, k6, k_ros, mat,
+            perm, ytmp, ynew, fnew, rtol, atol,
+        )  # fmt: skip
         h_next = next_step_size(method, h, err, max_step)
         if not (err <= 1.0):
             n_rejected += 1

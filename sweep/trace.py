@@ -20,9 +20,10 @@ import numpy as np
 import xarray as xr
 
 from . import kernels, physics
-from .config import ConfigError, config_mapping, parse_config
+from .config import ConfigError, with_changes
 from .dataset import derived_fields, parameter_attrs, parameter_coords, provenance
 from .dispatch import integrate_grid
+from .errors import InputError
 from .grid import build_grid
 from .physics import PARAMETERS
 from .variables import REGIMES, variables_for
@@ -45,7 +46,8 @@ def pin_config(config, at, t_end=None):
     ``at``: parameter name → value (physical units). Every sweep axis must be
     given; a fixed parameter given in ``at`` is overridden. ``t_end`` (in the
     config's ``t_unit``) replaces the end time. Early exit is switched off.
-    Raises :class:`~sweep.errors.ConfigError` listing every problem.
+    Raises :class:`~sweep.errors.InputError` listing every problem (of ``at`` and
+    ``t_end``: ``config`` itself is valid).
     """
     text = " ".join(f"--at {name}={value:g}" for name, value in at.items())
     source = f"{config.source} {text}".strip()
@@ -62,17 +64,22 @@ def pin_config(config, at, t_end=None):
                 f"(the sweep spans {min(axis.values):g} to {max(axis.values):g} {units})"
             )
     if problems:
-        raise ConfigError(source, problems)
-    raw = config_mapping(config)
-    swept = set(raw["sweep"])
-    raw["sweep"] = {name: [float(at[name])] for name in raw["sweep"]}
-    raw["parameters"].update({k: float(v) for k, v in at.items() if k not in swept})
-    raw["classification"]["early_exit"] = False
+        raise InputError(source, problems)
+    swept = [axis.name for axis in config.axes]
+    changes = {
+        "sweep": {name: [float(at[name])] for name in swept},
+        "parameters": {k: float(v) for k, v in at.items() if k not in swept},
+        "classification": {"early_exit": False},
+    }
     if t_end is not None:
-        raw["integrator"]["t_end"] = float(t_end)
-        raw["classification"]["max_t_end"] = None  # no continuation without early exit
+        changes["integrator"] = {"t_end": float(t_end)}
+        changes["classification"]["max_t_end"] = None  # no continuation without early exit
     # errors name the --at values; the result's provenance names the config file
-    return dataclasses.replace(parse_config(raw, source), source=config.source)
+    try:
+        pinned = with_changes(config, changes, source)
+    except ConfigError as exc:  # the values given, not the config, are at fault
+        raise InputError(exc.source, exc.problems) from None
+    return dataclasses.replace(pinned, source=config.source)
 
 
 def decimate(lnv, points):

@@ -10,7 +10,8 @@ import xarray as xr
 from conftest import KC_W, PAPER_A, PAPER_B, make_config, run_grid
 
 from sweep import kernels, runner
-from sweep.dataset import write_netcdf
+from sweep.dataset import stored_config, write_netcdf
+from sweep.errors import ConfigError, InputError
 from sweep.physics import PARAMETERS
 from sweep.variables import BY_NAME, REGIMES, VARIABLES, variables_for
 
@@ -130,6 +131,18 @@ def test_derived_fields_in_physical_units():
         ds["slip_per_event"].values[stick_slip], V * ds["period"][stick_slip]
     )
     assert np.isnan(ds["slip_per_event"].values[~stick_slip]).all()
+
+
+def test_stored_config_errors_say_whether_the_config_or_the_file_is_at_fault(result):
+    config, ds = result
+    assert stored_config(ds, "x.nc").axes == config.axes
+    cut = ds.isel({config.axes[0].name: slice(1, None)})  # a grid the config does not make
+    with pytest.raises(InputError, match="x.nc: regime has dims") as err:
+        stored_config(cut, "x.nc")
+    assert not isinstance(err.value, ConfigError)
+    bad = ds.assign_attrs(config_text=ds.attrs["config_text"].replace("blocks: ", "blocks: -"))
+    with pytest.raises(ConfigError, match="x.nc: stored config_text: blocks must be"):
+        stored_config(bad, "x.nc")
 
 
 def test_netcdf_round_trip(in_tmp, result):

@@ -11,6 +11,7 @@ from sweep import kernels
 from sweep.cli import main
 from sweep.config import ConfigError, config_mapping, load_config, parse_config
 from sweep.dispatch import integrate_grid
+from sweep.errors import InputError
 from sweep.grid import build_grid
 from sweep.runner import compute
 from sweep.trace import (
@@ -65,18 +66,24 @@ def test_pin_config_pins_axes_and_overrides_fixed_parameters():
 
 
 def test_pin_config_missing_axis_is_an_error_naming_it():
-    with pytest.raises(ConfigError) as err:
+    with pytest.raises(InputError) as err:
         pin_config(load_config(TWOBLOCK), {"K_W": 0.046})
+    assert not isinstance(err.value, ConfigError)  # the --at values are wrong, not the config
     assert any("k2_W" in p and "--at k2_W=" in p for p in err.value.problems)
 
 
-def test_pin_config_rejects_unknown_and_inapplicable_parameters():
-    with pytest.raises(ConfigError, match="unknown parameter"):
-        pin_config(load_config(QUICK), {"K_W": 0.046, "stiffness": 1.0})
-    with pytest.raises(ConfigError, match="eta_W only applies to model quasi-dynamic"):
-        pin_config(load_config(QUICK), {"K_W": 0.046, "eta_W": 0.1})
-    with pytest.raises(ConfigError, match=r"K_W\[0\] must be in \(0, inf\), got -1"):
-        pin_config(load_config(QUICK), {"K_W": -1.0})
+@pytest.mark.parametrize(
+    ("at", "message"),
+    [
+        ({"K_W": 0.046, "stiffness": 1.0}, "unknown parameter"),
+        ({"K_W": 0.046, "eta_W": 0.1}, "eta_W only applies to model quasi-dynamic"),
+        ({"K_W": -1.0}, r"--at K_W=-1: sweep.K_W\[0\] must be in \(0, inf\), got -1"),
+    ],
+)
+def test_pin_config_rejects_unknown_and_inapplicable_parameters(at, message):
+    with pytest.raises(InputError, match=message) as err:
+        pin_config(load_config(QUICK), at)
+    assert not isinstance(err.value, ConfigError)
 
 
 def test_decimate_keeps_every_extreme_and_the_last_sample():
