@@ -25,6 +25,7 @@ from .dataset import derived_fields, parameter_attrs, parameter_coords, provenan
 from .dispatch import integrate_grid
 from .errors import InputError
 from .grid import build_grid
+from .heterogeneity import PER_BLOCK, SPREAD_PREFIX
 from .physics import PARAMETERS
 from .variables import REGIMES, variables_for
 
@@ -51,14 +52,16 @@ def pin_config(config, at, t_end=None):
     """
     text = " ".join(f"--at {name}={value:g}" for name, value in at.items())
     source = f"{config.source} {text}".strip()
+    spreads = [SPREAD_PREFIX + name for name in PER_BLOCK]  # spread_D0, ...: relative spreads
+    known = (*PARAMETERS, *spreads)
     problems = [
-        f"--at {name}: unknown parameter; known: {', '.join(PARAMETERS)}"
+        f"--at {name}: unknown parameter; known: {', '.join(known)}"
         for name in at
-        if name not in PARAMETERS
+        if name not in known
     ]
     for axis in config.axes:
         if axis.name not in at:
-            units = PARAMETERS[axis.name].units
+            units = parameter_attrs(axis.name)["units"]
             problems.append(
                 f"sweep axis {axis.name} needs a value: add --at {axis.name}=VALUE "
                 f"(the sweep spans {min(axis.values):g} to {max(axis.values):g} {units})"
@@ -66,11 +69,15 @@ def pin_config(config, at, t_end=None):
     if problems:
         raise InputError(source, problems)
     swept = [axis.name for axis in config.axes]
+    fixed = {k: float(v) for k, v in at.items() if k not in swept}
     changes = {
         "sweep": {name: [float(at[name])] for name in swept},
-        "parameters": {k: float(v) for k, v in at.items() if k not in swept},
+        "parameters": {k: v for k, v in fixed.items() if k in PARAMETERS},
         "classification": {"early_exit": False},
     }
+    spread_sizes = {k[len(SPREAD_PREFIX) :]: v for k, v in fixed.items() if k in spreads}
+    if spread_sizes:
+        changes["spread"] = spread_sizes
     if t_end is not None:
         changes["integrator"] = {"t_end": float(t_end)}
         changes["classification"]["max_t_end"] = None  # no continuation without early exit

@@ -9,7 +9,7 @@ from scipy.integrate import solve_ivp
 
 from sweep import kernels
 from sweep.cli import main
-from sweep.config import ConfigError, config_mapping, load_config, parse_config
+from sweep.config import ConfigError, config_mapping, load_config, parse_config, with_changes
 from sweep.dispatch import integrate_grid
 from sweep.errors import InputError
 from sweep.grid import build_grid
@@ -84,6 +84,20 @@ def test_pin_config_rejects_unknown_and_inapplicable_parameters(at, message):
     with pytest.raises(InputError, match=message) as err:
         pin_config(load_config(QUICK), at)
     assert not isinstance(err.value, ConfigError)
+
+
+def test_pin_config_pins_a_spread_axis_and_sets_a_spread_size():
+    """A spread axis (configs/heterogeneous.yaml's spread_D0) is pinned like a parameter
+    axis and named when missing (it was an unknown parameter, and leaving it out raised
+    KeyError); on a config without that axis, --at spread_D0 sets the spread size."""
+    heterogeneous = load_config(CONFIGS / "heterogeneous.yaml")
+    pinned = pin_config(heterogeneous, {"K_W": 0.05, "spread_D0": 0.2})
+    assert {a.name: a.values for a in pinned.axes} == {"K_W": (0.05,), "spread_D0": (0.2,)}
+    with pytest.raises(InputError, match=r"sweep axis spread_D0 needs a value.* 0 to 0.3 1\)"):
+        pin_config(heterogeneous, {"K_W": 0.05})
+    unswept = with_changes(heterogeneous, {"sweep": {"spread_D0": None}})
+    sized = pin_config(unswept, {"K_W": 0.05, "spread_D0": 0.1})
+    assert sized.spread.sizes_dict == {"D0": 0.1}
 
 
 def test_decimate_keeps_every_extreme_and_the_last_sample():
