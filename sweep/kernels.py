@@ -470,30 +470,6 @@ _D5, _D6, _D7 = 701980252875 / 199316789632, -1453857185 / 822651844, 69997945 /
 
 
 @jit_inline
-def take_step(method, y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, k5, k6, k_ros,
-              mat, perm, ytmp, ynew, fnew, rtol, atol):  # fmt: skip
-    """One step of size h of ``method`` from (y, f = rhs(y)) into ``ynew``, with ``fnew``
-    = rhs(ynew); returns the error norm of the adaptive methods (the step is acceptable
-    when it is ≤ 1), 0 for RK4, whose every step is accepted. ``method`` is a constant
-    of the variant (:func:`grid_kernel`): numba keeps only its branch."""
-    err = 0.0
-    if method == DOPRI5:
-        err = step_dopri5(
-            y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, fnew,
-            rtol, atol,
-        )  # fmt: skip
-    elif method == ROSENBROCK:
-        err = step_rosenbrock(
-            y, f, h, p, model, law, coupling, het, nb, ev, k_ros, mat, perm, ytmp, ynew, fnew,
-            rtol, atol,
-        )  # fmt: skip
-    else:
-        step_rk4(y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, ytmp, ynew)
-        rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
-    return err
-
-
-@jit_inline
 def dense_r5(method, j, h, f, k3, k4, k5, k6, fnew):
     """Fifth coefficient of the interpolant of component ``j`` over a step of size h:
     DOPRI5's (stages k1 = ``f``, k3 … k6, k7 = ``fnew``), 0 for the other methods
@@ -1086,6 +1062,22 @@ def new_cycle_state(y, nb):
 
 
 @jit_inline
+def cycle_arrays(y, p, nb, A, B):
+    """The classifier's arrays at the start of a run, the first cycle started at ``y``:
+    the current cycle (``win``) and the last completed one (``last``), ``W_*`` rows per
+    block; per completed cycle (``hist``): max ℓ_i, min ℓ_i, period, peak-to-peak of
+    mean(ℓ_i); the cycle state ``cs`` (``C_*``); ``slipped`` (1: block i slipped during
+    the current slip event)."""
+    win = np.empty((N_WINDOW, nb))
+    last = np.full((N_WINDOW, nb), np.nan)
+    hist = np.zeros((2 * nb + 2, HISTORY))
+    cs = new_cycle_state(y, nb)
+    start_cycle(y, p, nb, A, B, win, cs)
+    slipped = np.zeros(nb)
+    return win, last, hist, cs, slipped
+
+
+@jit_inline
 def read_settings(settings):
     """The settings array (``S_*``) as typed values: blocks, rtol, atol, step budget,
     ln of the velocity cap, steady amplitude, accuracy, cycles to confirm (≥ 1),
@@ -1132,14 +1124,7 @@ def integrate_system(
     f, ynew, fnew, ytmp, k2, k3, k4, k5, k6 = step_scratch(n)
     ev = np.empty(nb)
     k_ros, mat, perm = rosenbrock_scratch(method, n)
-    # the current cycle (win) and the last completed one (last): W_* rows per block;
-    # per completed cycle (hist): max ℓ_i, min ℓ_i, period, peak-to-peak of mean(ℓ_i)
-    win = np.empty((N_WINDOW, nb))
-    last = np.full((N_WINDOW, nb), np.nan)
-    hist = np.zeros((2 * nb + 2, HISTORY))
-    cs = new_cycle_state(y, nb)
-    start_cycle(y, p, nb, A, B, win, cs)
-    slipped = np.zeros(nb)  # 1: block i slipped during the current slip event
+    win, last, hist, cs, slipped = cycle_arrays(y, p, nb, A, B)
 
     n_rec = record_start(y, rec_t, rec_y)
 
@@ -1161,10 +1146,20 @@ def integrate_system(
         if n_steps + n_rejected >= max_steps:
             break
         h = min(h, tau_stop - t)
-        err = take_step(
-            method, y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, k5, k6, k_ros, mat,
-            perm, ytmp, ynew, fnew, rtol, atol,
-        )  # fmt: skip
+        err = 0.0  # RK4: every step is accepted
+        if method == DOPRI5:
+            err = step_dopri5(
+                y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew,
+                fnew, rtol, atol,
+            )  # fmt: skip
+        elif method == ROSENBROCK:
+            err = step_rosenbrock(
+                y, f, h, p, model, law, coupling, het, nb, ev, k_ros, mat, perm, ytmp, ynew,
+                fnew, rtol, atol,
+            )  # fmt: skip
+        else:
+            step_rk4(y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, ytmp, ynew)
+            rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
         h_next = next_step_size(method, h, err, max_step)
         if not (err <= 1.0):
             n_rejected += 1

@@ -72,7 +72,7 @@ def test_grid_kernels_follow_the_policy_one_per_variant():
 
 
 @NO_JIT
-@pytest.mark.parametrize("name", ["rhs", "step_rk4", "step_dopri5", "take_step", "dense_r5"])
+@pytest.mark.parametrize("name", ["rhs", "step_rk4", "step_dopri5", "dense_r5", "cycle_arrays"])
 def test_rhs_and_explicit_steps_are_inlined(name):
     """accelerate.py: the right-hand side and the explicit steps are inlined at numba-IR
     level (a third of the time per step)."""
