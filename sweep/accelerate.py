@@ -12,18 +12,18 @@ Decisions (each tested in ``tests/test_accelerate.py``):
   would let LLVM assume they never occur).
 * ``error_model="numpy"``: a division by zero gives inf/NaN (a classified
   outcome), not a Python exception raised from inside a parallel loop.
-* One kernel for every model, state law and method, branching on their codes at
-  run time. Specialising it at compile time (the codes as ``numba.literally``
-  arguments, one compiled version per combination) was tried and measured: numba
-  still types every branch, so each combination took as long to compile as the
-  whole kernel (cold start 41 vs 42 s), calls through the dispatcher cost 14 ms
-  each, and the time per step did not improve (RK4 168-189 vs 157 ns, DOPRI5
-  318-344 vs 327-351 ns per step, ``make bench``).
+* One grid kernel per variant (model, state law, method, coupling, equal or
+  unequal blocks): ``kernels.grid_kernel`` closes over the codes, so numba prunes
+  the other variants' branches and a run compiles only its own. Specialising with
+  ``numba.literally`` arguments was tried first and dropped: each combination took
+  as long to compile as the whole kernel (41 vs 42 s) and calls through the
+  dispatcher cost 14 ms each.
 * The right-hand side, the explicit steps and the dense-output coefficient are
   inlined into the integration loop at numba-IR level (``inline="always"``): left
   to LLVM, they stay calls passing a dozen arrays each (measured on an idle
-  machine: RK4 189 vs 288 ns per step, DOPRI5 318 vs 396 ns). The cost is about
-  10 s more of first compile, which the cache pays once.
+  machine: RK4 189 vs 288 ns per step, DOPRI5 318 vs 396 ns). Every inlined copy
+  costs compile time, so the Runge–Kutta stages are a loop around one call of the
+  right-hand side (cold compile 33 s → 16.5 s, bit-identical numbers).
 * The loop of ``integrate_system`` calls small inlined helpers, each written without
   a loop or a non-inlined call behind a branch (``runaway_index``, ``update_cycle``). Where an
   inlined body has one, numba's reference-count pruning fails and every array

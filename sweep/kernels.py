@@ -150,6 +150,14 @@ _A31, _A32 = 3 / 40, 9 / 40
 _A41, _A42, _A43 = 44 / 45, -56 / 15, 32 / 9
 _A51, _A52, _A53, _A54 = 19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729
 _A61, _A62, _A63, _A64, _A65 = 9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656
+#: Row s: the coefficients of f, k2, … of stage s + 3's argument (stages 3 to 6; stage
+#: 2's, _A21, is applied to h first, as h a21 f).
+_DP_A = np.array([
+    [_A31, _A32, 0.0, 0.0, 0.0],
+    [_A41, _A42, _A43, 0.0, 0.0],
+    [_A51, _A52, _A53, _A54, 0.0],
+    [_A61, _A62, _A63, _A64, _A65],
+])  # fmt: skip
 _B1, _B3, _B4, _B5, _B6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
 _E1, _E3, _E4, _E5, _E6, _E7 = (
     71 / 57600,
@@ -361,56 +369,58 @@ def lu_solve(a, perm, b, x):
 
 
 @jit_inline
-def step_rk4(y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, ytmp, ynew):
-    """One classical RK4 step of size h from (y, f = rhs(y)) into ``ynew``."""
+def step_rk4(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew):
+    """One classical RK4 step of size h from (y, f = rhs(y)) into ``ynew``; the stages
+    k2, k3, k4 go to rows 0-2 of ``k``.
+
+    The stages are a loop around one call of the right-hand side, so that numba
+    inlines it once (each inlined copy costs compile time, see accelerate.py)."""
     n = y.size
+    for s in range(3):  # y + h/2 f, y + h/2 k2, y + h k3
+        if s == 0:
+            for j in range(n):
+                ytmp[j] = y[j] + 0.5 * h * f[j]
+        else:
+            c = 0.5 * h if s == 1 else h
+            for j in range(n):
+                ytmp[j] = y[j] + c * k[s - 1, j]
+        rhs(ytmp, p, model, law, coupling, het, nb, ev, k[s])
     for j in range(n):
-        ytmp[j] = y[j] + 0.5 * h * f[j]
-    rhs(ytmp, p, model, law, coupling, het, nb, ev, k2)
-    for j in range(n):
-        ytmp[j] = y[j] + 0.5 * h * k2[j]
-    rhs(ytmp, p, model, law, coupling, het, nb, ev, k3)
-    for j in range(n):
-        ytmp[j] = y[j] + h * k3[j]
-    rhs(ytmp, p, model, law, coupling, het, nb, ev, k4)
-    for j in range(n):
-        ynew[j] = y[j] + h / 6.0 * (f[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+        ynew[j] = y[j] + h / 6.0 * (f[j] + 2.0 * k[0, j] + 2.0 * k[1, j] + k[2, j])
 
 
 @jit_inline
-def step_dopri5(
-    y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew, fnew, rtol, atol
-):
+def step_dopri5(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew, fnew, rtol, atol):
     """One Dormand–Prince 5(4) step; returns the scaled RMS error estimate.
 
-    ``f`` = rhs(y) on entry; on return ``ynew`` holds the 5th-order solution and
-    ``fnew`` = rhs(ynew) (first same as last). The step is acceptable when the
-    returned error is ≤ 1; a non-finite error means the trial state overflowed.
+    ``f`` = rhs(y) on entry; the stages k2 … k6 go to rows 0-4 of ``k``; on return
+    ``ynew`` holds the 5th-order solution and ``fnew`` = rhs(ynew) (first same as
+    last). The step is acceptable when the returned error is ≤ 1; a non-finite error
+    means the trial state overflowed. The stages are a loop around one call of the
+    right-hand side (one inlined copy), summed term by term in the tableau's order.
     """
     n = y.size
+    for s in range(5):
+        for j in range(n):
+            if s == 0:
+                ytmp[j] = y[j] + h * _A21 * f[j]
+            else:
+                acc = _DP_A[s - 1, 0] * f[j]
+                for r in range(s):
+                    acc += _DP_A[s - 1, r + 1] * k[r, j]
+                ytmp[j] = y[j] + h * acc
+        rhs(ytmp, p, model, law, coupling, het, nb, ev, k[s])
     for j in range(n):
-        ytmp[j] = y[j] + h * _A21 * f[j]
-    rhs(ytmp, p, model, law, coupling, het, nb, ev, k2)
-    for j in range(n):
-        ytmp[j] = y[j] + h * (_A31 * f[j] + _A32 * k2[j])
-    rhs(ytmp, p, model, law, coupling, het, nb, ev, k3)
-    for j in range(n):
-        ytmp[j] = y[j] + h * (_A41 * f[j] + _A42 * k2[j] + _A43 * k3[j])
-    rhs(ytmp, p, model, law, coupling, het, nb, ev, k4)
-    for j in range(n):
-        ytmp[j] = y[j] + h * (_A51 * f[j] + _A52 * k2[j] + _A53 * k3[j] + _A54 * k4[j])
-    rhs(ytmp, p, model, law, coupling, het, nb, ev, k5)
-    for j in range(n):
-        ytmp[j] = y[j] + h * (
-            _A61 * f[j] + _A62 * k2[j] + _A63 * k3[j] + _A64 * k4[j] + _A65 * k5[j]
+        ynew[j] = y[j] + h * (
+            _B1 * f[j] + _B3 * k[1, j] + _B4 * k[2, j] + _B5 * k[3, j] + _B6 * k[4, j]
         )
-    rhs(ytmp, p, model, law, coupling, het, nb, ev, k6)
-    for j in range(n):
-        ynew[j] = y[j] + h * (_B1 * f[j] + _B3 * k3[j] + _B4 * k4[j] + _B5 * k5[j] + _B6 * k6[j])
     rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
     err2 = 0.0
     for j in range(n):
-        e = h * (_E1 * f[j] + _E3 * k3[j] + _E4 * k4[j] + _E5 * k5[j] + _E6 * k6[j] + _E7 * fnew[j])
+        e = h * (
+            _E1 * f[j] + _E3 * k[1, j] + _E4 * k[2, j] + _E5 * k[3, j] + _E6 * k[4, j]
+            + _E7 * fnew[j]
+        )  # fmt: skip
         scale = atol + rtol * max(abs(y[j]), abs(ynew[j]))
         err2 += (e / scale) ** 2
     return math.sqrt(err2 / n)
@@ -991,9 +1001,8 @@ def write_result(result, regime, t, n_steps, n_rejected, tau_runaway, nb, win, l
 @jit
 def step_scratch(n):
     """Scratch of the explicit steps for a state of ``n`` values: f, ynew, fnew, ytmp
-    and the stages k2 … k6."""
-    return (np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n),
-            np.empty(n), np.empty(n), np.empty(n))  # fmt: skip
+    and the stages k2 … k6 as the rows of one (5, n) array."""
+    return np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty((5, n))
 
 
 @jit
@@ -1121,7 +1130,8 @@ def integrate_system(
 
     n = y0.size
     y = y0.copy()
-    f, ynew, fnew, ytmp, k2, k3, k4, k5, k6 = step_scratch(n)
+    f, ynew, fnew, ytmp, k = step_scratch(n)
+    k3, k4, k5, k6 = k[1], k[2], k[3], k[4]  # the stages dense output needs
     ev = np.empty(nb)
     k_ros, mat, perm = rosenbrock_scratch(method, n)
     win, last, hist, cs, slipped = cycle_arrays(y, p, nb, A, B)
@@ -1149,16 +1159,15 @@ def integrate_system(
         err = 0.0  # RK4: every step is accepted
         if method == DOPRI5:
             err = step_dopri5(
-                y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, k5, k6, ytmp, ynew,
-                fnew, rtol, atol,
-            )  # fmt: skip
+                y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew, fnew, rtol, atol
+            )
         elif method == ROSENBROCK:
             err = step_rosenbrock(
                 y, f, h, p, model, law, coupling, het, nb, ev, k_ros, mat, perm, ytmp, ynew,
                 fnew, rtol, atol,
             )  # fmt: skip
         else:
-            step_rk4(y, f, h, p, model, law, coupling, het, nb, ev, k2, k3, k4, ytmp, ynew)
+            step_rk4(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew)
             rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
         h_next = next_step_size(method, h, err, max_step)
         if not (err <= 1.0):
@@ -1257,10 +1266,9 @@ def grid_kernel(model, law, method, coupling, het):
     the closure, so once the helpers are inlined numba prunes the other variants'
     branches before typing (the other methods' steppers are never compiled), and
     numba's cache keys each variant by their values. The helpers themselves are
-    still prepared for inlining with every branch (their codes are arguments): a
-    prototype with the codes written into the helpers compiled configs/twoblock.yaml
-    in 15.5 s instead of 29.5 s. Sweeps and traces call the
-    same kernel: ``integrate_grid(params, y0, settings, results, y_final, rec_dt,
+    still prepared for inlining with every branch (their codes are arguments), which
+    is why the Runge–Kutta stages are loops around one call of :func:`rhs`. Sweeps and
+    traces call the same kernel: ``integrate_grid(params, y0, settings, results, y_final, rec_dt,
     rec_t, rec_y)`` integrates every row one after another; a trace passes one row
     and recording buffers, sweeps empty buffers (see :func:`integrate_system`).
     """

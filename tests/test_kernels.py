@@ -382,12 +382,11 @@ def test_dopri5_dense_output_is_fourth_order():
         return out
 
     def step(y, h):
-        k2, k3, k4, k5, k6, ytmp, ynew, fnew = (np.empty(2) for _ in range(8))
+        k, ytmp, ynew, fnew = np.empty((5, 2)), np.empty(2), np.empty(2), np.empty(2)
         kernels.step_dopri5(
-            y, rhs(y), h, p, *CODES, 1, np.empty(1),
-            k2, k3, k4, k5, k6, ytmp, ynew, fnew, 1.0, 1.0,
+            y, rhs(y), h, p, *CODES, 1, np.empty(1), k, ytmp, ynew, fnew, 1.0, 1.0
         )  # fmt: skip
-        return ynew, fnew, (k3, k4, k5, k6)
+        return ynew, fnew, (k[1], k[2], k[3], k[4])
 
     def mid_errors(h, j):
         y1, f1, (k3, k4, k5, k6) = step(y0, h)
