@@ -148,3 +148,18 @@ def test_license_and_citation_are_shipped():
     (paper,) = cff["references"]
     assert paper["title"].startswith("Transition from Uniform Motion to Stick-Slip")
     assert [a["family-names"] for a in paper["authors"]] == ["Szkutnik", "Kułakowski"]
+
+
+def test_compile_kernels_compiles_only_the_configs_variant():
+    """``sweep.compile_kernels(config)`` (warming numba's cache before job arrays)
+    compiles the grid kernel of that config's variant in a fresh process, and builds
+    no other variant."""
+    code = (
+        "import sweep; from sweep import dispatch, kernels; from sweep.grid import build_grid\n"
+        "sweep.compile_kernels('quick')\n"
+        "g = build_grid(sweep.load_config('quick'))\n"
+        "print(kernels.grid_kernel.cache_info().currsize,"
+        " len(dispatch.grid_kernel(g.params, g.settings).signatures))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["1", "1"]
