@@ -19,7 +19,7 @@ import numpy as np
 import yaml
 
 from .errors import ConfigError
-from .heterogeneity import DISTRIBUTIONS, PER_BLOCK, SPREAD_PREFIX, spread_pattern
+from .heterogeneity import DISTRIBUTIONS, PER_BLOCK, SPREAD_AXES, SPREAD_PREFIX, spread_pattern
 from .physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
 
 METHODS = ("dopri5", "rk4", "rosenbrock")
@@ -608,10 +608,9 @@ def _parse_sweep(c, raw):
     if not sweep and isinstance(raw["sweep"], dict):
         c.add("sweep must name at least one axis")
     axes = []
-    spread_axes = [SPREAD_PREFIX + n for n in PER_BLOCK]
     for name, spec in sweep.items():
         key = f"sweep.{name}"
-        if name in spread_axes:
+        if name in SPREAD_AXES:
             values = _axis_values(c, spec, key)
             if values is not None and all(
                 c.number(v, f"{key}[{i}]", low=0.0) is not None for i, v in enumerate(values)
@@ -619,7 +618,7 @@ def _parse_sweep(c, raw):
                 axes.append(Axis(name, tuple(float(v) for v in values)))
             continue
         if name not in PARAMETERS:
-            allowed = ", ".join((*PARAMETERS, *spread_axes))
+            allowed = ", ".join((*PARAMETERS, *SPREAD_AXES))
             c.add(f"unknown sweep axis {key}; allowed: {allowed}")
             continue
         values = _axis_values(c, spec, key)

@@ -198,8 +198,8 @@ def extend_file(path, t_end=None, out=None, threads=None):
 
     Returns ``(dataset, n_continued)``; with no undecided run nothing is written
     and ``n_continued`` is 0. Holds the lock of ``out`` from reading to writing, so a
-    run or another extend on it refuses with ``OutputBusy``
-    instead of one overwriting the other's result.
+    run or another extend on it refuses with ``OutputBusy`` instead of one
+    overwriting the other's result.
     """
     if out is None and Path(path).suffix == ZARR_SUFFIX:
         raise InputError(path, ["extend writes NetCDF: give --out PATH.nc to extend a Zarr store"])

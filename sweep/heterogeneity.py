@@ -24,6 +24,8 @@ PER_BLOCK = ("A", "B", "D0", "K_W")
 DISTRIBUTIONS = ("uniform", "normal")
 #: A sweep axis ``spread_<name>`` sweeps the relative spread of parameter ``name``.
 SPREAD_PREFIX = "spread_"
+#: The sweep axes of relative spreads: spread_A, spread_B, spread_D0, spread_K_W.
+SPREAD_AXES = tuple(SPREAD_PREFIX + name for name in PER_BLOCK)
 
 
 def spread_pattern(n_blocks, distribution="uniform", seed=0):

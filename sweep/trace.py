@@ -25,7 +25,7 @@ from .dataset import derived_fields, parameter_attrs, parameter_coords, provenan
 from .dispatch import integrate_grid
 from .errors import InputError
 from .grid import build_grid
-from .heterogeneity import PER_BLOCK, SPREAD_PREFIX
+from .heterogeneity import SPREAD_AXES, SPREAD_PREFIX
 from .physics import PARAMETERS
 from .variables import REGIMES, variables_for
 
@@ -52,8 +52,7 @@ def pin_config(config, at, t_end=None):
     """
     text = " ".join(f"--at {name}={value:g}" for name, value in at.items())
     source = f"{config.source} {text}".strip()
-    spreads = [SPREAD_PREFIX + name for name in PER_BLOCK]  # spread_D0, ...: relative spreads
-    known = (*PARAMETERS, *spreads)
+    known = (*PARAMETERS, *SPREAD_AXES)
     problems = [
         f"--at {name}: unknown parameter; known: {', '.join(known)}"
         for name in at
@@ -75,7 +74,7 @@ def pin_config(config, at, t_end=None):
         "parameters": {k: v for k, v in fixed.items() if k in PARAMETERS},
         "classification": {"early_exit": False},
     }
-    spread_sizes = {k[len(SPREAD_PREFIX) :]: v for k, v in fixed.items() if k in spreads}
+    spread_sizes = {k[len(SPREAD_PREFIX) :]: v for k, v in fixed.items() if k in SPREAD_AXES}
     if spread_sizes:
         changes["spread"] = spread_sizes
     if t_end is not None:
