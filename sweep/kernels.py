@@ -489,7 +489,7 @@ def dense_r5(method, j, h, f, k3, k4, k5, k6, fnew):
     return h * (_D1 * f[j] + _D3 * k3[j] + _D4 * k4[j] + _D5 * k5[j] + _D6 * k6[j] + _D7 * fnew[j])
 
 
-@jit
+@jit_inline
 def dense_value(y0, y1, d0, d1, h, r5, theta):
     """Interpolant at fraction ``theta`` of a step of size h from (y0, slope d0) to
     (y1, slope d1): DOPRI5's continuous extension (order 4) with its coefficient
@@ -506,7 +506,7 @@ def dense_value(y0, y1, d0, d1, h, r5, theta):
     return y0 + theta * (r2 + (1.0 - theta) * (r3 + theta * (r4 + (1.0 - theta) * r5)))
 
 
-@jit
+@jit_inline
 def dense_slope(y0, y1, d0, d1, h, r5, theta):
     """h × the time derivative of :func:`dense_value` at fraction ``theta``."""
     r2 = y1 - y0
@@ -521,7 +521,7 @@ def dense_slope(y0, y1, d0, d1, h, r5, theta):
     )
 
 
-@jit
+@jit_inline
 def dense_extremum(y0, y1, d0, d1, h, r5):
     """Fraction θ ∈ [0, 1] of the step where the interpolant's slope vanishes, given
     slopes d0 and d1 of opposite sign (bisection, 50 halvings)."""
