@@ -18,7 +18,6 @@ Both call the same serial grid kernel, and threads have one owner
 
 import logging
 import threading
-from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -49,9 +48,9 @@ class Resources:
 #: Systems per batch a thread takes as it comes free: small, so that the costly runs
 #: near Kc, which sit next to each other in the grid, are shared out, yet large
 #: against the ~10 µs a kernel call costs in Python. 2-thread speed-up on a 10⁴-point
-#: one-block sweep (benchmarks/bench.py): batches of 4: 1.65-1.67x; 8: 1.86x;
-#: 16: 1.78-1.84x; 64: 1.40x (each chunk waits for its slowest batch). Small chunks
-#: get smaller batches, at least four per thread.
+#: one-block sweep (benchmarks/bench.py), when every chunk still ended with a barrier:
+#: batches of 4: 1.65-1.67x; 8: 1.86x; 16: 1.78-1.84x; 64: 1.40x (1.92-1.96x with 8
+#: and no barrier). Small chunks get smaller batches, at least four per thread.
 BATCH = 8
 
 
@@ -69,44 +68,92 @@ class LocalThreads:
         load_kernel(params, settings)
 
     def run(self, params, y0, settings, ranges, stop=None):
-        """Integrate ``ranges`` of systems one after another; yield each as it finishes.
+        """Integrate ``ranges`` of systems; yield ``(start, stop, results, y_final)`` for
+        each, in order, as soon as it and those before it are done.
 
-        ``stop`` is checked by the caller between chunks.
+        One thread calls the kernel once per range (signals reach Python when it
+        returns). Several threads take batches from every range in turn, with no
+        barrier at the end of a range: while one thread finishes the last batch of a
+        range, the others start on the next. ``stop`` is checked by the caller
+        between ranges; closing this generator abandons the batches not yet started
+        and waits for the running ones.
         """
-        for a, b in ranges:
-            yield (a, b, *integrate_rows(params[a:b], y0[a:b], settings, self.threads))
+        if self.threads == 1:
+            for a, b in ranges:
+                res, yf = _outputs(b - a, y0.shape[1])
+                if b > a:
+                    integrate_grid(params[a:b], y0[a:b], settings, res, yf)
+                yield a, b, res, yf
+            return
+        batches = iter(_batches(ranges, self.threads))
+        out = [None] * len(ranges)
+        left = [len(range(a, b, _batch_size(b - a, self.threads))) for a, b in ranges]
+        done = [threading.Event() for _ in ranges]
+        lock = threading.Lock()
+        abandon = threading.Event()
+        failures = []
+
+        def work():
+            while not abandon.is_set():
+                with lock:
+                    k, lo, hi = next(batches, (None, 0, 0))
+                    if k is not None and out[k] is None:
+                        out[k] = _outputs(ranges[k][1] - ranges[k][0], y0.shape[1])
+                if k is None:
+                    return
+                res, yf = out[k]
+                a = ranges[k][0]
+                try:
+                    integrate_grid(params[lo:hi], y0[lo:hi], settings,
+                                   res[lo - a : hi - a], yf[lo - a : hi - a])  # fmt: skip
+                except BaseException as exc:  # raised again by the generator
+                    failures.append(exc)
+                    abandon.set()
+                    for event in done:
+                        event.set()
+                    return
+                with lock:
+                    left[k] -= 1
+                    if left[k] == 0:
+                        done[k].set()
+
+        pool = [threading.Thread(target=work, daemon=True) for _ in range(self.threads)]
+        for thread in pool:
+            thread.start()
+        try:
+            for k, (a, b) in enumerate(ranges):
+                if left[k]:
+                    done[k].wait()
+                if failures:
+                    raise failures[0]
+                res, yf = out[k] or _outputs(0, y0.shape[1])
+                out[k] = None  # the caller keeps its copy
+                yield a, b, res, yf
+        finally:
+            abandon.set()
+            for thread in pool:
+                thread.join()
 
 
-def integrate_rows(params, y0, settings, threads):
-    """``(results, y_final)`` of every row, computed by the grid kernel on ``threads``
-    threads, each taking the next batch of rows (:data:`BATCH`, fewer for small
-    chunks) as it comes free."""
+def _batch_size(n, threads):
+    """Systems per batch in a range of ``n``: :data:`BATCH`, fewer in a small range
+    (at least four batches per thread)."""
+    return max(1, min(BATCH, n // (4 * threads)))
+
+
+def _batches(ranges, threads):
+    """``(range index, first row, end row)`` of every batch, range after range."""
+    for k, (a, b) in enumerate(ranges):
+        size = _batch_size(b - a, threads)
+        for lo in range(a, b, size):
+            yield k, lo, min(lo + size, b)
+
+
+def _outputs(n, n_vars):
+    """Empty ``(results, y_final)`` for ``n`` systems."""
     from .kernels import N_RESULTS
 
-    n = params.shape[0]
-    results, y_final = np.empty((n, N_RESULTS)), np.empty_like(y0)
-    # one thread: one call (signals reach Python when it returns, as documented)
-    size = max(1, n) if threads == 1 else max(1, min(BATCH, n // (4 * threads)))
-    batches = iter(range(0, n, size))
-    take = threading.Lock()
-
-    def work():
-        while True:
-            with take:
-                lo = next(batches, None)
-            if lo is None:
-                return
-            hi = min(lo + size, n)
-            integrate_grid(params[lo:hi], y0[lo:hi], settings, results[lo:hi], y_final[lo:hi])
-
-    n_workers = min(threads, -(-n // size))
-    if n_workers <= 1:
-        work()  # in this thread: signals reach Python between kernel calls
-    else:
-        with ThreadPoolExecutor(n_workers) as pool:
-            for done in [pool.submit(work) for _ in range(n_workers)]:
-                done.result()
-    return results, y_final
+    return np.empty((n, N_RESULTS)), np.empty((n, n_vars))
 
 
 class DaskTasks:

@@ -95,8 +95,8 @@ class SweepResult:
 def default_chunk_size(n_systems, n_threads=1, dask_threads=0):
     """Systems per chunk when none is given.
 
-    On local threads: large enough to keep ``n_threads`` busy (runs differ in
-    length by orders of magnitude, and every chunk ends with a barrier), small
+    On local threads: at least 16 systems per thread (runs differ in length by
+    orders of magnitude; threads share a chunk's systems out in batches), small
     enough for about 100 chunks. On Dask (``dask_threads`` > 0, the cluster's
     total threads): at least 4 tasks per thread and about 100 in all.
     """

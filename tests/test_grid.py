@@ -2,6 +2,8 @@
 where the physics brief puts it, independent of chunking, threads and kernel."""
 
 import math
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -9,7 +11,7 @@ from conftest import KC_W, PAPER_A, PAPER_B, assert_transition_at, make_config
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sweep import grid, kernels, runner
+from sweep import backends, grid, kernels, runner
 from sweep.backends import LocalThreads
 from sweep.dispatch import integrate_grid
 
@@ -171,3 +173,68 @@ def test_local_threads_give_the_serial_kernels_numbers(threads):
     for a, b, res, yf in chunks:
         assert np.array_equal(res, results[a:b], equal_nan=True)
         assert np.array_equal(yf, y_final[a:b], equal_nan=True)
+
+
+class RecordingKernel:
+    """Stands in for ``integrate_grid`` in ``sweep.backends``: writes each row's index
+    into its results, sleeps ``slow`` s on the batch that starts at row 0, ``fail``
+    raises on the batch that starts at that row, and logs (first row, start, end)."""
+
+    def __init__(self, slow=0.0, fail=None):
+        self.slow, self.fail, self.log = slow, fail, []
+        self.lock = threading.Lock()
+
+    def __call__(self, params, y0, settings, results, y_final):
+        first = int(params[0, 0])
+        start = time.perf_counter()
+        if first == self.fail:
+            raise FloatingPointError("kernel failed")
+        time.sleep(self.slow if first == 0 else 0.001)
+        results[:] = params[:, :1]
+        y_final[:] = 0.0
+        with self.lock:
+            self.log.append((first, start, time.perf_counter()))
+
+
+def rows(n):
+    """Kernel arrays whose column 0 is the row index."""
+    params = np.zeros((n, kernels.N_PARAMS))
+    params[:, 0] = np.arange(n)
+    return params, np.zeros((n, 2)), np.zeros(kernels.N_SETTINGS)
+
+
+def test_threads_go_on_to_the_next_range_while_a_range_finishes(monkeypatch):
+    """No barrier at the end of a range: while one thread runs the slow first batch
+    of range 0, the other works through range 1; ranges still come back in order,
+    with every row's own results."""
+    kernel = RecordingKernel(slow=0.3)
+    monkeypatch.setattr(backends, "integrate_grid", kernel)
+    params, y0, settings = rows(64)
+    ranges = [(0, 32), (32, 64)]
+    chunks = list(LocalThreads(2).run(params, y0, settings, ranges))
+    assert [(a, b) for a, b, _, _ in chunks] == ranges
+    for a, b, res, _ in chunks:
+        np.testing.assert_array_equal(res[:, 0], np.arange(a, b))
+    slow_end = next(end for first, _, end in kernel.log if first == 0)
+    assert all(start < slow_end for first, start, _ in kernel.log if first >= 32)
+
+
+def test_a_failing_batch_is_raised_by_the_generator(monkeypatch):
+    monkeypatch.setattr(backends, "integrate_grid", RecordingKernel(fail=40))
+    params, y0, settings = rows(64)
+    with pytest.raises(FloatingPointError, match="kernel failed"):
+        list(LocalThreads(2).run(params, y0, settings, [(0, 32), (32, 64)]))
+
+
+def test_closing_the_generator_abandons_the_batches_not_started(monkeypatch):
+    """A stop after the first range: the running batches finish, no later one starts."""
+    kernel = RecordingKernel(slow=0.2)
+    monkeypatch.setattr(backends, "integrate_grid", kernel)
+    params, y0, settings = rows(4000)
+    chunks = LocalThreads(2).run(params, y0, settings, [(0, 8), (8, 4000)])
+    a, b, _, _ = next(chunks)
+    chunks.close()
+    done = len(kernel.log)
+    time.sleep(0.05)
+    assert (a, b) == (0, 8)
+    assert len(kernel.log) == done < 4000 // 8
