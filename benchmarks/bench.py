@@ -289,15 +289,45 @@ def _plain_rk4_source():
     return plain_rk4
 
 
-def bench_rk4_reference(n_steps):
-    """The engine's RK4 kernel vs the plain loop: time per step, same system and dt.
+def _plain_rk4_lanes_source():
+    """The plain RK4 loop over several systems at once (one lane each, the lane the
+    innermost loop): what vectorising RK4 across systems would give."""
+
+    def plain_rk4_lanes(lnv, psi, A, B, kappa, dt, n_steps):
+        lanes = lnv.size
+        y0, y1 = lnv.copy(), psi.copy()
+        s0, s1, l, d = np.empty(lanes), np.empty(lanes), np.empty(lanes), np.empty(lanes)
+        for _ in range(n_steps):
+            for stage in range(4):
+                c = 0.0 if stage == 0 else (0.5 * dt if stage < 3 else dt)
+                w = dt / 6 if stage in (0, 3) else dt / 3
+                for j in range(lanes):
+                    if stage == 0:
+                        s0[j], s1[j], l[j], d[j] = y0[j], y1[j], 0.0, 0.0
+                    e = math.exp(y0[j] + c * l[j])
+                    d[j] = math.exp(-(y1[j] + c * d[j])) - e
+                    l[j] = (kappa * (1 - e) - B * d[j]) / A
+                    s0[j] += w * l[j]
+                    s1[j] += w * d[j]
+            y0[:], y1[:] = s0, s1
+        return y0, y1
+
+    return plain_rk4_lanes
+
+
+def bench_rk4_reference(n_steps, lanes=16):
+    """The engine's RK4 kernel vs the plain loop: time per step, same system and dt;
+    and the plain loop over ``lanes`` systems at once, time per system-step, with
+    numba's SVML state (vectorised exp; off unless llvmlite is built with it).
 
     The system sits at K = Kc, where the quasi-static oscillation neither decays
     nor grows, so both loops do ``n_steps`` steps of ordinary arithmetic.
     """
+    import llvmlite.binding
     import numba
 
     plain = numba.njit(nogil=True)(_plain_rk4_source())
+    plain_lanes = numba.njit(nogil=True, error_model="numpy")(_plain_rk4_lanes_source())
     dt = 0.01
     config = one_block_config([KC_W], n_steps * dt, early=False, method="rk4", dt=dt)
     results, engine_s = engine_run(config, threads=1)
@@ -305,11 +335,20 @@ def bench_rk4_reference(n_steps):
     A, B, kappa = PAPER["A"], PAPER["B"], KC_W * PAPER["D0"]
     plain(0.0, math.log(1.01), A, B, kappa, dt, 10)
     plain_s = _best_of(3, lambda: plain(0.0, math.log(1.01), A, B, kappa, dt, steps))
+    start = (np.zeros(lanes), np.full(lanes, math.log(1.01)))
+    plain_lanes(*start, A, B, kappa, dt, 10)
+    lanes_s = _best_of(3, lambda: plain_lanes(*start, A, B, kappa, dt, -(-steps // lanes)))
     return {
         "steps": steps,
         "engine_ns_per_step": 1e9 * engine_s / steps,
         "plain_ns_per_step": 1e9 * plain_s / steps,
         "engine_over_plain": engine_s / plain_s,
+        "lanes": lanes,
+        "plain_lanes_ns_per_system_step": 1e9 * lanes_s / (lanes * -(-steps // lanes)),
+        "svml": {
+            "numba_using_svml": bool(numba.config.USING_SVML),
+            "llvmlite_has_svml": bool(llvmlite.binding.has_svml),
+        },  # fmt: skip
     }
 
 
@@ -566,7 +605,9 @@ def main(argv=None):
     figures["rk4"] = r = bench_rk4_reference(size["rk4"])
     print(
         f"RK4 kernel {r['engine_ns_per_step']:.0f} ns/step vs plain loop "
-        f"{r['plain_ns_per_step']:.0f} ns/step: ratio {r['engine_over_plain']:.2f}"
+        f"{r['plain_ns_per_step']:.0f} ns/step: ratio {r['engine_over_plain']:.2f}; plain "
+        f"loop over {r['lanes']} systems at once {r['plain_lanes_ns_per_system_step']:.0f} ns "
+        f"per system-step (SVML: {r['svml']})"
     )
     for name, config in zip(("oneblock", "twoblock"), size["configs"], strict=False):
         figures[name] = t = bench_sweep(repo_config(config))
