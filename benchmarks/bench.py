@@ -348,7 +348,7 @@ def bench_rk4_reference(n_steps, lanes=16):
         "svml": {
             "numba_using_svml": bool(numba.config.USING_SVML),
             "llvmlite_has_svml": bool(llvmlite.binding.has_svml),
-        },  # fmt: skip
+        },
     }
 
 
