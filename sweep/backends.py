@@ -85,9 +85,12 @@ class LocalThreads:
                     integrate_grid(params[a:b], y0[a:b], settings, res, yf)
                 yield a, b, res, yf
             return
-        batches = iter(_batches(ranges, self.threads))
+        batches = list(_batches(ranges, self.threads))
+        left = [0] * len(ranges)  # batches of each range not yet done
+        for k, _, _ in batches:
+            left[k] += 1
+        batches = iter(batches)
         out = [None] * len(ranges)
-        left = [len(range(a, b, _batch_size(b - a, self.threads))) for a, b in ranges]
         done = [threading.Event() for _ in ranges]
         lock = threading.Lock()
         abandon = threading.Event()
@@ -135,16 +138,11 @@ class LocalThreads:
                 thread.join()
 
 
-def _batch_size(n, threads):
-    """Systems per batch in a range of ``n``: :data:`BATCH`, fewer in a small range
-    (at least four batches per thread)."""
-    return max(1, min(BATCH, n // (4 * threads)))
-
-
 def _batches(ranges, threads):
-    """``(range index, first row, end row)`` of every batch, range after range."""
+    """``(range index, first row, end row)`` of every batch, range after range:
+    :data:`BATCH` systems, fewer in a small range (at least four batches per thread)."""
     for k, (a, b) in enumerate(ranges):
-        size = _batch_size(b - a, threads)
+        size = max(1, min(BATCH, (b - a) // (4 * threads)))
         for lo in range(a, b, size):
             yield k, lo, min(lo + size, b)
 
