@@ -34,12 +34,13 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from sweep import kernels, physics
+from sweep import physics
 from sweep.backends import DaskTasks, LocalThreads
 from sweep.config import load_config, parse_config, with_changes
 from sweep.dispatch import load_kernel
 from sweep.distributed import connect
 from sweep.grid import build_grid
+from sweep.kernels import layout
 from sweep.runner import compute, integrate_in_memory
 from sweep.variables import REGIMES
 
@@ -148,15 +149,15 @@ def bench_scipy(n_points, t_end):
     config = one_block_config(k_values, t_end)
     results, engine_s = engine_run(config, threads=1, repeats=3)
     full, _ = engine_run(one_block_config(k_values, t_end, early=False))
-    engine_regimes = [REGIMES[int(r)] for r in results[:, kernels.R_REGIME]]
+    engine_regimes = [REGIMES[int(r)] for r in results[:, layout.R_REGIME]]
     outside = np.abs(k_values / KC_W - 1.0) > 0.01
     cap = math.log(config.classification.v_cap_over_V)
     out = {
         "grid_points": n_points,
         "t_end_D0_over_V": t_end,
         "engine_seconds": engine_s,
-        "mean_steps_per_run": float(results[:, kernels.R_N_STEPS].mean()),
-        "mean_steps_per_run_without_early_exit": float(full[:, kernels.R_N_STEPS].mean()),
+        "mean_steps_per_run": float(results[:, layout.R_N_STEPS].mean()),
+        "mean_steps_per_run_without_early_exit": float(full[:, layout.R_N_STEPS].mean()),
     }
     for method in ("LSODA", "DOP853"):
         start = time.perf_counter()
@@ -192,7 +193,7 @@ def bench_throughput(n_systems, t_end):
                 k_values, t_end, model, blocks, extra, early=False, method=method
             )
             results, seconds = engine_run(config, threads=1)
-            steps = results[:, kernels.R_N_STEPS].sum() + results[:, kernels.R_N_REJECTED].sum()
+            steps = results[:, layout.R_N_STEPS].sum() + results[:, layout.R_N_REJECTED].sum()
             out[f"{label}/{blocks}"] = {"steps": int(steps), "steps_per_second": steps / seconds}
     for key, value in out.items():
         reference = out["quasi-static dopri5/" + key.rsplit("/", 1)[1]]["steps_per_second"]
@@ -232,7 +233,7 @@ def bench_block_scaling(n_systems, t_end, sizes=(2, 32)):
                                                  for i in range(blocks)]}},
             )  # fmt: skip
             results, seconds = engine_run(config, threads=1, repeats=2)
-            steps = results[:, kernels.R_N_STEPS].sum() + results[:, kernels.R_N_REJECTED].sum()
+            steps = results[:, layout.R_N_STEPS].sum() + results[:, layout.R_N_REJECTED].sum()
             out[f"{label}/{blocks}"] = {
                 "steps": int(steps),
                 "block_steps_per_second": steps * blocks / seconds,
@@ -331,7 +332,7 @@ def bench_rk4_reference(n_steps, lanes=16):
     dt = 0.01
     config = one_block_config([KC_W], n_steps * dt, early=False, method="rk4", dt=dt)
     results, engine_s = engine_run(config, threads=1)
-    steps = int(results[0, kernels.R_N_STEPS])
+    steps = int(results[0, layout.R_N_STEPS])
     A, B, kappa = PAPER["A"], PAPER["B"], KC_W * PAPER["D0"]
     plain(0.0, math.log(1.01), A, B, kappa, dt, 10)
     plain_s = _best_of(3, lambda: plain(0.0, math.log(1.01), A, B, kappa, dt, steps))
@@ -443,10 +444,10 @@ def bench_single_purpose(n_points, t_end):
     }
     for label, early in (("engine_early_exit_off", False), ("engine_early_exit_on", True)):
         results, seconds = engine_run(one_block_config(k_values, t_end, early=early), repeats=3)
-        tried = results[:, kernels.R_N_STEPS].sum() + results[:, kernels.R_N_REJECTED].sum()
+        tried = results[:, layout.R_N_STEPS].sum() + results[:, layout.R_N_REJECTED].sum()
         out[label] = {
             "systems_per_second": n_points / seconds,
-            "steps_per_run": float(results[:, kernels.R_N_STEPS].mean()),
+            "steps_per_run": float(results[:, layout.R_N_STEPS].mean()),
             "ns_per_step": 1e9 * seconds / tried,
             "vs_plain": plain_s / seconds,
         }

@@ -3,17 +3,21 @@
 Decisions (each tested in ``tests/test_accelerate.py``):
 
 * ``nogil=True`` everywhere, so Dask worker threads can run kernels side by side.
-* ``cache=True`` by default: users rerun the CLI many times and a warm cache saves
-  the compile time. Writing the cache from several processes at once can crash
-  (numba#4807), so the runner compiles in the parent process before any worker
-  starts, and ``SWEEP_NUMBA_CACHE=0`` turns caching off (e.g. on a shared,
-  read-only install).
+* The grid kernels are cached on disk by default (``jit_kernel``): users rerun the
+  CLI many times and a warm cache saves the compile time. Writing the cache from
+  several processes at once can crash (numba#4807), so the runner compiles in the
+  parent process before any worker starts, and ``SWEEP_NUMBA_CACHE=0`` turns
+  caching off (e.g. on a shared, read-only install). The helpers they call are not
+  cached (``jit``): a cached grid kernel holds their compiled code, and numba checks
+  a cache entry against its own file only, so a helper cached beside it could be
+  stale after an edit to a file it calls. The grid kernel's cache key covers every
+  kernel source instead (``kernels.integrate.grid_kernel``).
 * ``fastmath=False``: runaway detection must see NaN and inf (``nnan``/``ninf``
   would let LLVM assume they never occur).
 * ``error_model="numpy"``: a division by zero gives inf/NaN (a classified
   outcome), not a Python exception raised from inside a parallel loop.
 * One grid kernel per variant (model, state law, method, coupling, equal or
-  unequal blocks): ``kernels.grid_kernel`` closes over the codes, so numba prunes
+  unequal blocks): ``kernels.integrate.grid_kernel`` closes over the codes, so numba prunes
   the other variants' branches and a run compiles only its own. Specialising with
   ``numba.literally`` arguments was tried first and dropped: each combination took
   as long to compile as the whole kernel (41 vs 42 s) and calls through the
@@ -49,17 +53,24 @@ import numba
 #: Whether compiled kernels are cached on disk (``SWEEP_NUMBA_CACHE=0`` disables).
 CACHE = os.environ.get("SWEEP_NUMBA_CACHE", "1") != "0"
 
-_COMMON = {"nogil": True, "cache": CACHE, "fastmath": False, "error_model": "numpy"}
+_COMMON = {"nogil": True, "fastmath": False, "error_model": "numpy"}
+
+
+def jit_kernel(func):
+    """Compile an entry point (a grid kernel) with the project's numba policy, cached
+    on disk unless ``SWEEP_NUMBA_CACHE=0``."""
+    return numba.njit(cache=CACHE, **_COMMON)(func)
 
 
 def jit(func):
-    """Compile a serial kernel with the project's numba policy."""
-    return numba.njit(**_COMMON)(func)
+    """Compile a helper of the kernels with the project's numba policy (not cached:
+    the kernel that calls it is)."""
+    return numba.njit(cache=False, **_COMMON)(func)
 
 
 def jit_inline(func):
-    """Compile a small hot function that numba inlines into every caller."""
-    return numba.njit(inline="always", **_COMMON)(func)
+    """Compile a small hot helper that numba inlines into every caller (not cached)."""
+    return numba.njit(inline="always", cache=False, **_COMMON)(func)
 
 
 def thread_count(n_threads):

@@ -13,11 +13,11 @@ import dataclasses
 import numpy as np
 import xarray as xr
 
-from . import kernels
 from .dataset import stored_config
 from .errors import InputError
 from .extend import load_result
 from .grid import build_grid
+from .kernels import layout
 from .physics import PARAMETERS
 from .runner import integrate_in_memory
 from .variables import REGIMES
@@ -100,9 +100,9 @@ def audit_result(result, sample=20, near_kc=0.01, t_end=None, seed=0, threads=No
         picked = build_grid(longer).rows(runs)
         results, _ = integrate_in_memory(picked.params, picked.y0, picked.settings, threads)
     else:
-        results = np.empty((0, kernels.N_RESULTS))
+        results = np.empty((0, layout.N_RESULTS))
     regime_file = ds["regime"].values.ravel()[runs]
-    regime_audit = results[:, kernels.R_REGIME].astype(np.int8)
+    regime_audit = results[:, layout.R_REGIME].astype(np.int8)
     flags = {
         "flag_values": np.arange(len(REGIMES), dtype=np.int8),
         "flag_meanings": " ".join(REGIMES),

@@ -149,7 +149,7 @@ def _batches(ranges, threads):
 
 def _outputs(n, n_vars):
     """Empty ``(results, y_final)`` for ``n`` systems."""
-    from .kernels import N_RESULTS
+    from .kernels.layout import N_RESULTS
 
     return np.empty((n, N_RESULTS)), np.empty((n, n_vars))
 

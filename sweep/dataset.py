@@ -33,36 +33,36 @@ def derived_fields(grid, results, y_final):
     dimensionless parameters); ``results``, ``y_final``: their outputs, one row per
     system of the grid.
     """
-    from . import kernels  # lazily: reading and plotting results needs no numba
+    from .kernels import layout
 
     config, phys, time_unit = grid.config, grid.physical, grid.time_unit
     r = results
     nb = config.blocks
     V = phys["V"]
-    regime = r[:, kernels.R_REGIME].astype(np.int8)
-    period = r[:, kernels.R_PERIOD] * time_unit
+    regime = r[:, layout.R_REGIME].astype(np.int8)
+    period = r[:, layout.R_PERIOD] * time_unit
     lin = grid.linear
     growth, kc, omega = lin["growth_rate"], lin["kappa_c"], lin["omega"]
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         fields = {
             "regime": regime,
-            "lnv_amplitude": r[:, kernels.R_LNV_MAX] - r[:, kernels.R_LNV_MIN],
-            "lnv_max": r[:, kernels.R_LNV_MAX],
-            "lnv_min": r[:, kernels.R_LNV_MIN],
-            "v_max": V * np.exp(r[:, kernels.R_LNV_MAX]),
-            "v_min": V * np.exp(r[:, kernels.R_LNV_MIN]),
+            "lnv_amplitude": r[:, layout.R_LNV_MAX] - r[:, layout.R_LNV_MIN],
+            "lnv_max": r[:, layout.R_LNV_MAX],
+            "lnv_min": r[:, layout.R_LNV_MIN],
+            "v_max": V * np.exp(r[:, layout.R_LNV_MAX]),
+            "v_min": V * np.exp(r[:, layout.R_LNV_MIN]),
             "period": period,
-            "growth_rate": r[:, kernels.R_GROWTH] / time_unit,
-            "friction_drop": r[:, kernels.R_FRICTION_DROP],
-            "slip_per_event": np.where(regime == kernels.STICK_SLIP, V * period, np.nan),
-            "t_runaway": r[:, kernels.R_TAU_RUNAWAY] * time_unit,
-            "t_final": r[:, kernels.R_TAU_FINAL] * time_unit,
-            "convergence": r[:, kernels.R_CONVERGENCE],
-            "n_steps": r[:, kernels.R_N_STEPS],
-            "n_rejected": r[:, kernels.R_N_REJECTED],
-            "n_peaks": r[:, kernels.R_N_PEAKS],
-            "sync_error": r[:, kernels.R_SYNC_ERROR],
-            "phase_lag": r[:, kernels.R_PHASE_LAG],
+            "growth_rate": r[:, layout.R_GROWTH] / time_unit,
+            "friction_drop": r[:, layout.R_FRICTION_DROP],
+            "slip_per_event": np.where(regime == layout.STICK_SLIP, V * period, np.nan),
+            "t_runaway": r[:, layout.R_TAU_RUNAWAY] * time_unit,
+            "t_final": r[:, layout.R_TAU_FINAL] * time_unit,
+            "convergence": r[:, layout.R_CONVERGENCE],
+            "n_steps": r[:, layout.R_N_STEPS],
+            "n_rejected": r[:, layout.R_N_REJECTED],
+            "n_peaks": r[:, layout.R_N_PEAKS],
+            "sync_error": r[:, layout.R_SYNC_ERROR],
+            "phase_lag": r[:, layout.R_PHASE_LAG],
             "lnv_final": y_final[:, :nb],
             "ln_state_final": y_final[:, nb : 2 * nb],
             "linear_growth_rate": growth / time_unit,
@@ -73,8 +73,8 @@ def derived_fields(grid, results, y_final):
     if config.model == "inertial":
         fields["inertial_force_final"] = y_final[:, 2 * nb : 3 * nb]
     if config.nblock_outputs:
-        fields["sync_order"] = r[:, kernels.R_SYNC_ORDER]
-        fields["slip_participation"] = r[:, kernels.R_SLIP_PARTICIPATION]
+        fields["sync_order"] = r[:, layout.R_SYNC_ORDER]
+        fields["slip_participation"] = r[:, layout.R_SLIP_PARTICIPATION]
     if config.heterogeneous:
         for name, values in heterogeneity.block_values(config, phys).items():
             fields[f"{name}_block"] = values

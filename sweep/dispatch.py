@@ -1,6 +1,6 @@
 """Which compiled kernel a run calls, and compiling it once, before the work starts.
 
-``kernels.grid_kernel`` builds one serial grid kernel per variant (model, state law,
+``kernels.integrate.grid_kernel`` builds one serial grid kernel per variant (model, state law,
 method, coupling, equal or unequal blocks); the kernels' arrays say which variant a
 run is. The backends, the Dask tasks and traces all integrate through
 :func:`integrate_grid`.
@@ -11,18 +11,20 @@ import threading
 
 import numpy as np
 
+from .kernels import layout
+
 log = logging.getLogger(__name__)
 
 
 def grid_kernel(params, settings):
-    """The serial grid kernel (``kernels.grid_kernel``) of the variant that the kernels'
+    """The serial grid kernel (``kernels.integrate.grid_kernel``) of the variant that the kernels'
     arrays describe: model, state law, method and coupling from ``settings``, and
     whether blocks differ from the width of ``params``."""
-    from . import kernels
+    from .kernels.integrate import grid_kernel as build  # numba: on first use
 
-    codes = (kernels.S_MODEL, kernels.S_LAW, kernels.S_METHOD, kernels.S_COUPLING)
-    heterogeneous = params.shape[1] > kernels.N_PARAMS
-    return kernels.grid_kernel(*(int(settings[c]) for c in codes), heterogeneous)
+    codes = (layout.S_MODEL, layout.S_LAW, layout.S_METHOD, layout.S_COUPLING)
+    heterogeneous = params.shape[1] > layout.N_PARAMS
+    return build(*(int(settings[c]) for c in codes), heterogeneous)
 
 
 def integrate_grid(params, y0, settings, results, y_final, rec_dt=0.0, rec_t=None, rec_y=None):
@@ -30,7 +32,7 @@ def integrate_grid(params, y0, settings, results, y_final, rec_dt=0.0, rec_t=Non
 
     ``results``/``y_final`` are filled in place. A trace passes one row and
     recording buffers ``rec_t`` (m,) and ``rec_y`` (m, n_vars) for the state every
-    ``rec_dt`` (D0/V); see ``kernels.integrate_system``.
+    ``rec_dt`` (D0/V); see ``kernels.integrate.integrate_system``.
     """
     if rec_t is None:
         rec_t, rec_y = np.empty(0), np.empty((0, y0.shape[1]))
@@ -49,14 +51,12 @@ def load_kernel(params, settings):
     only)" when this takes longer than a second (a cold cache; loading a warm one
     takes about a second). Only the variant the run uses is compiled.
     """
-    from .kernels import N_RESULTS
-
     notice = threading.Timer(1.0, log.info, ("compiling kernels (first run only) ...",))
     notice.start()
     try:
         integrate_grid(
             np.empty((0, params.shape[1])), np.empty((0, 2)), np.ascontiguousarray(settings),
-            np.empty((0, N_RESULTS)), np.empty((0, 2)),
+            np.empty((0, layout.N_RESULTS)), np.empty((0, 2)),
         )  # fmt: skip
     finally:
         notice.cancel()

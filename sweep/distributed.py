@@ -35,7 +35,7 @@ def chunk_task(params, y0, settings):
     Returns ``(results, y_final)``.
     """
     from .dispatch import integrate_grid
-    from .kernels import N_RESULTS
+    from .kernels.layout import N_RESULTS
 
     params, y0, settings = (np.require(a, np.float64, ["C", "W"]) for a in (params, y0, settings))
     results = np.empty((params.shape[0], N_RESULTS))

@@ -17,7 +17,6 @@ from pathlib import Path
 
 import numpy as np
 
-from . import kernels
 from .config import with_changes
 from .dataset import (
     derived_fields,
@@ -29,6 +28,7 @@ from .dataset import (
 )
 from .errors import InputError, RunError
 from .grid import build_grid
+from .kernels import layout
 from .runner import integrate_in_memory
 from .store import ZARR_SUFFIX, check_writable, output_lock
 from .variables import variables_for
@@ -55,7 +55,7 @@ def load_result(result, source=None):
 
 def undecided_rows(ds):
     """Flat grid indices (C order over the sweep axes) of the undecided runs."""
-    return np.flatnonzero(ds["regime"].values.ravel() == kernels.UNDECIDED)
+    return np.flatnonzero(ds["regime"].values.ravel() == layout.UNDECIDED)
 
 
 def final_state(ds, config):
@@ -149,8 +149,8 @@ def extend_result(result, t_end=None, threads=None, source=None):
     t_final = ds["t_final"].values.reshape(n)[rows]
     undecided = grid.rows(rows)
     params = undecided.params
-    params[:, kernels.P_TAU_END] -= t_final / undecided.time_unit
-    params[:, kernels.P_TAU_MAX] = params[:, kernels.P_TAU_END]
+    params[:, layout.P_TAU_END] -= t_final / undecided.time_unit
+    params[:, layout.P_TAU_MAX] = params[:, layout.P_TAU_END]
     y0 = np.ascontiguousarray(y_stored[rows])
     results, y_final = integrate_in_memory(params, y0, undecided.settings, threads)
     fields = derived_fields(undecided, results, y_final)

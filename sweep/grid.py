@@ -3,8 +3,8 @@
 The grid is the Cartesian product of the sweep axes, flattened in C order (the
 last axis varies fastest); with an initial-condition ensemble each grid point is
 repeated for its members (the fastest index of all). Every run is one system; its
-physical parameters become one row of dimensionless parameters (``kernels.P_*``,
-followed by per-block columns ``kernels.B_*`` when blocks differ) and its initial
+physical parameters become one row of dimensionless parameters (``layout.P_*``,
+followed by per-block columns ``layout.B_*`` when blocks differ) and its initial
 perturbation one row of initial state. A Grid is built once per run
 (:func:`build_grid`) and handed on to the kernels and the Dataset.
 
@@ -18,16 +18,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import heterogeneity, kernels, linear, physics
+from . import heterogeneity, linear, physics
+from .kernels import layout
 
 MODEL_CODES = {
-    "quasi-static": kernels.QUASI_STATIC,
-    "quasi-dynamic": kernels.QUASI_DYNAMIC,
-    "inertial": kernels.INERTIAL,
+    "quasi-static": layout.QUASI_STATIC,
+    "quasi-dynamic": layout.QUASI_DYNAMIC,
+    "inertial": layout.INERTIAL,
 }
-LAW_CODES = {"aging": kernels.AGING, "slip": kernels.SLIP}
-COUPLING_CODES = {"chain": kernels.CHAIN, "ring": kernels.RING, "all": kernels.ALL}
-METHOD_CODES = {"dopri5": kernels.DOPRI5, "rk4": kernels.RK4, "rosenbrock": kernels.ROSENBROCK}
+LAW_CODES = {"aging": layout.AGING, "slip": layout.SLIP}
+COUPLING_CODES = {"chain": layout.CHAIN, "ring": layout.RING, "all": layout.ALL}
+METHOD_CODES = {"dopri5": layout.DOPRI5, "rk4": layout.RK4, "rosenbrock": layout.ROSENBROCK}
 
 
 def physical_parameters(config):
@@ -57,23 +58,23 @@ def physical_parameters(config):
 
 
 def settings_array(config):
-    """The kernels' settings array (``kernels.S_*``), shared by all systems."""
-    s = np.zeros(kernels.N_SETTINGS)
+    """The kernels' settings array (``layout.S_*``), shared by all systems."""
+    s = np.zeros(layout.N_SETTINGS)
     integ, cls = config.integrator, config.classification
-    s[kernels.S_MODEL] = MODEL_CODES[config.model]
-    s[kernels.S_LAW] = LAW_CODES[config.state_law]
-    s[kernels.S_METHOD] = METHOD_CODES[integ.method]
-    s[kernels.S_NBLOCKS] = config.blocks
-    s[kernels.S_RTOL] = integ.rtol
-    s[kernels.S_ATOL] = integ.atol
-    s[kernels.S_MAX_STEPS] = integ.max_steps
-    s[kernels.S_LNV_CAP] = math.log(cls.v_cap_over_V)
-    s[kernels.S_STEADY_AMP] = cls.steady_amplitude
-    s[kernels.S_ACCURACY] = cls.accuracy
-    s[kernels.S_CONFIRM_CYCLES] = cls.confirm_cycles
-    s[kernels.S_EARLY_EXIT] = 1.0 if cls.early_exit else 0.0
-    s[kernels.S_SLIP_LNV] = math.log(cls.slip_v_over_V)
-    s[kernels.S_COUPLING] = COUPLING_CODES[config.coupling]
+    s[layout.S_MODEL] = MODEL_CODES[config.model]
+    s[layout.S_LAW] = LAW_CODES[config.state_law]
+    s[layout.S_METHOD] = METHOD_CODES[integ.method]
+    s[layout.S_NBLOCKS] = config.blocks
+    s[layout.S_RTOL] = integ.rtol
+    s[layout.S_ATOL] = integ.atol
+    s[layout.S_MAX_STEPS] = integ.max_steps
+    s[layout.S_LNV_CAP] = math.log(cls.v_cap_over_V)
+    s[layout.S_STEADY_AMP] = cls.steady_amplitude
+    s[layout.S_ACCURACY] = cls.accuracy
+    s[layout.S_CONFIRM_CYCLES] = cls.confirm_cycles
+    s[layout.S_EARLY_EXIT] = 1.0 if cls.early_exit else 0.0
+    s[layout.S_SLIP_LNV] = math.log(cls.slip_v_over_V)
+    s[layout.S_COUPLING] = COUPLING_CODES[config.coupling]
     return s
 
 
@@ -135,32 +136,32 @@ def build_grid(config):
     nb = config.blocks
     integ = config.integrator
     to_tau = 1.0 / dl["time_unit"] if integ.t_unit == "s" else np.ones(n)
-    width = kernels.N_PARAMS + (kernels.N_BLOCK_PARAMS * nb if config.heterogeneous else 0)
+    width = layout.N_PARAMS + (layout.N_BLOCK_PARAMS * nb if config.heterogeneous else 0)
     params = np.empty((n, width))
-    params[:, kernels.P_A] = dl["A"]
-    params[:, kernels.P_B] = dl["B"]
-    params[:, kernels.P_KAPPA1] = dl["kappa1"]
-    params[:, kernels.P_KAPPA2] = dl["kappa2"]
-    params[:, kernels.P_ETA] = dl["eta_hat"]
-    params[:, kernels.P_MASS] = dl["mass_hat"]
-    params[:, kernels.P_TAU_END] = integ.t_end * to_tau
-    params[:, kernels.P_DT] = integ.dt
-    params[:, kernels.P_MAX_STEP] = integ.max_step
+    params[:, layout.P_A] = dl["A"]
+    params[:, layout.P_B] = dl["B"]
+    params[:, layout.P_KAPPA1] = dl["kappa1"]
+    params[:, layout.P_KAPPA2] = dl["kappa2"]
+    params[:, layout.P_ETA] = dl["eta_hat"]
+    params[:, layout.P_MASS] = dl["mass_hat"]
+    params[:, layout.P_TAU_END] = integ.t_end * to_tau
+    params[:, layout.P_DT] = integ.dt
+    params[:, layout.P_MAX_STEP] = integ.max_step
     max_t_end = config.classification.max_t_end
     max_t_end = 10.0 * integ.t_end if max_t_end is None else max_t_end
-    params[:, kernels.P_TAU_MAX] = max_t_end * to_tau
+    params[:, layout.P_TAU_MAX] = max_t_end * to_tau
     if config.heterogeneous:
         for k, values in enumerate(block_parameters(config, phys)):
-            start = kernels.N_PARAMS + k * nb
+            start = layout.N_PARAMS + k * nb
             params[:, start : start + nb] = values
     lin = linear.theory(config, phys)
-    params[:, kernels.P_LIN_GROWTH] = lin["growth_rate"]
+    params[:, layout.P_LIN_GROWTH] = lin["growth_rate"]
     return Grid(config, phys, dl, lin, params, initial_state(config, n), settings_array(config))
 
 
 def block_parameters(config, phys):
     """Dimensionless per-block columns: (A_i, B_i, κ1_i, D0/D0_i), each (n, blocks),
-    in the order of ``kernels.B_*``."""
+    in the order of ``layout.B_*``."""
     values = heterogeneity.block_values(config, phys)
     D0 = phys["D0"][:, None]
     return (values["A"], values["B"], values["K_W"] * D0, D0 / values["D0"])

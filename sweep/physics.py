@@ -1,7 +1,7 @@
 """The Rice–Ruina spring–block model: parameters, scaling and linear stability.
 
 Plain numpy, no numba: this module is the readable statement of the physics that
-the kernels integrate (``sweep/kernels.py``) and that the tests check against.
+the kernels integrate (``sweep/kernels/``) and that the tests check against.
 
 Dimensionless log form (physics brief, section 2)::
 

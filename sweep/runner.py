@@ -32,7 +32,7 @@ from .config import parse_config
 from .dataset import build_dataset, write_netcdf
 from .errors import ConfigError, InputError, Interrupted, PartError, RunError
 from .grid import build_grid, state_size
-from .kernels import N_RESULTS
+from .kernels.layout import N_RESULTS
 from .progress import Progress
 
 log = logging.getLogger(__name__)

@@ -46,6 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import kernels
 from ._version import __version__
 from .errors import InputError, OutputBusy, PartError
 
@@ -53,9 +54,10 @@ from .errors import InputError, OutputBusy, PartError
 PART_FORMAT = 1
 #: Modules whose code decides the numbers stored in a part (accelerate.py: fastmath,
 #: error model; dispatch.py: which compiled variant integrates a run): grid.py and
-#: dispatch.py and everything in the package they import.
+#: dispatch.py and everything in the package they import; ``kernels`` is the kernel
+#: package (every file of it, ``kernels.source_digest``).
 NUMERIC_MODULES = (
-    "kernels.py",
+    "kernels",
     "grid.py",
     "physics.py",
     "linear.py",
@@ -97,7 +99,10 @@ def config_hash(config):
     digest.update(f"rsf-sweep {__version__} parts {PART_FORMAT}".encode())
     here = Path(__file__).parent
     for name in NUMERIC_MODULES:
-        digest.update((here / name).read_bytes())
+        if name == "kernels":
+            digest.update(kernels.source_digest().encode())
+        else:
+            digest.update((here / name).read_bytes())
     return digest.hexdigest()[:16]
 
 

@@ -19,13 +19,14 @@ import math
 import numpy as np
 import xarray as xr
 
-from . import kernels, physics
+from . import physics
 from .config import ConfigError, with_changes
 from .dataset import derived_fields, parameter_attrs, parameter_coords, provenance
 from .dispatch import integrate_grid
 from .errors import InputError
 from .grid import build_grid
 from .heterogeneity import SPREAD_AXES, SPREAD_PREFIX
+from .kernels import layout
 from .physics import PARAMETERS
 from .variables import REGIMES, variables_for
 
@@ -128,11 +129,11 @@ def compute_trace(config, points=4000):
     fine = points * OVERSAMPLE
     rec_t = np.empty(fine + 1)
     rec_y = np.empty((fine + 1, y0.shape[1]))
-    result = np.empty((1, kernels.N_RESULTS))
+    result = np.empty((1, layout.N_RESULTS))
     y_final = np.empty_like(y0)
-    rec_dt = params[0, kernels.P_TAU_END] / (fine - 1)
+    rec_dt = params[0, layout.P_TAU_END] / (fine - 1)
     integrate_grid(params[:1], y0[:1], settings, result, y_final, rec_dt, rec_t, rec_y)
-    n = int(result[0, kernels.R_N_RECORDED])
+    n = int(result[0, layout.R_N_RECORDED])
     nb = config.blocks
     keep = decimate(rec_y[:n, :nb], points)
     lnv = rec_y[keep, :nb]
@@ -177,7 +178,7 @@ def trace_attributes(grid, result, y_final):
         f"largest and smallest ln(v/V) ({OVERSAMPLE} fine samples per output point), "
         "plus the final state"
     )
-    attrs["t_end"] = float(grid.params[0, kernels.P_TAU_END] * time_unit[0])
+    attrs["t_end"] = float(grid.params[0, layout.P_TAU_END] * time_unit[0])
     attrs["t_end_units"] = "s"
     fields = derived_fields(grid, result, y_final)
     for var in variables_for(config.blocks, config.model, config.features):

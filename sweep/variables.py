@@ -12,7 +12,7 @@ else one per grid point; ``per_regime``: a trailing ``regime`` dimension.
 
 from dataclasses import dataclass
 
-#: Regime names in code order (``kernels.STEADY`` … ``UNDECIDED``; the CF flag_values /
+#: Regime names in code order (``kernels.layout.STEADY`` … ``UNDECIDED``; the CF flag_values /
 #: flag_meanings of ``regime``). Output vocabulary, so it lives here, not with the kernels.
 REGIMES = ("steady", "stick_slip", "runaway", "undecided")
 

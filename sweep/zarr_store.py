@@ -36,7 +36,7 @@ import xarray as xr
 
 from .dataset import data_variables, derived_fields, parameter_coords, provenance
 from .errors import InputError
-from .kernels import N_RESULTS
+from .kernels.layout import N_RESULTS
 from .store import config_hash, require_zarr
 
 log = logging.getLogger(__name__)

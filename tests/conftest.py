@@ -16,10 +16,11 @@ import xarray as xr
 import yaml
 from scipy.integrate import solve_ivp
 
-from sweep import grid, kernels, runner
+from sweep import grid, runner
 from sweep.config import load_config, parse_config
 from sweep.dataset import write_netcdf
 from sweep.dispatch import integrate_grid
+from sweep.kernels import layout
 from sweep.physics import log_form_rhs
 
 #: The seed paper's friction coefficients (physics brief, section 1).
@@ -101,14 +102,14 @@ def run_recorded(config, rec_dt, index=0):
     """
     g = grid.build_grid(config)
     params, y0, settings = g.params, g.y0, g.settings
-    n_rec = int(params[index, kernels.P_TAU_END] / rec_dt) + 3
+    n_rec = int(params[index, layout.P_TAU_END] / rec_dt) + 3
     rec_t = np.zeros(n_rec)
     rec_y = np.zeros((n_rec, y0.shape[1]))
-    result = np.zeros((1, kernels.N_RESULTS))
+    result = np.zeros((1, layout.N_RESULTS))
     y_final = np.zeros((1, y0.shape[1]))
     row = slice(index, index + 1)
     integrate_grid(params[row], y0[row], settings, result, y_final, rec_dt, rec_t, rec_y)
-    n = int(result[0, kernels.R_N_RECORDED])
+    n = int(result[0, layout.R_N_RECORDED])
     return result[0], rec_t[:n], rec_y[:n]
 
 
@@ -138,8 +139,8 @@ def assert_transition_at(k_w, regime, kc):
     the grid step that contains Kc (so within one grid step of it)."""
     k_w, regime = np.asarray(k_w), np.asarray(regime)
     below = k_w < kc
-    assert np.all(regime[~below] == kernels.STEADY), (kc, regime)
-    assert np.all(regime[below] != kernels.STEADY), (kc, regime)
+    assert np.all(regime[~below] == layout.STEADY), (kc, regime)
+    assert np.all(regime[below] != layout.STEADY), (kc, regime)
     assert below.any() and (~below).any()
 
 

@@ -3,28 +3,34 @@ no fastmath, numpy error model."""
 
 import json
 import os
+import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numba
 import numpy as np
 import pytest
 
-from sweep import accelerate, kernels
+from sweep import accelerate
+from sweep.kernels import cycles, equations, integrate, layout, steppers
 
-#: The one plain-Python function of sweep.kernels: it builds the grid kernel of a variant.
+#: The modules of the kernel package that hold jitted functions.
+MODULES = (equations, steppers, cycles, integrate)
+#: The one plain-Python function of the kernels: it builds the grid kernel of a variant.
 FACTORY = "grid_kernel"
 
 
 def kernel_functions():
-    """Every jitted function defined in ``sweep.kernels``, found by inspecting the module."""
+    """Every jitted function defined in the kernel modules, found by inspecting them:
+    name → dispatcher."""
     return {
         name: obj
-        for name, obj in vars(kernels).items()
-        if callable(obj)
-        and getattr(obj, "__module__", None) == kernels.__name__
+        for module in MODULES
+        for name, obj in vars(module).items()
+        if callable(obj) and getattr(obj, "__module__", None) == module.__name__
         and name != FACTORY
-    }
+    }  # fmt: skip
 
 
 KERNELS = sorted(kernel_functions())
@@ -33,7 +39,8 @@ KERNELS = sorted(kernel_functions())
 ENTRY_POINTS = {"integrate_system", "step_rk4", "step_dopri5", "step_rosenbrock"}
 #: Model, law, method, coupling codes and unequal blocks of one variant (quasi-static,
 #: aging, DOPRI5, chain, equal blocks).
-VARIANT = (kernels.QUASI_STATIC, kernels.AGING, kernels.DOPRI5, kernels.CHAIN, False)
+ROOT = Path(__file__).resolve().parents[1]
+VARIANT = (layout.QUASI_STATIC, layout.AGING, layout.DOPRI5, layout.CHAIN, False)
 NO_JIT = pytest.mark.skipif(numba.config.DISABLE_JIT, reason="NUMBA_DISABLE_JIT=1: no dispatchers")
 
 
@@ -55,20 +62,21 @@ def assert_policy(dispatcher):
 @NO_JIT
 @pytest.mark.parametrize("name", KERNELS)
 def test_kernel_options(name):
-    """Every function in sweep.kernels is compiled with the policy (numba's own record)."""
-    assert_policy(getattr(kernels, name))
+    """Every function of the kernel package is compiled with the policy (numba's own
+    record)."""
+    assert_policy(kernel_functions()[name])
 
 
 @NO_JIT
 def test_grid_kernels_follow_the_policy_one_per_variant():
     """The factory's grid kernels: the policy, one dispatcher per variant (built once),
     and the per-system loop inlined into them."""
-    kernel = kernels.grid_kernel(*VARIANT)
+    kernel = integrate.grid_kernel(*VARIANT)
     assert_policy(kernel)
-    assert kernels.grid_kernel(*VARIANT) is kernel
-    other = kernels.grid_kernel(kernels.QUASI_DYNAMIC, *VARIANT[1:])
+    assert integrate.grid_kernel(*VARIANT) is kernel
+    other = integrate.grid_kernel(layout.QUASI_DYNAMIC, *VARIANT[1:])
     assert other is not kernel
-    assert kernels.integrate_system.targetoptions.get("inline") == "always"
+    assert integrate.integrate_system.targetoptions.get("inline") == "always"
 
 
 @NO_JIT
@@ -76,16 +84,18 @@ def test_grid_kernels_follow_the_policy_one_per_variant():
 def test_rhs_and_explicit_steps_are_inlined(name):
     """accelerate.py: the right-hand side and the explicit steps are inlined at numba-IR
     level (a third of the time per step)."""
-    assert getattr(kernels, name).targetoptions.get("inline") == "always"
+    assert kernel_functions()[name].targetoptions.get("inline") == "always"
 
 
-# Imports the kernels (compiles nothing) and reports each kernel's numba cache.
+# Imports the kernels (compiles nothing) and reports each function's numba cache.
 CACHE_PROBE = """
 import json
-from sweep import kernels
-report = {name: type(obj._cache).__name__ for name, obj in vars(kernels).items()
-          if getattr(obj, "__module__", None) == "sweep.kernels" and name != "grid_kernel"}
-report["grid_kernel()"] = type(kernels.grid_kernel(0, 0, 0, 0, False)._cache).__name__
+from sweep.kernels import cycles, equations, integrate, steppers
+report = {name: type(obj._cache).__name__
+          for module in (equations, steppers, cycles, integrate)
+          for name, obj in vars(module).items()
+          if getattr(obj, "__module__", None) == module.__name__ and name != "grid_kernel"}
+report["grid_kernel()"] = type(integrate.grid_kernel(0, 0, 0, 0, False)._cache).__name__
 print(json.dumps(report))
 """
 
@@ -93,7 +103,8 @@ print(json.dumps(report))
 @pytest.mark.parametrize("value, cache", [(None, "FunctionCache"), ("0", "NullCache"),
                                           ("1", "FunctionCache")])  # fmt: skip
 def test_cache_switch(value, cache):
-    """On by default (variable unset), off with SWEEP_NUMBA_CACHE=0, for every kernel."""
+    """The grid kernels are cached by default (variable unset), not with
+    SWEEP_NUMBA_CACHE=0; the helpers they compile in never are (accelerate.py)."""
     env = {k: v for k, v in os.environ.items() if k != "SWEEP_NUMBA_CACHE"}
     env["NUMBA_DISABLE_JIT"] = "0"
     if value is not None:
@@ -104,26 +115,21 @@ def test_cache_switch(value, cache):
     assert proc.returncode == 0, proc.stderr
     report = json.loads(proc.stdout)
     assert sorted(report) == sorted([*KERNELS, "grid_kernel()"])
-    assert set(report.values()) == {cache}
-
-
-@NO_JIT
-def test_one_cache_decision_in_this_process():
-    """Here too every kernel follows the one decision (whatever the environment says)."""
-    assert len({type(getattr(kernels, name)._cache) for name in KERNELS}) == 1
+    assert report.pop("grid_kernel()") == cache
+    assert set(report.values()) == {"NullCache"}
 
 
 def test_nan_and_inf_survive_compiled_code():
     """With fastmath off and the numpy error model, a zero A gives inf and a NaN state
     gives NaN in the compiled rhs, where fastmath's nnan/ninf could fold them away."""
-    p = np.zeros(kernels.N_PARAMS)
-    p[kernels.P_B], p[kernels.P_KAPPA1] = 0.08, 0.05  # A = 0
+    p = np.zeros(layout.N_PARAMS)
+    p[layout.P_B], p[layout.P_KAPPA1] = 0.08, 0.05  # A = 0
     dydt = np.zeros(2)
-    codes = kernels.QUASI_STATIC, kernels.AGING, kernels.CHAIN, False
-    kernels.rhs(np.array([0.1, 0.0]), p, *codes, 1, np.empty(1), dydt)
+    codes = layout.QUASI_STATIC, layout.AGING, layout.CHAIN, False
+    equations.rhs(np.array([0.1, 0.0]), p, *codes, 1, np.empty(1), dydt)
     assert np.isinf(dydt[0])
-    p[kernels.P_A] = 0.03
-    kernels.rhs(np.array([np.nan, 0.0]), p, *codes, 1, np.empty(1), dydt)
+    p[layout.P_A] = 0.03
+    equations.rhs(np.array([np.nan, 0.0]), p, *codes, 1, np.empty(1), dydt)
     assert np.isnan(dydt).all()
 
 
@@ -131,3 +137,57 @@ def test_thread_count():
     # None: every core numba sees (the CLI's default); a number is taken as it is
     assert accelerate.thread_count(None) == numba.config.NUMBA_NUM_THREADS
     assert accelerate.thread_count(3) == 3
+
+
+@NO_JIT
+def test_one_cache_decision_in_this_process():
+    """The grid kernels follow the one decision (whatever the environment says)."""
+    kernel = integrate.grid_kernel(*VARIANT)
+    expected = "FunctionCache" if accelerate.CACHE else "NullCache"
+    assert type(kernel._cache).__name__ == expected
+
+
+# One small run in a fresh process: its step count and whether numba's cache served
+# the grid kernel.
+CACHED_RUN = """
+import json, sweep
+from sweep.dispatch import grid_kernel
+from sweep.grid import build_grid
+ds = sweep.run(CONFIG, progress=False)
+g = build_grid(sweep.load_config(CONFIG))
+stats = grid_kernel(g.params, g.settings).stats
+print(json.dumps({"n_steps": ds["n_steps"].values.tolist(), "hits": sum(stats.cache_hits.values()),
+                  "misses": sum(stats.cache_misses.values())}))
+"""
+
+
+@pytest.mark.slow
+def test_editing_an_inlined_helper_invalidates_the_cached_kernel(tmp_path):
+    """numba checks a cache entry against its own file only; the grid kernel's key also
+    covers every kernel source (``kernels.source_digest``). A copy of the package
+    compiles and caches a kernel, loads it from the cache, then has the step-size
+    controller (``steppers.next_step_size``, inlined from another file) edited: the
+    next run must compile afresh and take other steps, not load the stale kernel."""
+    shutil.copytree(
+        ROOT / "sweep", tmp_path / "sweep", ignore=shutil.ignore_patterns("__pycache__")
+    )
+    env = dict(os.environ, PYTHONPATH=str(tmp_path), NUMBA_CACHE_DIR=str(tmp_path / "cache"),
+               SWEEP_NUMBA_CACHE="1", NUMBA_DISABLE_JIT="0")  # fmt: skip
+
+    def run():
+        code = f"CONFIG = {str(ROOT / 'configs' / 'quick.yaml')!r}\n{CACHED_RUN}"
+        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                              env=env, cwd=tmp_path, timeout=600)  # fmt: skip
+        assert proc.returncode == 0, proc.stderr
+        return json.loads(proc.stdout.splitlines()[-1])
+
+    first, again = run(), run()
+    assert (first["misses"], again["hits"], again["misses"]) == (1, 1, 0)
+    assert again["n_steps"] == first["n_steps"]
+    helper = tmp_path / "sweep" / "kernels" / "steppers.py"
+    text = helper.read_text()
+    assert text.count("0.9 * max(err, 1e-10)") == 1
+    helper.write_text(text.replace("0.9 * max(err, 1e-10)", "0.7 * max(err, 1e-10)"))
+    edited = run()
+    assert (edited["hits"], edited["misses"]) == (0, 1)
+    assert edited["n_steps"] != first["n_steps"]

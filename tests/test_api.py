@@ -155,10 +155,11 @@ def test_compile_kernels_compiles_only_the_configs_variant():
     compiles the grid kernel of that config's variant in a fresh process, and builds
     no other variant."""
     code = (
-        "import sweep; from sweep import dispatch, kernels; from sweep.grid import build_grid\n"
+        "import sweep; from sweep import dispatch; from sweep.kernels import integrate\n"
+        "from sweep.grid import build_grid\n"
         "sweep.compile_kernels('quick')\n"
         "g = build_grid(sweep.load_config('quick'))\n"
-        "print(kernels.grid_kernel.cache_info().currsize,"
+        "print(integrate.grid_kernel.cache_info().currsize,"
         " len(dispatch.grid_kernel(g.params, g.settings).signatures))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

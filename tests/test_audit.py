@@ -10,9 +10,10 @@ import pytest
 import xarray as xr
 from conftest import make_config
 
-from sweep import cli, kernels, runner
+from sweep import cli, runner
 from sweep.audit import audit_config, audit_points, audit_result
 from sweep.dataset import write_netcdf
+from sweep.kernels import layout
 
 #: Quasi-dynamic, one block, two axes. Kc/W = (B − A − η̂)/D0 = 0.05 (η = 0) and 0.045 µm⁻¹
 #: (η/W = 0.05 s/µm): K/Kc from 0.6 to 1.56, none within 10 % of Kc, so every point is
@@ -28,7 +29,7 @@ def clear():
 
 def test_clear_points_agree(clear):
     regimes = clear["regime"].values
-    assert regimes.tolist() == [[kernels.RUNAWAY, kernels.STICK_SLIP]] * 2 + [[kernels.STEADY] * 2]
+    assert regimes.tolist() == [[layout.RUNAWAY, layout.STICK_SLIP]] * 2 + [[layout.STEADY] * 2]
     audit = audit_result(clear)
     assert audit.sizes["point"] == 6  # a sample of 20 takes the whole grid of 6
     assert audit["agree"].all()
@@ -72,7 +73,7 @@ def planted(clear, tmp_path):
     """The clear sweep as a file, with the steady point K/W = 0.07, η/W = 0.05 relabelled
     stick-slip."""
     wrong = clear.copy(deep=True)
-    wrong["regime"].loc[{"K_W": 0.07, "eta_W": 0.05}] = kernels.STICK_SLIP
+    wrong["regime"].loc[{"K_W": 0.07, "eta_W": 0.05}] = layout.STICK_SLIP
     write_netcdf(wrong, tmp_path / "r.nc")
     return tmp_path
 

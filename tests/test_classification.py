@@ -53,17 +53,17 @@ import pytest
 from conftest import PAPER_A, PAPER_B, make_config, run_grid
 from scipy.integrate import solve_ivp
 
-from sweep import kernels
+from sweep.kernels import layout
 from sweep.physics import log_form_rhs
 
 A, B = PAPER_A, PAPER_B
 KC_QS = B - A
 LN_CAP = math.log(1e6)  # the default v_cap_over_V
 NAMES = {
-    kernels.STEADY: "steady",
-    kernels.STICK_SLIP: "stick_slip",
-    kernels.RUNAWAY: "runaway",
-    kernels.UNDECIDED: "undecided",
+    layout.STEADY: "steady",
+    layout.STICK_SLIP: "stick_slip",
+    layout.RUNAWAY: "runaway",
+    layout.UNDECIDED: "undecided",
 }
 # the SciPy calls of the references (see the module docstring)
 ENVELOPE_CALL = {"method": "LSODA", "rtol": 1e-10, "atol": 1e-12}
@@ -248,7 +248,7 @@ def peak_section(nb, kappa1, kappa2=0.0, law="aging", inertial=False):
 
 
 def engine(k_w, t_end, initial, blocks=1, classification=None, **sections):
-    """Engine rows (``kernels.R_*`` columns) for K/W values ``k_w`` (µm⁻¹), default
+    """Engine rows (``layout.R_*`` columns) for K/W values ``k_w`` (µm⁻¹), default
     classification settings unless given, except ``max_t_end`` = ``t_end``: the SciPy
     truths are judged at ``t_end`` (the continuation past it is tested in
     test_kernels.py::test_unsettled_runs_continue_to_max_t_end)."""
@@ -263,13 +263,13 @@ def engine(k_w, t_end, initial, blocks=1, classification=None, **sections):
 
 def describe(row):
     keys = ("REGIME", "TAU_FINAL", "TAU_RUNAWAY", "LNV_MAX", "LNV_MIN", "PERIOD", "GROWTH")
-    return {k.lower(): float(row[getattr(kernels, "R_" + k)]) for k in keys} | {
-        "label": NAMES.get(int(row[kernels.R_REGIME]), "?")
+    return {k.lower(): float(row[getattr(layout, "R_" + k)]) for k in keys} | {
+        "label": NAMES.get(int(row[layout.R_REGIME]), "?")
     }
 
 
 def assert_label(row, allowed, why):
-    got = int(row[kernels.R_REGIME])
+    got = int(row[layout.R_REGIME])
     assert got in allowed, (
         f"engine says {NAMES.get(got, got)}, SciPy truth allows "
         f"{sorted(NAMES[a] for a in allowed)}: {why}; engine row {describe(row)}"
@@ -278,13 +278,13 @@ def assert_label(row, allowed, why):
 
 def assert_cycle_matches(row, ref, sync=False):
     """Rule 3's features against the SciPy limit cycle ``ref``."""
-    lmax, lmin = row[kernels.R_LNV_MAX], row[kernels.R_LNV_MIN]
+    lmax, lmin = row[layout.R_LNV_MAX], row[layout.R_LNV_MIN]
     # 0.1 %, the issue's tolerance; measured agreement of a converged engine run is
     # ~1e-5 (its rtol 1e-8 over a cycle, extrema located by Hermite interpolation)
     np.testing.assert_allclose(
         lmax - lmin, ref["lnv_max"] - ref["lnv_min"], rtol=1e-3, err_msg="ptp ln v"
     )
-    np.testing.assert_allclose(row[kernels.R_PERIOD], ref["period"], rtol=1e-3, err_msg="period")
+    np.testing.assert_allclose(row[layout.R_PERIOD], ref["period"], rtol=1e-3, err_msg="period")
     # ln v extremes 1e-3 absolute = v_max, v_min within 0.1 % relative
     np.testing.assert_allclose(
         [lmax, lmin], [ref["lnv_max"], ref["lnv_min"]], rtol=0, atol=1e-3, err_msg="ln v extremes"
@@ -293,12 +293,12 @@ def assert_cycle_matches(row, ref, sync=False):
     # on the slow η̂ = 0.04 cycle (period 16.6, steps up to 0.5 D0/V) a fully converged
     # run is 0.05-0.10 % low, right at the issue's 0.1 %.
     np.testing.assert_allclose(
-        row[kernels.R_FRICTION_DROP], ref["friction_drop"], rtol=1e-3, err_msg="friction drop"
+        row[layout.R_FRICTION_DROP], ref["friction_drop"], rtol=1e-3, err_msg="friction drop"
     )
     if sync:
         # the kernel samples |ℓ_i − ℓ_0| at step ends only (steps ≤ 0.5 D0/V), as in
         # test_models: 2 %
-        np.testing.assert_allclose(row[kernels.R_SYNC_ERROR], ref["sync"], rtol=0.02)
+        np.testing.assert_allclose(row[layout.R_SYNC_ERROR], ref["sync"], rtol=0.02)
 
 
 def assert_attracting(ref):
@@ -307,7 +307,7 @@ def assert_attracting(ref):
 
 
 STEADY, STICK_SLIP, RUNAWAY, UNDECIDED = (
-    kernels.STEADY, kernels.STICK_SLIP, kernels.RUNAWAY, kernels.UNDECIDED,
+    layout.STEADY, layout.STICK_SLIP, layout.RUNAWAY, layout.UNDECIDED,
 )  # fmt: skip
 
 
@@ -379,7 +379,7 @@ def test_large_orbit_just_below_kc_runs_away_in_time(large_orbit_rows, ratio):
     tau = scipy_cap_time(one_block_rhs(ratio * KC_QS), y0, T_NEAR)
     assert tau is not None and tau < 0.5 * T_NEAR
     assert_label(row, {RUNAWAY}, f"SciPy reaches the cap at τ = {tau:.3f}")
-    np.testing.assert_allclose(row[kernels.R_TAU_RUNAWAY], tau, rtol=3e-5)
+    np.testing.assert_allclose(row[layout.R_TAU_RUNAWAY], tau, rtol=3e-5)
 
 
 @pytest.mark.parametrize("ratio", [1 + 1e-4, 1 + 1e-5])
@@ -404,7 +404,7 @@ def test_truth_depends_on_t_end_at_1_minus_3e_5(t_end, cap_time):
         assert_label(row, {UNDECIDED}, "cap not reached by t_end (peak 13.368 < 13.816)")
     else:
         assert_label(row, {RUNAWAY}, f"SciPy reaches the cap at {cap_time}")
-        np.testing.assert_allclose(row[kernels.R_TAU_RUNAWAY], cap_time, rtol=3e-5)
+        np.testing.assert_allclose(row[layout.R_TAU_RUNAWAY], cap_time, rtol=3e-5)
 
 
 # --- b. radiation damping just below Kc: a small limit cycle from both sides ----------
@@ -506,7 +506,7 @@ def test_two_blocks_anti_phase_start_at_0_995_is_decided_by_rounding():
     assert_attracting(ref)
     row = engine([0.995 * KC_QS], 8000.0, ANTI, blocks=2, parameters={"k2_W": K2_C})[0]
     assert_label(row, {RUNAWAY, UNDECIDED, STICK_SLIP}, "rounding decides; not steady")
-    if int(row[kernels.R_REGIME]) == STICK_SLIP:
+    if int(row[layout.R_REGIME]) == STICK_SLIP:
         assert_cycle_matches(row, ref, sync=True)
 
 
@@ -538,7 +538,7 @@ def test_two_blocks_in_phase_start_runs_away():
         tau = scipy_cap_time(one_block_rhs(ratio * KC_QS), [math.log(1.01)] * 2, 3000.0)
         assert tau is not None and tau < 3000.0
         assert_label(row, {RUNAWAY}, f"SciPy reaches the cap at {tau:.3f}")
-        np.testing.assert_allclose(row[kernels.R_TAU_RUNAWAY], tau, rtol=3e-5)
+        np.testing.assert_allclose(row[layout.R_TAU_RUNAWAY], tau, rtol=3e-5)
 
 
 # --- d. limit cycles of the regularised models to 0.1 % -------------------------------

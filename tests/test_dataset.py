@@ -9,9 +9,10 @@ import pytest
 import xarray as xr
 from conftest import KC_W, PAPER_A, PAPER_B, make_config, run_grid
 
-from sweep import kernels, runner
+from sweep import runner
 from sweep.dataset import stored_config, write_netcdf
 from sweep.errors import ConfigError, InputError
+from sweep.kernels import layout
 from sweep.physics import PARAMETERS
 from sweep.variables import BY_NAME, REGIMES, VARIABLES, variables_for
 
@@ -76,8 +77,8 @@ def test_regime_flags_and_axes(result):
     regime = ds["regime"]
     np.testing.assert_array_equal(regime.attrs["flag_values"], np.arange(4, dtype=np.int8))
     assert regime.attrs["flag_meanings"].split() == list(REGIMES)
-    assert [REGIMES[c] for c in (kernels.STEADY, kernels.STICK_SLIP, kernels.RUNAWAY,
-                                 kernels.UNDECIDED)] == ["steady", "stick_slip", "runaway",
+    assert [REGIMES[c] for c in (layout.STEADY, layout.STICK_SLIP, layout.RUNAWAY,
+                                 layout.UNDECIDED)] == ["steady", "stick_slip", "runaway",
                                                          "undecided"]  # fmt: skip
     for axis in config.axes:
         coord = ds[axis.name]
@@ -109,12 +110,12 @@ def test_derived_fields_in_physical_units():
     ds = runner.compute(config, show_progress=False)
     t_unit, V = 10.0, 0.1
     k_w = np.asarray(config.axes[0].values)
-    np.testing.assert_allclose(ds["period"], results[:, kernels.R_PERIOD] * t_unit, rtol=1e-15)
-    np.testing.assert_allclose(ds["t_runaway"], results[:, kernels.R_TAU_RUNAWAY] * t_unit)
-    np.testing.assert_allclose(ds["growth_rate"], results[:, kernels.R_GROWTH] / t_unit)
-    np.testing.assert_allclose(ds["v_max"], V * np.exp(results[:, kernels.R_LNV_MAX]))
+    np.testing.assert_allclose(ds["period"], results[:, layout.R_PERIOD] * t_unit, rtol=1e-15)
+    np.testing.assert_allclose(ds["t_runaway"], results[:, layout.R_TAU_RUNAWAY] * t_unit)
+    np.testing.assert_allclose(ds["growth_rate"], results[:, layout.R_GROWTH] / t_unit)
+    np.testing.assert_allclose(ds["v_max"], V * np.exp(results[:, layout.R_LNV_MAX]))
     np.testing.assert_allclose(
-        ds["lnv_amplitude"], results[:, kernels.R_LNV_MAX] - results[:, kernels.R_LNV_MIN]
+        ds["lnv_amplitude"], results[:, layout.R_LNV_MAX] - results[:, layout.R_LNV_MIN]
     )
     np.testing.assert_array_equal(ds["lnv_final"].values[:, 0], y_final[:, 0])
     np.testing.assert_array_equal(ds["ln_state_final"].values[:, 0], y_final[:, 1])
@@ -125,7 +126,7 @@ def test_derived_fields_in_physical_units():
         ds["linear_growth_rate"], (B - A - k_w) / (2 * A) / t_unit, rtol=1e-12, atol=1e-15
     )
     np.testing.assert_allclose(ds["onset_period"], 2 * math.pi / math.sqrt((B - A) / A) * t_unit)
-    stick_slip = ds["regime"].values == kernels.STICK_SLIP
+    stick_slip = ds["regime"].values == layout.STICK_SLIP
     assert stick_slip.any()
     np.testing.assert_allclose(
         ds["slip_per_event"].values[stick_slip], V * ds["period"][stick_slip]

@@ -15,9 +15,10 @@ import xarray as xr
 from conftest import make_config
 from test_dataset import failing_to_netcdf
 
-from sweep import cli, kernels, runner
+from sweep import cli, runner
 from sweep.dataset import read_result, stored_config, write_netcdf
 from sweep.extend import extend_file, extend_result
+from sweep.kernels import layout
 
 #: Quasi-dynamic, η̂ = 0.01: Kc/W = 0.04 µm⁻¹; K/Kc = 0.85 (stick-slip, still growing at
 #: 50 D0/V, settled by 200), 1.1 and 1.5 (steady well before 50).
@@ -30,7 +31,7 @@ INERTIAL = {"model": "inertial", "parameters": {"m_W": 1.0}, "sweep": {"K_W": [0
             "integrator": {"method": "rosenbrock"}}  # fmt: skip
 CASES = {"quasi-dynamic": QD, "quasi-static": QS, "inertial": INERTIAL}
 UNDECIDED, STICK_SLIP, RUNAWAY, STEADY = (
-    kernels.UNDECIDED, kernels.STICK_SLIP, kernels.RUNAWAY, kernels.STEADY,
+    layout.UNDECIDED, layout.STICK_SLIP, layout.RUNAWAY, layout.STEADY,
 )  # fmt: skip
 
 

@@ -11,9 +11,10 @@ from conftest import KC_W, PAPER_A, PAPER_B, assert_transition_at, make_config
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sweep import backends, grid, kernels, runner
+from sweep import backends, grid, runner
 from sweep.backends import LocalThreads
 from sweep.dispatch import integrate_grid
+from sweep.kernels import layout
 
 A, B = PAPER_A, PAPER_B
 
@@ -38,13 +39,13 @@ def test_grid_is_c_ordered_product_of_axes():
     g = grid.build_grid(config)
     np.testing.assert_array_equal(g.physical["K_W"], phys["K_W"])
     params, y0, settings, time_unit = g.params, g.y0, g.settings, g.time_unit
-    np.testing.assert_allclose(params[:, kernels.P_KAPPA1], phys["K_W"] * 2.0, rtol=1e-15)
-    np.testing.assert_allclose(params[:, kernels.P_KAPPA2], phys["k2_W"] * 2.0, rtol=1e-15)
+    np.testing.assert_allclose(params[:, layout.P_KAPPA1], phys["K_W"] * 2.0, rtol=1e-15)
+    np.testing.assert_allclose(params[:, layout.P_KAPPA2], phys["k2_W"] * 2.0, rtol=1e-15)
     np.testing.assert_allclose(time_unit, 2.0 / 0.1)  # D0/V in s
     assert y0.shape == (6, 4)
     np.testing.assert_allclose(y0[0], [0.0, 0.0, math.log(1.01), 0.0], rtol=1e-15)
-    assert settings[kernels.S_NBLOCKS] == 2
-    assert settings[kernels.S_LNV_CAP] == pytest.approx(math.log(1e6))
+    assert settings[layout.S_NBLOCKS] == 2
+    assert settings[layout.S_LNV_CAP] == pytest.approx(math.log(1e6))
 
 
 def test_times_in_seconds_are_converted_per_system():
@@ -56,9 +57,9 @@ def test_times_in_seconds_are_converted_per_system():
     )
     params = grid.build_grid(config).params
     tau_unit = np.array([10.0, 20.0])  # D0/V in s
-    np.testing.assert_allclose(params[:, kernels.P_TAU_END], 100.0 / tau_unit)
-    np.testing.assert_array_equal(params[:, kernels.P_DT], 0.5)
-    np.testing.assert_array_equal(params[:, kernels.P_MAX_STEP], 2.0)
+    np.testing.assert_allclose(params[:, layout.P_TAU_END], 100.0 / tau_unit)
+    np.testing.assert_array_equal(params[:, layout.P_DT], 0.5)
+    np.testing.assert_array_equal(params[:, layout.P_MAX_STEP], 2.0)
 
 
 def test_inertial_start_is_in_force_balance():
@@ -144,7 +145,7 @@ def test_results_do_not_depend_on_threads_or_chunks(mixed_reference, threads, ch
     chunk = chunk_size or mixed_reference["regime"].size  # None: the whole grid at once
     ds = runner.compute(make_config(MIXED), threads=threads, chunk_size=chunk, show_progress=False)
     regimes = set(np.unique(mixed_reference["regime"].values))
-    assert regimes == {kernels.STEADY, kernels.STICK_SLIP, kernels.RUNAWAY, kernels.UNDECIDED}
+    assert regimes == {layout.STEADY, layout.STICK_SLIP, layout.RUNAWAY, layout.UNDECIDED}
     assert np.isnan(mixed_reference["period"].values).any()
     assert same(ds, mixed_reference)
 
@@ -164,7 +165,7 @@ def test_local_threads_give_the_serial_kernels_numbers(threads):
     numbers of one serial kernel call over the whole grid, whatever the chunks."""
     g = grid.build_grid(make_config(MIXED))
     n = g.params.shape[0]
-    results = np.full((n, kernels.N_RESULTS), -1.0)
+    results = np.full((n, layout.N_RESULTS), -1.0)
     y_final = np.full_like(g.y0, -1.0)
     integrate_grid(g.params, g.y0, g.settings, results, y_final)
     ranges = [(0, 3), (3, n)]
@@ -198,9 +199,9 @@ class RecordingKernel:
 
 def rows(n):
     """Kernel arrays whose column 0 is the row index."""
-    params = np.zeros((n, kernels.N_PARAMS))
+    params = np.zeros((n, layout.N_PARAMS))
     params[:, 0] = np.arange(n)
-    return params, np.zeros((n, 2)), np.zeros(kernels.N_SETTINGS)
+    return params, np.zeros((n, 2)), np.zeros(layout.N_SETTINGS)
 
 
 def test_threads_go_on_to_the_next_range_while_a_range_finishes(monkeypatch):

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from conftest import ROOT, make_config
 
-from sweep import grid, heterogeneity, kernels
+from sweep import grid, heterogeneity
 from sweep.config import ConfigError, config_mapping, parse_config
+from sweep.kernels import layout
 
 NB = {"blocks": 3, "parameters": {"k2_W": 0.02}}
 
@@ -96,11 +97,11 @@ def test_list_values_reach_the_kernel_columns():
     assert config.fixed["D0"] == pytest.approx(np.mean(d0), rel=1e-15)
     g = grid.build_grid(config)
     params, time_unit = g.params, g.time_unit
-    nb, start = 3, kernels.N_PARAMS
-    assert params.shape == (2, start + kernels.N_BLOCK_PARAMS * nb)
-    rate = params[:, start + kernels.B_RATE * nb : start + (kernels.B_RATE + 1) * nb]
+    nb, start = 3, layout.N_PARAMS
+    assert params.shape == (2, start + layout.N_BLOCK_PARAMS * nb)
+    rate = params[:, start + layout.B_RATE * nb : start + (layout.B_RATE + 1) * nb]
     np.testing.assert_allclose(rate, np.mean(d0) / np.array([d0, d0]), rtol=1e-15)
-    kappa1 = params[:, start + kernels.B_KAPPA1 * nb : start + (kernels.B_KAPPA1 + 1) * nb]
+    kappa1 = params[:, start + layout.B_KAPPA1 * nb : start + (layout.B_KAPPA1 + 1) * nb]
     np.testing.assert_allclose(kappa1[:, 0], [0.04 * np.mean(d0), 0.05 * np.mean(d0)], rtol=1e-15)
     np.testing.assert_allclose(time_unit, np.mean(d0) / 0.1, rtol=1e-15)
 
@@ -109,7 +110,7 @@ def test_identical_blocks_keep_the_narrow_parameter_rows():
     """Without per-block values the kernels get N_PARAMS columns (the identical-block path)."""
     config = nblock_config(coupling="all")
     params = grid.build_grid(config).params
-    assert params.shape[1] == kernels.N_PARAMS
+    assert params.shape[1] == layout.N_PARAMS
 
 
 def test_ensemble_starts_are_seeded_and_shared_by_grid_points():
@@ -173,7 +174,7 @@ def test_unequal_chain_example_loses_steady_sliding_at_its_own_kc():
 
     ds = sweep.run(ROOT / "configs" / "unequal_chain.yaml", progress=False)
     step = float(np.diff(ds["K_W"].values)[0])
-    steady = (ds["regime"] == kernels.STEADY).all("member")
+    steady = (ds["regime"] == layout.STEADY).all("member")
     for k2 in ds["k2_W"].values:
         kc = float(ds["critical_K_W"].sel(k2_W=k2).isel(K_W=0))
         k_w = ds["K_W"].values

@@ -15,12 +15,13 @@ from conftest import (
 )
 from scipy.integrate import solve_ivp
 
-from sweep import kernels, physics
+from sweep import physics
+from sweep.kernels import cycles, equations, layout, steppers
 from sweep.physics import log_form_rhs
 
 A, B = PAPER_A, PAPER_B
 #: model, state law, coupling codes and unequal blocks of one quasi-static aging block
-CODES = (kernels.QUASI_STATIC, kernels.AGING, kernels.CHAIN, False)
+CODES = (layout.QUASI_STATIC, layout.AGING, layout.CHAIN, False)
 KAPPA_C = B - A  # D0 = 1 µm: κ = K D0/W = K/W in µm⁻¹
 
 
@@ -61,9 +62,9 @@ def test_growth_rate_matches_linear_theory(small_perturbation, ratio):
     at 1.05, where the per-cycle log ratio is small and their share larger)."""
     result = small_perturbation[ratio]
     expected = linear_eigenvalue(ratio * KAPPA_C).real
-    assert result[kernels.R_GROWTH] == pytest.approx(expected, rel=2e-3)
-    assert result[kernels.R_REGIME] in (
-        (kernels.STEADY,) if ratio > 1 else (kernels.UNDECIDED, kernels.RUNAWAY)
+    assert result[layout.R_GROWTH] == pytest.approx(expected, rel=2e-3)
+    assert result[layout.R_REGIME] in (
+        (layout.STEADY,) if ratio > 1 else (layout.UNDECIDED, layout.RUNAWAY)
     )
 
 
@@ -72,7 +73,7 @@ def test_period_matches_linear_theory(small_perturbation):
     maxima are exactly one damped period apart; what is left is the error in locating
     them: measured 3.2e-4)."""
     expected = 2 * np.pi / linear_eigenvalue(1.02 * KAPPA_C).imag
-    assert small_perturbation[1.02][kernels.R_PERIOD] == pytest.approx(expected, rel=1e-3)
+    assert small_perturbation[1.02][layout.R_PERIOD] == pytest.approx(expected, rel=1e-3)
 
 
 @pytest.mark.parametrize(
@@ -100,7 +101,7 @@ def test_regularised_growth_rate_matches_linear_theory(model_name, extra, kappa_
     expected = physics.linear_growth_rate(
         model_name, 1, A, B, np.array([0.95, 1.05]) * kappa_c, 0.0, eta_hat, mass_hat
     )
-    np.testing.assert_allclose(results[:, kernels.R_GROWTH], expected, rtol=rtol)
+    np.testing.assert_allclose(results[:, layout.R_GROWTH], expected, rtol=rtol)
 
 
 # --- past the transition: runaway, never steady ---------------------------------------
@@ -111,10 +112,10 @@ def test_quasi_static_below_kc_runs_away_above_is_steady():
     exists, physics brief section 4), K/Kc = 1.05 settles to steady sliding."""
     config = make_config(sweep={"K_W": k_values(0.9, 0.95, 1.05)}, integrator={"t_end": 3000.0})
     results, _ = run_grid(config)
-    regime = results[:, kernels.R_REGIME]
-    assert list(regime) == [kernels.RUNAWAY, kernels.RUNAWAY, kernels.STEADY]
-    assert np.all(np.isfinite(results[:2, kernels.R_TAU_RUNAWAY]))
-    assert np.isnan(results[2, kernels.R_TAU_RUNAWAY])
+    regime = results[:, layout.R_REGIME]
+    assert list(regime) == [layout.RUNAWAY, layout.RUNAWAY, layout.STEADY]
+    assert np.all(np.isfinite(results[:2, layout.R_TAU_RUNAWAY]))
+    assert np.isnan(results[2, layout.R_TAU_RUNAWAY])
 
 
 # Time (D0/V) for one quasi-static block (A = 0.03, B = 0.08) to first reach the velocity
@@ -145,11 +146,11 @@ def runaway_runs():
             classification={"v_cap_over_V": cap},
         )
         results, _ = run_grid(config)
-        assert results[0, kernels.R_REGIME] == kernels.RUNAWAY
+        assert results[0, layout.R_REGIME] == layout.RUNAWAY
         # the run stopped at the crossing and reports a velocity at least the cap
-        assert results[0, kernels.R_TAU_FINAL] >= results[0, kernels.R_TAU_RUNAWAY]
-        assert results[0, kernels.R_LNV_MAX] >= math.log(cap)
-        times[ratio, v0, psi0, cap] = results[0, kernels.R_TAU_RUNAWAY]
+        assert results[0, layout.R_TAU_FINAL] >= results[0, layout.R_TAU_RUNAWAY]
+        assert results[0, layout.R_LNV_MAX] >= math.log(cap)
+        times[ratio, v0, psi0, cap] = results[0, layout.R_TAU_RUNAWAY]
     return times
 
 
@@ -185,8 +186,8 @@ def test_radiation_damping_gives_a_supercritical_limit_cycle():
         integrator={"t_end": 20000.0},
     )
     results, _ = run_grid(config)
-    assert np.all(results[:, kernels.R_REGIME] == kernels.STICK_SLIP)
-    amplitude = results[:, kernels.R_LNV_MAX] - results[:, kernels.R_LNV_MIN]
+    assert np.all(results[:, layout.R_REGIME] == layout.STICK_SLIP)
+    amplitude = results[:, layout.R_LNV_MAX] - results[:, layout.R_LNV_MIN]
     # sqrt law: amplitudes at 0.1 % and 1 % below onset differ by sqrt(10) ≈ 3.16; 20 %
     # allows for the next order in (1 − K/Kc) and the unfinished approach at 0.999
     assert amplitude[1] / amplitude[0] == pytest.approx(math.sqrt(10), rel=0.2)
@@ -196,7 +197,7 @@ def test_radiation_damping_gives_a_supercritical_limit_cycle():
     )  # fmt: skip
     v_max_ref = math.exp(ref.sol(np.linspace(1980.0, 2000.0, 20001))[0].max())
     assert round(v_max_ref, 1) == 1.6
-    assert math.exp(results[1, kernels.R_LNV_MAX]) == pytest.approx(v_max_ref, rel=0.005)
+    assert math.exp(results[1, layout.R_LNV_MAX]) == pytest.approx(v_max_ref, rel=0.005)
 
 
 # --- convergence and agreement with SciPy ---------------------------------------------
@@ -232,7 +233,7 @@ def test_rk4_is_fourth_order(nonlinear_reference):
             NONLINEAR, integrator={"method": "rk4", "dt": float(dt), "t_end": 40.0}
         )
         results, y_final = run_grid(config)
-        assert results[0, kernels.R_TAU_FINAL] == pytest.approx(40.0, abs=1e-9)
+        assert results[0, layout.R_TAU_FINAL] == pytest.approx(40.0, abs=1e-9)
         errors.append(np.max(np.abs(y_final[0] - exact)))
     errors = np.array(errors)
     ratios = errors[:-1] / errors[1:]
@@ -256,7 +257,7 @@ def test_dopri5_trace_matches_scipy(nonlinear_reference, rtol):
         NONLINEAR, integrator={"method": "dopri5", "rtol": rtol, "atol": rtol * 1e-2, "t_end": 50.0}
     )
     result, rec_t, rec_y = run_recorded(config, rec_dt=0.01)
-    assert result[kernels.R_N_RECORDED] == 5001 and rec_t[-1] == 50.0
+    assert result[layout.R_N_RECORDED] == 5001 and rec_t[-1] == 50.0
     np.testing.assert_allclose(rec_t, np.arange(5001) * 0.01, rtol=0, atol=1e-12)
     ref = nonlinear_reference.sol(rec_t)
     assert ref[0].max() > 5 and ref[0].min() < -4  # the trace covers fast slips and sticks
@@ -304,11 +305,11 @@ def test_huge_cap_still_classifies_runaway():
     }
     huge, _ = run_grid(make_config(overrides, classification={"v_cap_over_V": 1e300}))
     capped, _ = run_grid(make_config(overrides, classification={"v_cap_over_V": 1e6}))
-    assert np.all(huge[:, kernels.R_REGIME] == kernels.RUNAWAY)
-    tau = huge[:, kernels.R_TAU_RUNAWAY]
+    assert np.all(huge[:, layout.R_REGIME] == layout.RUNAWAY)
+    tau = huge[:, layout.R_TAU_RUNAWAY]
     assert np.all(np.isfinite(tau))
-    assert np.all(tau >= capped[:, kernels.R_TAU_RUNAWAY])
-    assert np.all(huge[:, kernels.R_LNV_MAX_RUN] > math.log(1e6))
+    assert np.all(tau >= capped[:, layout.R_TAU_RUNAWAY])
+    assert np.all(huge[:, layout.R_LNV_MAX_RUN] > math.log(1e6))
 
 
 def test_non_finite_state_is_runaway():
@@ -322,8 +323,8 @@ def test_non_finite_state_is_runaway():
     )
     with np.errstate(all="ignore"):  # NUMBA_DISABLE_JIT=1: numpy warns on the overflow
         results, _ = run_grid(config)
-    assert np.all(results[:, kernels.R_REGIME] == kernels.RUNAWAY)
-    assert np.all(np.isfinite(results[:, kernels.R_TAU_RUNAWAY]))
+    assert np.all(results[:, layout.R_REGIME] == layout.RUNAWAY)
+    assert np.all(np.isfinite(results[:, layout.R_TAU_RUNAWAY]))
 
 
 def test_start_above_the_cap_is_runaway_at_once():
@@ -338,8 +339,8 @@ def test_start_above_the_cap_is_runaway_at_once():
             classification={"v_cap_over_V": 1e300},
         )
         results, _ = run_grid(config)
-        assert np.all(results[:, kernels.R_REGIME] == kernels.RUNAWAY)
-        np.testing.assert_allclose(results[:, kernels.R_TAU_RUNAWAY], tau, rtol=0, atol=atol)
+        assert np.all(results[:, layout.R_REGIME] == layout.RUNAWAY)
+        np.testing.assert_allclose(results[:, layout.R_TAU_RUNAWAY], tau, rtol=0, atol=atol)
 
 
 # --- the small numerical helpers -------------------------------------------------------
@@ -358,12 +359,12 @@ def test_hermite_interpolant_is_exact_for_cubics():
 
     y0, y1, d0, d1 = cubic(0.2), cubic(0.2 + h), slope(0.2), slope(0.2 + h)
     for theta in (0.0, 0.3, 0.5, 1.0):
-        value = kernels.dense_value(y0, y1, d0, d1, h, 0.0, theta)
+        value = steppers.dense_value(y0, y1, d0, d1, h, 0.0, theta)
         assert value == pytest.approx(cubic(0.2 + theta * h), abs=1e-15)
-    theta = kernels.dense_extremum(y0, y1, d0, d1, h, 0.0)
+    theta = steppers.dense_extremum(y0, y1, d0, d1, h, 0.0)
     assert 0.2 + theta * h == pytest.approx((0.6 + math.sqrt(0.21)) / 3, abs=1e-12)
     level = cubic(0.8)
-    theta = kernels.dense_crossing(cubic(0.6), cubic(0.9), slope(0.6), slope(0.9), 0.3, 0.0, level)
+    theta = steppers.dense_crossing(cubic(0.6), cubic(0.9), slope(0.6), slope(0.9), 0.3, 0.0, level)
     assert 0.6 + theta * 0.3 == pytest.approx(0.8, abs=1e-12)
 
 
@@ -372,18 +373,18 @@ def test_dopri5_dense_output_is_fourth_order():
     mid-step (order 4; measured 33–48 per halving at these steps), the cubic Hermite
     one (r5 = 0) only O(h⁴) (16 per halving). Reference: the half step taken in 64
     DOPRI5 substeps (error ~ 64 (h/128)⁶, far below both)."""
-    p = np.zeros(kernels.N_PARAMS)
-    p[kernels.P_A], p[kernels.P_B], p[kernels.P_KAPPA1] = A, B, 0.9 * KAPPA_C
+    p = np.zeros(layout.N_PARAMS)
+    p[layout.P_A], p[layout.P_B], p[layout.P_KAPPA1] = A, B, 0.9 * KAPPA_C
     y0 = np.array([0.3, -0.2])
 
     def rhs(y):
         out = np.empty(2)
-        kernels.rhs(y, p, *CODES, 1, np.empty(1), out)
+        equations.rhs(y, p, *CODES, 1, np.empty(1), out)
         return out
 
     def step(y, h):
         k, ytmp, ynew, fnew = np.empty((5, 2)), np.empty(2), np.empty(2), np.empty(2)
-        kernels.step_dopri5(
+        steppers.step_dopri5(
             y, rhs(y), h, p, *CODES, 1, np.empty(1), k, ytmp, ynew, fnew, 1.0, 1.0
         )  # fmt: skip
         return ynew, fnew, (k[1], k[2], k[3], k[4])
@@ -394,9 +395,9 @@ def test_dopri5_dense_output_is_fourth_order():
         ref = y0.copy()
         for _ in range(64):
             ref = step(ref, h / 128)[0]
-        r5 = kernels.dense_r5(kernels.DOPRI5, j, h, f0, k3, k4, k5, k6, f1)
-        dense = kernels.dense_value(y0[j], y1[j], f0[j], f1[j], h, r5, 0.5)
-        hermite = kernels.dense_value(y0[j], y1[j], f0[j], f1[j], h, 0.0, 0.5)
+        r5 = steppers.dense_r5(layout.DOPRI5, j, h, f0, k3, k4, k5, k6, f1)
+        dense = steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, r5, 0.5)
+        hermite = steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, 0.0, 0.5)
         return abs(dense - ref[j]), abs(hermite - ref[j])
 
     for j in (0, 1):
@@ -414,24 +415,24 @@ def test_aitken_limit_is_exact_for_geometric_sequences(q):
     limit from one term to the next is zero (both to round-off, 1e-12)."""
     L, c = 0.7, 0.05
     x = [L + c * q**n for n in range(4)]
-    limit, error = kernels.aitken_limit(*x, 0.0)
+    limit, error = cycles.aitken_limit(*x, 0.0)
     assert limit == pytest.approx(L, abs=1e-12)
     assert error < 1e-12
 
 
 def test_aitken_limit_refuses_sequences_that_do_not_contract():
     """Growing differences (|ratio| ≥ 1) have no limit: infinite error estimate."""
-    limit, error = kernels.aitken_limit(1.0, 1.1, 1.3, 1.7, 0.0)
+    limit, error = cycles.aitken_limit(1.0, 1.1, 1.3, 1.7, 0.0)
     assert math.isinf(error)
 
 
-def history(nb, cycles):
+def history(nb, rows):
     """Cycle history as the kernel keeps it from a list of per-cycle rows
     (max ℓ_i …, min ℓ_i …, period, peak-to-peak of mean ℓ)."""
-    hist = np.zeros((2 * nb + 2, kernels.HISTORY))
-    for n, row in enumerate(cycles):
-        hist[:, n % kernels.HISTORY] = row
-    return hist, len(cycles)
+    hist = np.zeros((2 * nb + 2, cycles.HISTORY))
+    for n, row in enumerate(rows):
+        hist[:, n % cycles.HISTORY] = row
+    return hist, len(rows)
 
 
 def decaying_cycles(q, amp=0.02, n=4):
@@ -443,8 +444,8 @@ def test_decay_is_steady_only_where_steady_sliding_is_linearly_stable():
     rate and never with a positive one (an unstable fixed point is no attractor)."""
     hist, n = history(1, decaying_cycles(0.9))
     args = (hist, n, 1, 1e-3, 1e-6)
-    assert kernels.cycle_verdict(*args, -0.01, 1e-8, 1e-10)[0] == kernels.STEADY
-    assert kernels.cycle_verdict(*args, +0.01, 1e-8, 1e-10)[0] != kernels.STEADY
+    assert cycles.cycle_verdict(*args, -0.01, 1e-8, 1e-10)[0] == layout.STEADY
+    assert cycles.cycle_verdict(*args, +0.01, 1e-8, 1e-10)[0] != layout.STEADY
 
 
 def test_approach_to_a_small_cycle_is_not_steady():
@@ -453,12 +454,12 @@ def test_approach_to_a_small_cycle_is_not_steady():
     the last cycle is within the accuracy of the limit."""
     far = [[0.045 + 0.02 * 0.8**k, -0.045 - 0.02 * 0.8**k, 4.9, 0.0] for k in range(4)]
     hist, n = history(1, far)
-    verdict, conv = kernels.cycle_verdict(hist, n, 1, 1e-3, 1e-6, -0.01, 1e-8, 1e-10)
+    verdict, conv = cycles.cycle_verdict(hist, n, 1, 1e-3, 1e-6, -0.01, 1e-8, 1e-10)
     assert verdict == -1 and conv > 1e-3
     near = [[0.045 + 1e-6 * 0.8**k, -0.045 - 1e-6 * 0.8**k, 4.9, 0.0] for k in range(4)]
     hist, n = history(1, near)
-    verdict, conv = kernels.cycle_verdict(hist, n, 1, 1e-3, 1e-6, +0.01, 1e-8, 1e-10)
-    assert verdict == kernels.STICK_SLIP and conv < 1e-3
+    verdict, conv = cycles.cycle_verdict(hist, n, 1, 1e-3, 1e-6, +0.01, 1e-8, 1e-10)
+    assert verdict == layout.STICK_SLIP and conv < 1e-3
 
 
 def test_unsettled_runs_are_undecided():
@@ -468,11 +469,11 @@ def test_unsettled_runs_are_undecided():
         {"sweep": {"K_W": k_values(1.5)}},
         integrator={"t_end": 3.0}, classification={"max_t_end": 3.0},
     )  # fmt: skip
-    assert run_grid(short)[0][0, kernels.R_REGIME] == kernels.UNDECIDED
+    assert run_grid(short)[0][0, layout.R_REGIME] == layout.UNDECIDED
     budget = make_config({"sweep": {"K_W": k_values(1.5)}}, integrator={"max_steps": 20})
     results, _ = run_grid(budget)
-    assert results[0, kernels.R_REGIME] == kernels.UNDECIDED
-    assert results[0, kernels.R_N_STEPS] + results[0, kernels.R_N_REJECTED] == 20
+    assert results[0, layout.R_REGIME] == layout.UNDECIDED
+    assert results[0, layout.R_N_STEPS] + results[0, layout.R_N_REJECTED] == 20
 
 
 def test_unsettled_runs_continue_to_max_t_end():
@@ -484,8 +485,8 @@ def test_unsettled_runs_continue_to_max_t_end():
     off = run_grid(
         make_config(base, integrator={"t_end": 3000.0}, classification={"max_t_end": 3000.0})
     )[0][0]
-    assert on[kernels.R_REGIME] == kernels.RUNAWAY and on[kernels.R_TAU_RUNAWAY] > 3000.0
-    assert off[kernels.R_REGIME] == kernels.UNDECIDED and off[kernels.R_TAU_FINAL] == 3000.0
+    assert on[layout.R_REGIME] == layout.RUNAWAY and on[layout.R_TAU_RUNAWAY] > 3000.0
+    assert off[layout.R_REGIME] == layout.UNDECIDED and off[layout.R_TAU_FINAL] == 3000.0
 
 
 def test_early_exit_never_changes_a_settled_regime():
@@ -504,6 +505,6 @@ def test_early_exit_never_changes_a_settled_regime():
             config = make_config(
                 overrides, integrator={"t_end": t_end}, classification={"early_exit": early}
             )
-            regimes.append(run_grid(config)[0][:, kernels.R_REGIME])
+            regimes.append(run_grid(config)[0][:, layout.R_REGIME])
         np.testing.assert_array_equal(regimes[0], regimes[1])
-        assert not np.any(regimes[0] == kernels.UNDECIDED)
+        assert not np.any(regimes[0] == layout.UNDECIDED)

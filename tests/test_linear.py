@@ -6,15 +6,16 @@ and per-block parameters against finite differences."""
 import numpy as np
 import pytest
 
-from sweep import kernels, linear, physics
+from sweep import linear, physics
+from sweep.kernels import equations, layout
 
 A, B = 0.03, 0.08
 MODEL_CODES = {
-    "quasi-static": kernels.QUASI_STATIC,
-    "quasi-dynamic": kernels.QUASI_DYNAMIC,
-    "inertial": kernels.INERTIAL,
+    "quasi-static": layout.QUASI_STATIC,
+    "quasi-dynamic": layout.QUASI_DYNAMIC,
+    "inertial": layout.INERTIAL,
 }
-COUPLING_CODES = {"chain": kernels.CHAIN, "ring": kernels.RING, "all": kernels.ALL}
+COUPLING_CODES = {"chain": layout.CHAIN, "ring": layout.RING, "all": layout.ALL}
 ETA_HAT, MASS_HAT = 0.01, 0.1
 CASES = [(m, c, n) for m in MODEL_CODES for c in COUPLING_CODES for n in (3, 8)]
 
@@ -94,24 +95,24 @@ def test_uncoupled_unequal_blocks_go_unstable_with_the_weakest():
 
 def het_row(nb, coupling, rng, kappa2=0.03):
     """A kernel parameter row with per-block columns (random unequal blocks)."""
-    p = np.zeros(kernels.N_PARAMS + kernels.N_BLOCK_PARAMS * nb)
-    p[kernels.P_KAPPA2] = kappa2
-    p[kernels.P_ETA], p[kernels.P_MASS] = ETA_HAT, MASS_HAT
+    p = np.zeros(layout.N_PARAMS + layout.N_BLOCK_PARAMS * nb)
+    p[layout.P_KAPPA2] = kappa2
+    p[layout.P_ETA], p[layout.P_MASS] = ETA_HAT, MASS_HAT
     blocks = {
-        kernels.B_A: rng.uniform(0.02, 0.04, nb),
-        kernels.B_B: rng.uniform(0.06, 0.1, nb),
-        kernels.B_KAPPA1: rng.uniform(0.03, 0.06, nb),
-        kernels.B_RATE: rng.uniform(0.6, 1.5, nb),
+        layout.B_A: rng.uniform(0.02, 0.04, nb),
+        layout.B_B: rng.uniform(0.06, 0.1, nb),
+        layout.B_KAPPA1: rng.uniform(0.03, 0.06, nb),
+        layout.B_RATE: rng.uniform(0.6, 1.5, nb),
     }
     for k, v in blocks.items():
-        p[kernels.N_PARAMS + k * nb : kernels.N_PARAMS + (k + 1) * nb] = v
+        p[layout.N_PARAMS + k * nb : layout.N_PARAMS + (k + 1) * nb] = v
     return p, blocks
 
 
 def kernel_rhs(y, p, model_name, law, nb, coupling):
     out = np.empty_like(y)
-    law_code = kernels.AGING if law == "aging" else kernels.SLIP
-    kernels.rhs(
+    law_code = layout.AGING if law == "aging" else layout.SLIP
+    equations.rhs(
         y, p, MODEL_CODES[model_name], law_code, COUPLING_CODES[coupling], True, nb, np.empty(nb),
         out,
     )  # fmt: skip
@@ -133,14 +134,14 @@ def fd_jacobian(y, p, model_name, law, nb, coupling, h=1e-6):
 @pytest.mark.parametrize("model_name, coupling, nb", CASES)
 def test_steady_jacobian_linearises_the_kernels(model_name, coupling, nb):
     """linear.steady_jacobian (written from the linearised equations) equals finite
-    differences of kernels.rhs at steady sliding, for unequal blocks."""
+    differences of equations.rhs at steady sliding, for unequal blocks."""
     p, blk = het_row(nb, coupling, np.random.default_rng(nb))
     n_vars = 3 * nb if model_name == "inertial" else 2 * nb
     fd = fd_jacobian(np.zeros(n_vars), p, model_name, "aging", nb, coupling)
     ex = extras(model_name)
     jac = linear.steady_jacobian(
-        model_name, blk[kernels.B_A], blk[kernels.B_B], blk[kernels.B_KAPPA1],
-        blk[kernels.B_RATE], p[kernels.P_KAPPA2], linear.laplacian(nb, coupling), **ex,
+        model_name, blk[layout.B_A], blk[layout.B_B], blk[layout.B_KAPPA1],
+        blk[layout.B_RATE], p[layout.P_KAPPA2], linear.laplacian(nb, coupling), **ex,
     )  # fmt: skip
     np.testing.assert_allclose(jac, fd, atol=1e-6 * np.abs(fd).max())  # FD error ~1e-9
 
@@ -156,8 +157,8 @@ def test_kernel_jacobian_with_couplings_and_unequal_blocks(model_name, coupling,
     y = rng.uniform(-0.5, 0.5, n_vars)
     f = kernel_rhs(y, p, model_name, law, nb, coupling)
     jac = np.empty((n_vars, n_vars))
-    law_code = kernels.AGING if law == "aging" else kernels.SLIP
-    kernels.jacobian(
+    law_code = layout.AGING if law == "aging" else layout.SLIP
+    equations.jacobian(
         y, f, p, MODEL_CODES[model_name], law_code, COUPLING_CODES[coupling], True, nb,
         np.empty(nb), jac,
     )  # fmt: skip
@@ -167,17 +168,15 @@ def test_kernel_jacobian_with_couplings_and_unequal_blocks(model_name, coupling,
 
 @pytest.mark.parametrize("coupling", ["chain", "ring", "all"])
 def test_kernel_rhs_matches_a_laplacian_reference(coupling):
-    """kernels.rhs with per-block columns against the log form written with the
+    """equations.rhs with per-block columns against the log form written with the
     Laplacian matrix: ℓ_i' = [κ1_i (1 − e^ℓi) − κ2 Σ_j L_ij e^ℓj − B_i r_i ψ̃_i'] / A_i."""
     nb = 5
     rng = np.random.default_rng(7)
     p, blk = het_row(nb, coupling, rng)
     y = rng.uniform(-1.0, 1.0, 2 * nb)
     v = np.exp(y[:nb])
-    dpsi = blk[kernels.B_RATE] * (np.exp(-y[nb:]) - v)
-    load = (
-        blk[kernels.B_KAPPA1] * (1 - v) - p[kernels.P_KAPPA2] * linear.laplacian(nb, coupling) @ v
-    )
-    want = np.concatenate([(load - blk[kernels.B_B] * dpsi) / blk[kernels.B_A], dpsi])
+    dpsi = blk[layout.B_RATE] * (np.exp(-y[nb:]) - v)
+    load = blk[layout.B_KAPPA1] * (1 - v) - p[layout.P_KAPPA2] * linear.laplacian(nb, coupling) @ v
+    want = np.concatenate([(load - blk[layout.B_B] * dpsi) / blk[layout.B_A], dpsi])
     got = kernel_rhs(y, p, "quasi-static", "aging", nb, coupling)
     np.testing.assert_allclose(got, want, rtol=1e-12)

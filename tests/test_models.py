@@ -30,7 +30,8 @@ from conftest import (
 )
 from scipy.integrate import solve_ivp
 
-from sweep import kernels, physics
+from sweep import physics
+from sweep.kernels import equations, layout, steppers
 from sweep.runner import compute
 
 A, B = PAPER_A, PAPER_B
@@ -75,17 +76,17 @@ def physics_rhs(model_name, law, y, nb, kappa1, kappa2=0.0, eta_hat=0.0, mass_ha
 
 
 def param_row(kappa1, kappa2=0.0, eta_hat=0.0, mass_hat=0.0):
-    p = np.zeros(kernels.N_PARAMS)
-    p[kernels.P_A], p[kernels.P_B] = A, B
-    p[kernels.P_KAPPA1], p[kernels.P_KAPPA2] = kappa1, kappa2
-    p[kernels.P_ETA], p[kernels.P_MASS] = eta_hat, mass_hat
+    p = np.zeros(layout.N_PARAMS)
+    p[layout.P_A], p[layout.P_B] = A, B
+    p[layout.P_KAPPA1], p[layout.P_KAPPA2] = kappa1, kappa2
+    p[layout.P_ETA], p[layout.P_MASS] = eta_hat, mass_hat
     return p
 
 
 def kernel_rhs(y, p, model_name, law, nb):
     dydt = np.empty_like(y)
-    codes = MODEL_CODES[model_name], LAW_CODES[law], kernels.CHAIN, False
-    kernels.rhs(y, p, *codes, nb, np.empty(nb), dydt)
+    codes = MODEL_CODES[model_name], LAW_CODES[law], layout.CHAIN, False
+    equations.rhs(y, p, *codes, nb, np.empty(nb), dydt)
     return dydt
 
 
@@ -130,8 +131,8 @@ def test_analytic_jacobian_matches_finite_differences(model_name, law, nb):
         y = rng.normal(scale=1.0, size=n)
         f = kernel_rhs(y, p, model_name, law, nb)
         jac = np.empty((n, n))
-        codes = MODEL_CODES[model_name], LAW_CODES[law], kernels.CHAIN, False
-        kernels.jacobian(y, f, p, *codes, nb, nbv, jac)
+        codes = MODEL_CODES[model_name], LAW_CODES[law], layout.CHAIN, False
+        equations.jacobian(y, f, p, *codes, nb, nbv, jac)
         fd = np.empty((n, n))
         for j in range(n):
             step = 1e-6 * max(1.0, abs(y[j]))
@@ -156,13 +157,13 @@ def test_kernel_linearisation_has_the_linear_theory_eigenvalues(model_name, nb):
     y = np.zeros(n)
     jac = np.empty((n, n))
     code = MODEL_CODES[model_name]
-    kernels.jacobian(
+    equations.jacobian(
         y,
         kernel_rhs(y, p, model_name, "aging", nb),
         p,
         code,
-        kernels.AGING,
-        kernels.CHAIN,
+        layout.AGING,
+        layout.CHAIN,
         False,
         nb,
         np.empty(nb),
@@ -237,14 +238,14 @@ def test_rosenbrock_is_fourth_order(model_name, y0, extra):
         work = (np.empty(nb), np.empty((6, n)), np.empty((n, n)), np.empty(n, np.int64))
         ynew, fnew, ytmp = np.empty(n), np.empty(n), np.empty(n)
         for k in range(n_steps):
-            err = kernels.step_rosenbrock(
+            err = steppers.step_rosenbrock(
                 y,
                 f,
                 h,
                 p,
                 code,
-                kernels.AGING,
-                kernels.CHAIN,
+                layout.AGING,
+                layout.CHAIN,
                 False,
                 nb,
                 *work,
@@ -328,7 +329,7 @@ def test_limit_cycle_matches_scipy(model_name, law, value, k_ratio):
         initial={"v_over_V": 1.0, "phi_over_phi_ss": 1.01},
     )  # fmt: skip
     ds = compute(config, show_progress=False).isel(K_W=0)
-    assert int(ds.regime) == kernels.STICK_SLIP
+    assert int(ds.regime) == layout.STICK_SLIP
     tau_end = float(ds.t_final) / T_UNIT
     extra = (
         {"eta_hat": value * V} if model_name == "quasi-dynamic" else {"mass_hat": value * V**2 / D0}
@@ -362,7 +363,7 @@ def test_inertial_arrest_is_resolved():
             integrator={"rtol": rtol, "atol": rtol * 1e-2, "t_end": 20000.0},
         )  # fmt: skip
         ds = compute(config, show_progress=False).isel(K_W=0)
-        assert int(ds.regime) == kernels.STICK_SLIP
+        assert int(ds.regime) == layout.STICK_SLIP
         assert float(ds.lnv_min) < -30.0
         runs.append(ds)
     # a 100-fold tighter tolerance moves period and v_max by far less than 0.1 %
@@ -397,8 +398,8 @@ def test_onset_amplitude_grows_from_zero_with_damping_but_quasi_static_runs_away
         ),
         show_progress=False,
     )  # fmt: skip
-    assert np.all(qd.regime.values == kernels.STICK_SLIP)
-    assert np.all(qs.regime.values == kernels.RUNAWAY)
+    assert np.all(qd.regime.values == layout.STICK_SLIP)
+    assert np.all(qs.regime.values == layout.RUNAWAY)
     amp = qd.lnv_amplitude.values
     assert amp[0] < 0.1
     assert amp[0] < amp[1] < amp[2]
@@ -465,7 +466,7 @@ def test_transition_one_block(model_name):
     same critical stiffness as the aging law at every grid point."""
     aging = run_transition(model_name, "aging", 1)
     slip = run_transition(model_name, "slip", 1)
-    np.testing.assert_array_equal(aging == kernels.STEADY, slip == kernels.STEADY)
+    np.testing.assert_array_equal(aging == layout.STEADY, slip == layout.STEADY)
 
 
 @pytest.mark.slow
@@ -475,7 +476,7 @@ def test_transition_two_blocks(model_name):
     the in-phase mode never stretches k2 (brief, section 3)."""
     aging = run_transition(model_name, "aging", 2)
     slip = run_transition(model_name, "slip", 2)
-    np.testing.assert_array_equal(aging == kernels.STEADY, slip == kernels.STEADY)
+    np.testing.assert_array_equal(aging == layout.STEADY, slip == layout.STEADY)
 
 
 def test_beating_modes_are_not_steady():
@@ -492,7 +493,7 @@ def test_beating_modes_are_not_steady():
         ),
         show_progress=False,
     )  # fmt: skip
-    assert int(ds.regime[0]) != kernels.STEADY
+    assert int(ds.regime[0]) != layout.STEADY
 
 
 # --- two blocks: synchronisation measures --------------------------------------------
@@ -528,7 +529,7 @@ def test_phase_lag_and_sync_error_of_shifted_blocks(damped_cycle, shift):
         ),
         show_progress=False,
     ).isel(K_W=0)  # fmt: skip
-    assert int(ds.regime) == kernels.STICK_SLIP
+    assert int(ds.regime) == layout.STICK_SLIP
     lag = float(ds.phase_lag)
     expected = -shift - math.floor(-shift + 0.5)
     # the starts lie on the cycle to SciPy's accuracy; peak times are located to
@@ -559,7 +560,7 @@ def test_coupled_blocks_synchronise_in_phase(model_name, param, value, law):
         ),
         show_progress=False,
     ).isel(K_W=0)  # fmt: skip
-    assert int(ds.regime) == kernels.STICK_SLIP
+    assert int(ds.regime) == layout.STICK_SLIP
     # the anti-phase difference decays by e^-(several) per cycle while the envelope
     # settles: what is left is far below 1e-3
     assert abs(float(ds.phase_lag)) < 1e-3
@@ -571,7 +572,7 @@ def test_weakly_coupled_blocks_lock_in_anti_phase():
     settle in anti-phase: phase_lag ≈ ±0.5 and sync_error of the order of the
     cycle's ln v range. On the way the envelope of ℓ_0 (and of mean ℓ_i) shrinks
     for many cycles at an amplitude far from linear, which must not be called
-    steady (without the amplitude check of kernels.decay_confirmed it was)."""
+    steady (without the amplitude check of the old decay_confirmed it was)."""
     kc = kc_w("quasi-dynamic", 0.1)
     ds = compute(
         model_config(
@@ -581,7 +582,7 @@ def test_weakly_coupled_blocks_lock_in_anti_phase():
         ),
         show_progress=False,
     )  # fmt: skip
-    assert np.all(ds.regime.values == kernels.STICK_SLIP)
+    assert np.all(ds.regime.values == layout.STICK_SLIP)
     # the relative phase still creeps by < 1e-2 of a period when the envelope settles
     np.testing.assert_allclose(np.abs(ds.phase_lag.values), 0.5, atol=0.01)
     assert np.all(ds.sync_error.values > 0.5 * ds.lnv_amplitude.values)

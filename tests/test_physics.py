@@ -6,27 +6,28 @@ import pytest
 from conftest import PAPER_A, PAPER_B
 from scipy.optimize import brentq
 
-from sweep import kernels, physics
+from sweep import physics
+from sweep.kernels import equations, layout
 
 A, B = PAPER_A, PAPER_B
 MODEL_CODES = {
-    "quasi-static": kernels.QUASI_STATIC,
-    "quasi-dynamic": kernels.QUASI_DYNAMIC,
-    "inertial": kernels.INERTIAL,
+    "quasi-static": layout.QUASI_STATIC,
+    "quasi-dynamic": layout.QUASI_DYNAMIC,
+    "inertial": layout.INERTIAL,
 }
-LAW_CODES = {"aging": kernels.AGING, "slip": kernels.SLIP}
+LAW_CODES = {"aging": layout.AGING, "slip": layout.SLIP}
 # Off-critical parameters with every term of the right-hand side switched on:
 # κ1 = 0.045 (below κc = 0.05), κ2 = 0.02, η̂ = 0.01, M̂ = 0.1.
 KAPPA1, KAPPA2, ETA_HAT, MASS_HAT = 0.045, 0.02, 0.01, 0.1
 # the compiled kernel and its pure-Python original (the same function when NUMBA_DISABLE_JIT=1)
-RHS_KERNELS = {"jit": kernels.rhs, "python": getattr(kernels.rhs, "py_func", kernels.rhs)}
+RHS_KERNELS = {"jit": equations.rhs, "python": getattr(equations.rhs, "py_func", equations.rhs)}
 
 
 def param_row(kappa1=KAPPA1, kappa2=KAPPA2, eta_hat=ETA_HAT, mass_hat=MASS_HAT):
-    p = np.zeros(kernels.N_PARAMS)
-    p[kernels.P_A], p[kernels.P_B] = A, B
-    p[kernels.P_KAPPA1], p[kernels.P_KAPPA2] = kappa1, kappa2
-    p[kernels.P_ETA], p[kernels.P_MASS] = eta_hat, mass_hat
+    p = np.zeros(layout.N_PARAMS)
+    p[layout.P_A], p[layout.P_B] = A, B
+    p[layout.P_KAPPA1], p[layout.P_KAPPA2] = kappa1, kappa2
+    p[layout.P_ETA], p[layout.P_MASS] = eta_hat, mass_hat
     return p
 
 
@@ -36,7 +37,7 @@ def n_vars(model_name, nb):
 
 def kernel_rhs(rhs, y, p, model_name, law, nb):
     dydt = np.full(y.size, np.nan)
-    rhs(y, p, MODEL_CODES[model_name], LAW_CODES[law], kernels.CHAIN, False, nb, np.empty(nb), dydt)
+    rhs(y, p, MODEL_CODES[model_name], LAW_CODES[law], layout.CHAIN, False, nb, np.empty(nb), dydt)
     return dydt
 
 
@@ -100,7 +101,7 @@ def one_block_eigs(model_name, kappa):
 def test_two_block_eigenvalues_are_in_phase_and_anti_phase_modes(model_name, law):
     """Two blocks: the in-phase pair is the one-block pair (κ1), the anti-phase pair the
     one-block pair with κ1 + 2κ2 (physics brief, section 3 and erratum 3)."""
-    jac = fd_jacobian(kernels.rhs, param_row(), model_name, law, 2)
+    jac = fd_jacobian(equations.rhs, param_row(), model_name, law, 2)
     lam = physics.eigenvalues(model_name, 2, A, B, KAPPA1, KAPPA2, ETA_HAT, MASS_HAT)
     np.testing.assert_allclose(
         sorted_eigs(np.linalg.eigvals(jac)), sorted_eigs(lam), rtol=1e-6, atol=1e-6
@@ -114,7 +115,7 @@ def test_two_block_eigenvalues_are_in_phase_and_anti_phase_modes(model_name, law
 @pytest.mark.parametrize("model_name", physics.MODELS)
 def test_three_block_chain_eigenvalues(model_name):
     """Open chain of three: mode stiffnesses κ1 + κ2 λ_L with λ_L = 0, 1, 3."""
-    jac = fd_jacobian(kernels.rhs, param_row(), model_name, "aging", 3)
+    jac = fd_jacobian(equations.rhs, param_row(), model_name, "aging", 3)
     expected = np.concatenate(
         [one_block_eigs(model_name, KAPPA1 + KAPPA2 * lam) for lam in (0, 1, 3)]
     )
@@ -206,7 +207,7 @@ def test_onset_frequency_does_not_depend_on_mass(model_name, mass_hat):
         omega, rel=1e-12
     )
     kc = physics.critical_kappa(model_name, A, B, mass_hat=mass_hat)
-    jac = fd_jacobian(kernels.rhs, param_row(kc, 0.0, 0.0, mass_hat), model_name, "aging", 1)
+    jac = fd_jacobian(equations.rhs, param_row(kc, 0.0, 0.0, mass_hat), model_name, "aging", 1)
     lam = np.linalg.eigvals(jac)
     pair = lam[np.argmax(np.abs(lam.imag))]
     # entries up to A/M̂ = 30: the finite-difference error scales with them

@@ -274,8 +274,8 @@ def test_sharded_ensemble_merges_to_the_full_run(tmp_path):
 
 def test_part_hash_covers_every_module_that_decides_the_numbers():
     """``store.NUMERIC_MODULES`` holds grid.py, dispatch.py and every package module
-    they import, directly or not (imports read from the source), so a change to any
-    of them invalidates old parts."""
+    they import, directly or not (imports read from the source; a subpackage such as
+    ``kernels`` as a whole), so a change to any of them invalidates old parts."""
     import ast
 
     folder = ROOT / "sweep"
@@ -289,4 +289,5 @@ def test_part_hash_covers_every_module_that_decides_the_numbers():
             if isinstance(node, ast.ImportFrom) and node.level == 1:
                 modules = [node.module] if node.module else [a.name for a in node.names]
                 todo.extend(f"{m}.py" for m in modules if (folder / f"{m}.py").exists())
+                seen.update(m for m in modules if (folder / m).is_dir())  # a package: all of it
     assert seen <= set(store.NUMERIC_MODULES), seen - set(store.NUMERIC_MODULES)

@@ -7,12 +7,12 @@ import pytest
 import xarray as xr
 from scipy.integrate import solve_ivp
 
-from sweep import kernels
 from sweep.cli import main
 from sweep.config import ConfigError, config_mapping, load_config, parse_config, with_changes
 from sweep.dispatch import integrate_grid
 from sweep.errors import InputError
 from sweep.grid import build_grid
+from sweep.kernels import layout
 from sweep.runner import compute
 from sweep.trace import (
     compute_trace,
@@ -30,7 +30,7 @@ def kernel_final_state(config):
     """(results row, y_final row) of the one system of ``config`` from the sweep's grid kernel."""
     g = build_grid(config)
     params, y0, settings = g.params, g.y0, g.settings
-    results = np.empty((1, kernels.N_RESULTS))
+    results = np.empty((1, layout.N_RESULTS))
     y_final = np.empty_like(y0)
     integrate_grid(params, y0, settings, results, y_final)
     return results[0], y_final[0]
@@ -139,18 +139,18 @@ def test_trace_ends_at_the_kernels_final_state(make_config, at):
         ds["velocity"].isel(time=-1).values, V * np.exp(y_final[:nb]), rtol=1e-12
     )
     np.testing.assert_allclose(
-        ds["time"].isel(time=-1).values, result[kernels.R_TAU_FINAL] * time_unit[0]
+        ds["time"].isel(time=-1).values, result[layout.R_TAU_FINAL] * time_unit[0]
     )
     assert (
         ds.attrs["regime"]
-        == ("steady", "stick_slip", "runaway", "undecided")[int(result[kernels.R_REGIME])]
+        == ("steady", "stick_slip", "runaway", "undecided")[int(result[layout.R_REGIME])]
     )
 
 
 def test_quasi_static_trace_ends_at_the_sweeps_runaway_time():
     config = load_config(QUICK)
     sweep = compute(config, show_progress=False)
-    runaway = sweep["regime"].values == kernels.RUNAWAY
+    runaway = sweep["regime"].values == layout.RUNAWAY
     below = sweep["K_over_Kc"].values < 1.0
     assert runaway[below].all() and runaway.any()
     points = 400

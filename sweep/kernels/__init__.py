@@ -1,0 +1,30 @@
+"""Numba kernels, split by job; importing this package compiles nothing.
+
+- ``layout``: codes and the columns of the kernels' arrays (plain Python, no numba):
+  what the grid builder writes and the Dataset constructor reads.
+- ``equations``: the log-form right-hand side and its analytic Jacobian.
+- ``steppers``: RK4, DOPRI5 and RODAS4 steps and their dense output.
+- ``cycles``: the cycle classifier (per-cycle statistics, return-map verdicts).
+- ``integrate``: the integration loop of one system and the per-variant grid kernel.
+
+Only jitted loops live here; the equations are documented in ``sweep/physics.py``.
+Everything a kernel needs is passed as an argument: numba's cache freezes globals,
+so module-level names are true constants.
+"""
+
+import hashlib
+from pathlib import Path
+
+
+def source_digest():
+    """SHA-256 (hex) of every source file of this package, in name order.
+
+    numba's on-disk cache notices edits to a function's own file only; the grid
+    kernel carries this digest (``integrate.grid_kernel``), so an edit to any
+    kernel file, e.g. an inlined helper, compiles it afresh.
+    """
+    digest = hashlib.sha256()
+    for path in sorted(Path(__file__).parent.glob("*.py")):
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()

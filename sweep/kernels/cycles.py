@@ -1,0 +1,408 @@
+"""The cycle classifier: statistics of each oscillation cycle and the return-map verdict.
+
+Each run keeps only running statistics over the current oscillation cycle (from
+one maximum of ℓ_0 to the next) and over the last completed one, plus a short
+history of each cycle's observables, so memory does not depend on run length.
+"""
+
+import math
+
+import numpy as np
+
+from ..accelerate import jit, jit_inline
+from .layout import B_A, B_B, N_PARAMS, STEADY, STICK_SLIP
+from .steppers import dense_extremum, dense_r5, dense_value
+
+# A decaying oscillation is called steady only once it is this small (peak-to-peak
+# ln v/V of every block), i.e. in the linear regime where decay is geometric: see
+# steady_verdict.
+LINEAR_AMPLITUDE = 0.1
+# Cycle values that change by less than NOISE_FACTOR * (atol + rtol |x|), ten times
+# the integrator's local error tolerance, from one cycle to the next count as
+# converged to round-off (their ratio of differences would be noise).
+NOISE_FACTOR = 10.0
+# Cycles of history kept per observable (the extrapolation uses the last four).
+HISTORY = 4
+
+
+# --- rows of a cycle's per-block statistics (win, last in integrate_system) --
+W_LMAX, W_LMIN, W_MUMAX, W_MUMIN = range(4)  # extremes of ℓ_i and of friction A ℓ_i + B ψ_i
+W_T_PEAK = 4  # time of block i's last maximum of ℓ_i in the cycle (D0/V)
+N_WINDOW = 5
+
+# --- entries of the scalar cycle state ``cs`` of integrate_system ------------
+(
+    C_N_PEAKS,  # maxima of ℓ_0 seen
+    C_T_PEAK,  # time of the last maximum of ℓ_0 (D0/V)
+    C_PEAK_VALUE,  # value of the latest maximum of ℓ_0
+    C_PERIOD,  # last peak-to-peak time of ℓ_0 (D0/V)
+    C_AMP_PREV,  # peak-to-trough amplitude of ℓ_0 in the last completed cycle
+    C_GROWTH,  # envelope growth rate over the last two cycles (V/D0)
+    C_N_CYCLES,  # completed cycles
+    C_N_AGREE,  # consecutive cycles with the same verdict
+    C_VERDICT,  # the last cycle's verdict (−1: none yet)
+    C_CONV,  # the last cycle's estimated relative distance to its limit
+    C_WIN_SYNC,  # max |ℓ_i − ℓ_0| in the current cycle
+    C_WIN_MBAR_MAX,  # max of mean ℓ_i in the current cycle
+    C_WIN_MBAR_MIN,  # min of mean ℓ_i in the current cycle
+    C_WIN_T_PEAK_LAST,  # time of the last block's maximum of ℓ in the current cycle
+    C_LAST_SYNC,  # max |ℓ_i − ℓ_0| in the last completed cycle
+    C_LAST_PHASE,  # phase lag of the last block in the last completed cycle
+    C_LNV_MAX_RUN,  # max ℓ_i over the whole run
+    C_LAST_ORDER,  # Kuramoto order parameter of the last completed cycle
+    C_LAST_PARTICIPATION,  # mean fraction of blocks per slip event, last completed cycle
+    C_SLIPPING,  # 1 while some block slips (ℓ_i > S_SLIP_LNV) after the current step
+    C_IN_EVENT,  # 1 while a slip event lasts
+    C_SLIP_SUM,  # Σ fractions of slipping blocks of the events ended in the current cycle
+    C_SLIP_EVENTS,  # number of those events
+) = range(23)
+N_CYCLE_STATE = 23
+
+
+@jit
+def aitken_limit(x0, x1, x2, x3, noise):
+    """Limit of a sequence that converges geometrically, from its last four terms.
+
+    Returns ``(limit, error)``: Aitken's Δ² extrapolation from the last three terms
+    and its error estimate, the change from the extrapolation one term earlier.
+    ``error`` is inf where the differences do not contract (|ratio| ≥ 1);
+    differences within ``noise`` count as converged (limit ``x3``).
+    """
+    d1 = x1 - x0
+    d2 = x2 - x1
+    d3 = x3 - x2
+    if abs(d3) <= noise and abs(d2) <= noise:
+        return x3, abs(d2) + abs(d3)
+    if d1 == 0.0 or d2 == 0.0:
+        return x3, np.inf
+    q = d3 / d2
+    q_prev = d2 / d1
+    if not (abs(q) < 1.0 and abs(q_prev) < 1.0):
+        return x3, np.inf
+    limit = x3 + d3 * q / (1.0 - q)
+    limit_prev = x2 + d2 * q_prev / (1.0 - q_prev)
+    return limit, abs(limit - limit_prev)
+
+
+@jit
+def history_value(hist, k, n_cycles, back):
+    """Observable ``k`` of the cycle ``back`` cycles before the last one."""
+    return hist[k, (n_cycles - 1 - back) % HISTORY]
+
+
+@jit
+def last_four(hist, k, n_cycles):
+    """Observable ``k`` over the last four cycles, oldest first."""
+    return (
+        history_value(hist, k, n_cycles, 3),
+        history_value(hist, k, n_cycles, 2),
+        history_value(hist, k, n_cycles, 1),
+        history_value(hist, k, n_cycles, 0),
+    )
+
+
+@jit
+def last_four_ptp(hist, nb, i, n_cycles):
+    """Peak-to-peak ℓ_i (rows i and nb + i of ``hist``) over the last four cycles."""
+    a0, a1, a2, a3 = last_four(hist, i, n_cycles)
+    b0, b1, b2, b3 = last_four(hist, nb + i, n_cycles)
+    return a0 - b0, a1 - b1, a2 - b2, a3 - b3
+
+
+@jit
+def decays_to_zero(x0, x1, x2, x3, accuracy, steady_amp, noise):
+    """Whether amplitudes x0 > x1 > x2 > x3 head for zero: already below
+    ``steady_amp``, or decreasing with an extrapolated limit of zero to within
+    ``accuracy`` × x3."""
+    if x3 < steady_amp:
+        return True
+    if not (x0 > x1 > x2 > x3):
+        return False
+    limit, error = aitken_limit(x0, x1, x2, x3, noise)
+    return abs(limit) + error <= accuracy * x3
+
+
+@jit
+def steady_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, atol):
+    """Whether the last four cycles show the decay onto steady sliding.
+
+    Only where steady sliding is linearly stable (``lin_growth`` < 0): an unstable
+    fixed point is never the attractor, whatever a transient does (two weakly
+    coupled blocks whose anti-phase mode decays first while the in-phase mode grows,
+    test_classification.py). Every block's oscillation must be small (peak-to-peak
+    ℓ below ``LINEAR_AMPLITUDE``) and extrapolate to zero; with several blocks so
+    must the in-phase coordinate mean(ℓ_i) (row 2 nb + 1), so a slowly decaying
+    in-phase mode hidden behind a faster anti-phase one is seen.
+    """
+    if not (lin_growth < 0.0) or n_cycles < HISTORY:
+        return False
+    noise = NOISE_FACTOR * atol
+    for i in range(nb):
+        x0, x1, x2, x3 = last_four_ptp(hist, nb, i, n_cycles)
+        if not (x3 < LINEAR_AMPLITUDE):
+            return False
+        if not decays_to_zero(x0, x1, x2, x3, accuracy, steady_amp, noise):
+            return False
+    if nb > 1:
+        x0, x1, x2, x3 = last_four(hist, 2 * nb + 1, n_cycles)
+        if not decays_to_zero(x0, x1, x2, x3, accuracy, steady_amp, noise):
+            return False
+    return True
+
+
+@jit
+def cycle_convergence(hist, n_cycles, nb, rtol, atol):
+    """Estimated relative distance of the last cycle to the limit cycle.
+
+    The largest, over the cycle's observables, of the distance to the extrapolated
+    limit plus that limit's error (:func:`aitken_limit`), relative to the
+    observable's scale: for the extremes of every block's ℓ, min(1, peak-to-peak ℓ / 2)
+    (so v_max and v_min are known to that relative accuracy, and the peak-to-peak
+    too); for the period, the period; for the in-phase amplitude, the peak-to-peak
+    ℓ. inf with fewer than four cycles or where an observable does not contract.
+    """
+    if n_cycles < HISTORY:
+        return np.inf
+    ptp = 0.0
+    for i in range(nb):
+        ptp = max(
+            ptp, history_value(hist, i, n_cycles, 0) - history_value(hist, nb + i, n_cycles, 0)
+        )
+    worst = 0.0
+    for k in range(2 * nb + 2):
+        if k == 2 * nb + 1 and nb == 1:
+            break
+        x0, x1, x2, x3 = last_four(hist, k, n_cycles)
+        noise = NOISE_FACTOR * (atol + rtol * abs(x3))
+        limit, error = aitken_limit(x0, x1, x2, x3, noise)
+        error += abs(limit - x3)
+        if k < 2 * nb:
+            scale = min(1.0, 0.5 * ptp)
+        elif k == 2 * nb:
+            scale = abs(x3)
+        else:
+            scale = ptp
+        if not (error <= worst * scale):
+            worst = error / scale if scale > 0.0 else np.inf
+    return worst
+
+
+@jit
+def cycle_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, atol):
+    """Regime settled by the last four cycles, or −1; and the cycle's convergence.
+
+    Steady: :func:`steady_verdict`. Stick-slip: every cycle observable within
+    ``accuracy`` (relative, see :func:`cycle_convergence`) of its extrapolated
+    limit, so the reported features are those of the limit cycle to that accuracy.
+    """
+    if steady_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, atol):
+        return STEADY, np.nan
+    conv = cycle_convergence(hist, n_cycles, nb, rtol, atol)
+    if conv <= accuracy:
+        return STICK_SLIP, conv
+    return -1, conv
+
+
+@jit_inline
+def block_friction(p, nb, i, A, B):
+    """(A_i, B_i) of block i: its per-block columns, or the common ``A``, ``B``."""
+    if p.size > N_PARAMS:
+        return p[N_PARAMS + B_A * nb + i], p[N_PARAMS + B_B * nb + i]
+    return A, B
+
+
+@jit
+def start_cycle(y, p, nb, A, B, win, cs):
+    """Start a cycle's statistics at state ``y``: extremes of ℓ_i and of the friction
+    A_i ℓ_i + B_i ψ_i, the synchronisation error and mean ℓ at their current values;
+    no block maximum and no slip event ended yet."""
+    sync = 0.0
+    mbar = 0.0
+    for i in range(nb):
+        win[W_LMAX, i] = y[i]
+        win[W_LMIN, i] = y[i]
+        a_i, b_i = block_friction(p, nb, i, A, B)
+        mu = a_i * y[i] + b_i * y[nb + i]
+        win[W_MUMAX, i] = mu
+        win[W_MUMIN, i] = mu
+        win[W_T_PEAK, i] = np.nan
+        sync = max(sync, abs(y[i] - y[0]))
+        mbar += y[i] / nb
+    cs[C_WIN_SYNC] = sync
+    cs[C_WIN_MBAR_MAX] = mbar
+    cs[C_WIN_MBAR_MIN] = mbar
+    cs[C_WIN_T_PEAK_LAST] = np.nan
+    cs[C_SLIP_SUM] = 0.0
+    cs[C_SLIP_EVENTS] = 0.0
+
+
+@jit_inline
+def update_cycle(
+    method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, p, nb, A, B, win, cs, slipped, slip_lnv
+):
+    """Fold the step from ``t`` to ``t + h`` into the current cycle's statistics.
+
+    Extremes of every block's ℓ and friction are located inside the step with
+    the dense output. Blocks with ℓ_i > ``slip_lnv`` after the step are marked in
+    ``slipped`` (``cs[C_SLIPPING]``: whether any is). Returns ``(new_peak, theta)``:
+    whether ℓ_0 had a maximum in the step (its value goes to ``cs[C_PEAK_VALUE]``)
+    and where, as a fraction of the step.
+    """
+    new_peak = False
+    theta_peak = 0.0
+    lnv_max_run = cs[C_LNV_MAX_RUN]
+    win_sync = cs[C_WIN_SYNC]
+    slipping = 0.0
+    for i in range(nb):
+        rising = f[i] > 0.0
+        falling_now = fnew[i] <= 0.0
+        if rising == falling_now:  # slope changed sign: one extremum in the step
+            r5 = dense_r5(method, i, h, f, k3, k4, k5, k6, fnew)
+            theta = dense_extremum(y[i], ynew[i], f[i], fnew[i], h, r5)
+            val = dense_value(y[i], ynew[i], f[i], fnew[i], h, r5, theta)
+            win[W_LMAX, i] = max(win[W_LMAX, i], val)
+            win[W_LMIN, i] = min(win[W_LMIN, i], val)
+            lnv_max_run = max(lnv_max_run, val)
+            if rising:
+                win[W_T_PEAK, i] = t + theta * h
+                if i == 0:
+                    new_peak = True
+                    theta_peak = theta
+                    cs[C_PEAK_VALUE] = val
+                elif i == nb - 1:
+                    cs[C_WIN_T_PEAK_LAST] = t + theta * h
+        win[W_LMAX, i] = max(win[W_LMAX, i], ynew[i])
+        win[W_LMIN, i] = min(win[W_LMIN, i], ynew[i])
+        lnv_max_run = max(lnv_max_run, ynew[i])
+        if ynew[i] > slip_lnv:
+            slipped[i] = 1.0
+            slipping = 1.0
+        # friction A_i ℓ_i + B_i ψ_i (relative to steady sliding), extremes interpolated
+        a_i, b_i = block_friction(p, nb, i, A, B)
+        mu0 = a_i * y[i] + b_i * y[nb + i]
+        mu = a_i * ynew[i] + b_i * ynew[nb + i]
+        dmu0 = a_i * f[i] + b_i * f[nb + i]
+        dmu1 = a_i * fnew[i] + b_i * fnew[nb + i]
+        if (dmu0 > 0.0) == (dmu1 <= 0.0):
+            r5_mu = a_i * dense_r5(method, i, h, f, k3, k4, k5, k6, fnew) + b_i * dense_r5(
+                method, nb + i, h, f, k3, k4, k5, k6, fnew
+            )
+            theta = dense_extremum(mu0, mu, dmu0, dmu1, h, r5_mu)
+            val = dense_value(mu0, mu, dmu0, dmu1, h, r5_mu, theta)
+            win[W_MUMAX, i] = max(win[W_MUMAX, i], val)
+            win[W_MUMIN, i] = min(win[W_MUMIN, i], val)
+        win[W_MUMAX, i] = max(win[W_MUMAX, i], mu)
+        win[W_MUMIN, i] = min(win[W_MUMIN, i], mu)
+        if i > 0:
+            win_sync = max(win_sync, abs(ynew[i] - ynew[0]))
+    cs[C_LNV_MAX_RUN] = lnv_max_run
+    cs[C_WIN_SYNC] = win_sync
+    cs[C_SLIPPING] = slipping
+    return new_peak, theta_peak
+
+
+@jit
+def end_slip_event(nb, slipped, cs):
+    """A slip event ended (no block slips any more): add the fraction of blocks that
+    slipped during it to the current cycle's sum and clear the marks."""
+    count = 0.0
+    for i in range(nb):
+        count += slipped[i]
+        slipped[i] = 0.0
+    cs[C_SLIP_SUM] += count / nb
+    cs[C_SLIP_EVENTS] += 1.0
+    cs[C_IN_EVENT] = 0.0
+
+
+@jit
+def kuramoto_order(t_peak_blocks, t_peak, period, nb):
+    """Kuramoto order parameter R = |mean_i exp(iθ_i)| of the blocks' phases at the
+    maximum of ℓ_0 at ``t_peak``: θ_i = 2π (last maximum of ℓ_i − t_peak) / period.
+    NaN if a block had no maximum in the cycle."""
+    re = 0.0
+    im = 0.0
+    for i in range(nb):
+        theta = 2.0 * math.pi * (t_peak_blocks[i] - t_peak) / period
+        re += math.cos(theta)
+        im += math.sin(theta)
+    return math.sqrt(re * re + im * im) / nb  # NaN from a block without a maximum
+
+
+@jit
+def close_cycle(t_peak, nb, win, last, hist, cs, accuracy, steady_amp, lin_growth, rtol, atol):
+    """End the cycle at the maximum of ℓ_0 at ``t_peak`` (D0/V).
+
+    Adds the cycle to the history, judges it (:func:`cycle_verdict`) and keeps
+    its statistics as the last completed cycle.
+    """
+    period = t_peak - cs[C_T_PEAK]
+    cs[C_PERIOD] = period
+    # growth of the peak-to-trough amplitude of ℓ_0, where it is above round-off
+    # (a decayed run would report noise, not a rate)
+    amp = cs[C_PEAK_VALUE] - win[W_LMIN, 0]
+    growth = np.nan
+    if cs[C_AMP_PREV] >= steady_amp and amp >= steady_amp:
+        growth = math.log(amp / cs[C_AMP_PREV]) / period
+    cs[C_GROWTH] = growth
+    cs[C_AMP_PREV] = amp
+    n_cycles = int(cs[C_N_CYCLES])
+    slot = n_cycles % HISTORY
+    for i in range(nb):
+        hist[i, slot] = win[W_LMAX, i]
+        hist[nb + i, slot] = win[W_LMIN, i]
+    hist[0, slot] = cs[C_PEAK_VALUE]
+    hist[2 * nb, slot] = period
+    hist[2 * nb + 1, slot] = cs[C_WIN_MBAR_MAX] - cs[C_WIN_MBAR_MIN]
+    n_cycles += 1
+    cs[C_N_CYCLES] = n_cycles
+    verdict, conv = cycle_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, atol)
+    cs[C_CONV] = conv
+    same = verdict >= 0 and verdict == int(cs[C_VERDICT])
+    cs[C_N_AGREE] = cs[C_N_AGREE] + 1 if same else 1
+    cs[C_VERDICT] = verdict
+    for k in range(N_WINDOW):
+        for i in range(nb):
+            last[k, i] = win[k, i]
+    cs[C_LAST_ORDER] = kuramoto_order(win[W_T_PEAK], t_peak, period, nb)
+    events = cs[C_SLIP_EVENTS]
+    cs[C_LAST_PARTICIPATION] = cs[C_SLIP_SUM] / events if events > 0 else np.nan
+    cs[C_LAST_SYNC] = cs[C_WIN_SYNC]
+    t_last = cs[C_WIN_T_PEAK_LAST]
+    if nb > 1 and t_last == t_last:
+        lag = (t_last - cs[C_T_PEAK]) / period
+        cs[C_LAST_PHASE] = lag - math.floor(lag + 0.5)
+
+
+@jit
+def new_cycle_state(y, nb):
+    """Scalar cycle state (``C_*`` entries) at the start of a run from ``y``."""
+    cs = np.full(N_CYCLE_STATE, np.nan)
+    cs[C_N_PEAKS] = 0.0
+    cs[C_PEAK_VALUE] = 0.0
+    cs[C_N_CYCLES] = 0.0
+    cs[C_N_AGREE] = 0.0
+    cs[C_VERDICT] = -1.0
+    cs[C_CONV] = np.inf
+    cs[C_SLIPPING] = 0.0
+    cs[C_IN_EVENT] = 0.0
+    lnv_max_run = -np.inf
+    for i in range(nb):
+        lnv_max_run = max(lnv_max_run, y[i])
+    cs[C_LNV_MAX_RUN] = lnv_max_run
+    return cs
+
+
+@jit_inline
+def cycle_arrays(y, p, nb, A, B):
+    """The classifier's arrays at the start of a run, the first cycle started at ``y``:
+    the current cycle (``win``) and the last completed one (``last``), ``W_*`` rows per
+    block; per completed cycle (``hist``): max ℓ_i, min ℓ_i, period, peak-to-peak of
+    mean(ℓ_i); the cycle state ``cs`` (``C_*``); ``slipped`` (1: block i slipped during
+    the current slip event)."""
+    win = np.empty((N_WINDOW, nb))
+    last = np.full((N_WINDOW, nb), np.nan)
+    hist = np.zeros((2 * nb + 2, HISTORY))
+    cs = new_cycle_state(y, nb)
+    start_cycle(y, p, nb, A, B, win, cs)
+    slipped = np.zeros(nb)
+    return win, last, hist, cs, slipped

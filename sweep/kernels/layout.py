@@ -1,0 +1,89 @@
+"""The kernels' array layout: codes and column indices shared with the Python side.
+
+Plain Python (no numba): the grid builder, the Dataset constructor and the tests
+read results with these names without compiling anything. In the kernels they are
+compile-time constants.
+
+State of one system with ``nb`` blocks: ``y[i] = ℓ_i`` (ln v/V), ``y[nb+i] = ψ_i``
+(ln VΦ/D0) and, for the inertial model, ``y[2nb+i] = z_i`` (inertial force
+m dv/dt per unit normal load). Time τ is in units of D0/V.
+"""
+
+# --- codes -------------------------------------------------------------------
+QUASI_STATIC, QUASI_DYNAMIC, INERTIAL = 0, 1, 2
+AGING, SLIP = 0, 1
+DOPRI5, RK4, ROSENBROCK = 0, 1, 2
+STEADY, STICK_SLIP, RUNAWAY, UNDECIDED = 0, 1, 2, 3
+CHAIN, RING, ALL = 0, 1, 2  # coupling springs: neighbours of a chain, of a ring, every pair
+
+# --- columns of the per-system parameter array (all dimensionless) ----------
+(
+    P_A,  # direct effect
+    P_B,  # evolution effect
+    P_KAPPA1,  # driving stiffness K D0/W
+    P_KAPPA2,  # coupling stiffness k2 D0/W
+    P_ETA,  # radiation damping ηV/W
+    P_MASS,  # mass mV²/(W D0)
+    P_TAU_END,  # end time (D0/V)
+    P_DT,  # fixed step of rk4 (D0/V)
+    P_MAX_STEP,  # largest adaptive step (D0/V)
+    P_TAU_MAX,  # unsettled runs continue up to this time (D0/V), ≥ P_TAU_END
+    P_LIN_GROWTH,  # max Re λ of the linearisation at steady sliding (V/D0)
+) = range(11)
+N_PARAMS = 11
+# Rows whose blocks differ have N_BLOCK_PARAMS × nb more columns after N_PARAMS:
+# column N_PARAMS + k nb + i holds quantity k of block i (B_* below). Without them
+# (p.size == N_PARAMS) every block takes P_A, P_B, P_KAPPA1 and rate factor 1.
+(
+    B_A,  # direct effect of block i
+    B_B,  # evolution effect of block i
+    B_KAPPA1,  # driving stiffness K_i D0/W (D0: the reference D0)
+    B_RATE,  # state-rate factor D0/D0_i
+) = range(4)
+N_BLOCK_PARAMS = 4
+
+# --- entries of the settings array, shared by all systems of a sweep --------
+(
+    S_MODEL,  # QUASI_STATIC | QUASI_DYNAMIC | INERTIAL
+    S_LAW,  # AGING | SLIP
+    S_METHOD,  # DOPRI5 | RK4 | ROSENBROCK
+    S_NBLOCKS,  # number of blocks
+    S_RTOL,  # relative tolerance of the adaptive methods
+    S_ATOL,  # absolute tolerance of the adaptive methods
+    S_MAX_STEPS,  # step budget per run (accepted + rejected)
+    S_LNV_CAP,  # runaway when any ln(v/V) exceeds this
+    S_STEADY_AMP,  # steady when every |state variable| falls below this
+    S_ACCURACY,  # relative accuracy of the extrapolated limit that settles a run
+    S_CONFIRM_CYCLES,  # consecutive cycles a verdict must hold to settle a run early
+    S_EARLY_EXIT,  # 1: stop as soon as the regime is settled
+    S_SLIP_LNV,  # a block slips (slip events, R_SLIP_PARTICIPATION) while ℓ_i exceeds this
+    S_COUPLING,  # CHAIN | RING | ALL
+) = range(14)
+N_SETTINGS = 14
+
+# --- columns of the per-system statistics array -----------------------------
+(
+    R_REGIME,  # STEADY | STICK_SLIP | RUNAWAY | UNDECIDED
+    R_TAU_FINAL,  # time the run stopped (D0/V)
+    R_N_STEPS,  # accepted steps
+    R_N_REJECTED,  # rejected steps
+    R_LNV_MAX,  # max ln(v/V) over blocks, final window
+    R_LNV_MIN,  # min ln(v/V) over blocks, final window
+    R_PERIOD,  # last peak-to-peak time of ℓ_0 (D0/V)
+    R_GROWTH,  # envelope growth rate from the last two cycles (V/D0)
+    R_FRICTION_DROP,  # max over blocks of max − min friction in the final window
+    R_TAU_RUNAWAY,  # time ℓ crossed the cap or went non-finite (D0/V)
+    R_SYNC_ERROR,  # max |ℓ_i − ℓ_0| over blocks, final window
+    R_PHASE_LAG,  # (t peak of ℓ_last − t peak of ℓ_0) / period, in [−0.5, 0.5)
+    R_N_PEAKS,  # maxima of ℓ_0 seen
+    R_LNV_MAX_RUN,  # max ln(v/V) over the whole run
+    R_N_RECORDED,  # points written to the recording buffers
+    R_CONVERGENCE,  # estimated relative distance of the last cycle to its limit
+    R_SYNC_ORDER,  # Kuramoto order parameter of the blocks' phases, final window
+    R_SLIP_PARTICIPATION,  # mean fraction of blocks slipping per slip event, final window
+) = range(18)
+N_RESULTS = 18
+
+# Outcomes of a step's runaway test besides the index of the block that crossed
+# the cap (runaway_index).
+NO_RUNAWAY, NOT_FINITE = -1, -2

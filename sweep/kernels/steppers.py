@@ -1,0 +1,331 @@
+"""Steppers (RK4, DOPRI5, RODAS4) and the dense output that locates extrema inside a step.
+
+Extrema are located inside a step with the interpolant of the step: DOPRI5's
+continuous extension of order 4, cubic Hermite for RK4 and RODAS4.
+"""
+
+import math
+
+import numpy as np
+
+from ..accelerate import jit, jit_inline
+from .equations import jacobian, rhs
+from .layout import DOPRI5, RK4, ROSENBROCK
+
+# Dormand–Prince 5(4) tableau (Hairer, Nørsett & Wanner, Table II.5.2).
+_A21 = 1 / 5
+_A31, _A32 = 3 / 40, 9 / 40
+_A41, _A42, _A43 = 44 / 45, -56 / 15, 32 / 9
+_A51, _A52, _A53, _A54 = 19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729
+_A61, _A62, _A63, _A64, _A65 = 9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656
+#: Row s: the coefficients of f, k2, … of stage s + 3's argument (stages 3 to 6; stage
+#: 2's, _A21, is applied to h first, as h a21 f).
+_DP_A = np.array([
+    [_A31, _A32, 0.0, 0.0, 0.0],
+    [_A41, _A42, _A43, 0.0, 0.0],
+    [_A51, _A52, _A53, _A54, 0.0],
+    [_A61, _A62, _A63, _A64, _A65],
+])  # fmt: skip
+_B1, _B3, _B4, _B5, _B6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
+_E1, _E3, _E4, _E5, _E6, _E7 = (
+    71 / 57600,
+    -71 / 16695,
+    71 / 1920,
+    -17253 / 339200,
+    22 / 525,
+    -1 / 40,
+)
+
+# RODAS4 (Hairer & Wanner, Solving ODEs II, section VI.4; rodas.f, METH = 1),
+# autonomous form: row s of _RODAS_A gives stage s + 1's argument y + Σ a_sj k_j,
+# row s of _RODAS_C its coupling Σ c_sj k_j / h; the last row's stage is the error.
+_RODAS_GAMMA = 0.25
+_RODAS_A = np.array(
+    [
+        [0.0, 0.0, 0.0, 0.0, 0.0],
+        [1.544, 0.0, 0.0, 0.0, 0.0],
+        [0.9466785280815826, 0.2557011698983284, 0.0, 0.0, 0.0],
+        [3.314825187068521, 2.896124015972201, 0.9986419139977817, 0.0, 0.0],
+        [1.221224509226641, 6.019134481288629, 12.53708332932087, -0.6878860361058950, 0.0],
+        [1.221224509226641, 6.019134481288629, 12.53708332932087, -0.6878860361058950, 1.0],
+    ]
+)
+_RODAS_C = np.array(
+    [
+        [0.0, 0.0, 0.0, 0.0, 0.0],
+        [-5.6688, 0.0, 0.0, 0.0, 0.0],
+        [-2.430093356833875, -0.2063599157091915, 0.0, 0.0, 0.0],
+        [-0.1073529058151375, -9.594562251023355, -20.47028614809616, 0.0, 0.0],
+        [7.496443313967647, -10.24680431464352, -33.99990352819905, 11.70890893206160, 0.0],
+        [8.083246795921522, -7.981132988064893, -31.52159432874371, 16.31930543123136,
+         -6.058818238834054],
+    ]
+)  # fmt: skip
+
+
+@jit
+def lu_factor(a, perm):
+    """In-place LU factorisation of ``a`` with partial pivoting; ``perm[i]`` is the
+    original index of the i-th pivot row.
+
+    A zero pivot is not trapped: it yields non-finite values, which the caller's
+    error estimate turns into a rejected step.
+    """
+    n = a.shape[0]
+    for k in range(n):
+        perm[k] = k
+    for k in range(n):
+        pk = k
+        for i in range(k + 1, n):
+            if abs(a[i, k]) > abs(a[pk, k]):
+                pk = i
+        if pk != k:
+            tmp_row = perm[k]
+            perm[k] = perm[pk]
+            perm[pk] = tmp_row
+            for j in range(n):
+                tmp = a[k, j]
+                a[k, j] = a[pk, j]
+                a[pk, j] = tmp
+        for i in range(k + 1, n):
+            a[i, k] /= a[k, k]
+            if a[i, k] != 0.0:  # coupling Jacobians are sparse: skip rows with nothing to do
+                for j in range(k + 1, n):
+                    a[i, j] -= a[i, k] * a[k, j]
+
+
+@jit
+def lu_solve(a, perm, b, x):
+    """Solve ``a x = b`` into ``x`` (≠ ``b``) from the factors of :func:`lu_factor`."""
+    n = a.shape[0]
+    for i in range(n):
+        acc = b[perm[i]]
+        for j in range(i):
+            if a[i, j] != 0.0:
+                acc -= a[i, j] * x[j]
+        x[i] = acc
+    for ii in range(n):
+        i = n - 1 - ii
+        acc = x[i]
+        for j in range(i + 1, n):
+            if a[i, j] != 0.0:
+                acc -= a[i, j] * x[j]
+        x[i] = acc / a[i, i]
+
+
+@jit_inline
+def step_rk4(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew):
+    """One classical RK4 step of size h from (y, f = rhs(y)) into ``ynew``; the stages
+    k2, k3, k4 go to rows 0-2 of ``k``.
+
+    The stages are a loop around one call of the right-hand side, so that numba
+    inlines it once (each inlined copy costs compile time, see accelerate.py)."""
+    n = y.size
+    for s in range(3):  # y + h/2 f, y + h/2 k2, y + h k3
+        if s == 0:
+            for j in range(n):
+                ytmp[j] = y[j] + 0.5 * h * f[j]
+        else:
+            c = 0.5 * h if s == 1 else h
+            for j in range(n):
+                ytmp[j] = y[j] + c * k[s - 1, j]
+        rhs(ytmp, p, model, law, coupling, het, nb, ev, k[s])
+    for j in range(n):
+        ynew[j] = y[j] + h / 6.0 * (f[j] + 2.0 * k[0, j] + 2.0 * k[1, j] + k[2, j])
+
+
+@jit_inline
+def step_dopri5(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew, fnew, rtol, atol):
+    """One Dormand–Prince 5(4) step; returns the scaled RMS error estimate.
+
+    ``f`` = rhs(y) on entry; the stages k2 … k6 go to rows 0-4 of ``k``; on return
+    ``ynew`` holds the 5th-order solution and ``fnew`` = rhs(ynew) (first same as
+    last). The step is acceptable when the returned error is ≤ 1; a non-finite error
+    means the trial state overflowed. The stages are a loop around one call of the
+    right-hand side (one inlined copy), summed term by term in the tableau's order.
+    """
+    n = y.size
+    for s in range(5):
+        for j in range(n):
+            if s == 0:
+                ytmp[j] = y[j] + h * _A21 * f[j]
+            else:
+                acc = _DP_A[s - 1, 0] * f[j]
+                for r in range(s):
+                    acc += _DP_A[s - 1, r + 1] * k[r, j]
+                ytmp[j] = y[j] + h * acc
+        rhs(ytmp, p, model, law, coupling, het, nb, ev, k[s])
+    for j in range(n):
+        ynew[j] = y[j] + h * (
+            _B1 * f[j] + _B3 * k[1, j] + _B4 * k[2, j] + _B5 * k[3, j] + _B6 * k[4, j]
+        )
+    rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
+    err2 = 0.0
+    for j in range(n):
+        e = h * (
+            _E1 * f[j] + _E3 * k[1, j] + _E4 * k[2, j] + _E5 * k[3, j] + _E6 * k[4, j]
+            + _E7 * fnew[j]
+        )  # fmt: skip
+        scale = atol + rtol * max(abs(y[j]), abs(ynew[j]))
+        err2 += (e / scale) ** 2
+    return math.sqrt(err2 / n)
+
+
+@jit
+def step_rosenbrock(
+    y, f, h, p, model, law, coupling, het, nb, ev, k, mat, perm, ytmp, ynew, fnew, rtol, atol
+):
+    """One linearly implicit RODAS4 step (order 4, embedded order 3, L-stable).
+
+    Solves (I/(γh) − J) k_s = f(y + Σ a_sj k_j) + Σ c_sj k_j / h for six stages
+    with the analytic Jacobian J at y; the stiff decay of the inertial force
+    towards force balance in stick phases (rate A e^(−ℓ)/M̂) costs nothing.
+    ``f`` = rhs(y) on entry; ``k`` is (6, n) scratch, ``mat`` (n, n), ``perm`` (n).
+    On return ``ynew`` holds the solution and ``fnew`` = rhs(ynew); returns the
+    scaled RMS error estimate (acceptable when ≤ 1, non-finite on overflow).
+    """
+    n = y.size
+    jacobian(y, f, p, model, law, coupling, het, nb, ev, mat)
+    diag = 1.0 / (_RODAS_GAMMA * h)
+    for i in range(n):
+        for j in range(n):
+            mat[i, j] = -mat[i, j]
+        mat[i, i] += diag
+    lu_factor(mat, perm)
+    for s in range(6):
+        if s == 0:
+            for j in range(n):
+                fnew[j] = f[j]
+        else:
+            for j in range(n):
+                acc = y[j]
+                for r in range(s):
+                    acc += _RODAS_A[s, r] * k[r, j]
+                ytmp[j] = acc
+            rhs(ytmp, p, model, law, coupling, het, nb, ev, fnew)
+        for j in range(n):
+            acc = 0.0
+            for r in range(s):
+                acc += _RODAS_C[s, r] * k[r, j]
+            fnew[j] += acc / h
+        lu_solve(mat, perm, fnew, k[s])
+    err2 = 0.0
+    for j in range(n):
+        ynew[j] = ytmp[j] + k[5, j]
+        scale = atol + rtol * max(abs(y[j]), abs(ynew[j]))
+        err2 += (k[5, j] / scale) ** 2
+    rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
+    return math.sqrt(err2 / n)
+
+
+# Dormand–Prince continuous extension of order 4 (Hairer, Nørsett & Wanner, dense
+# output of DOPRI5, section II.6): the fifth coefficient of the interpolant.
+_D1, _D3, _D4 = -12715105075 / 11282082432, 87487479700 / 32700410799, -10690763975 / 1880347072
+_D5, _D6, _D7 = 701980252875 / 199316789632, -1453857185 / 822651844, 69997945 / 29380423
+
+
+@jit_inline
+def dense_r5(method, j, h, f, k3, k4, k5, k6, fnew):
+    """Fifth coefficient of the interpolant of component ``j`` over a step of size h:
+    DOPRI5's (stages k1 = ``f``, k3 … k6, k7 = ``fnew``), 0 for the other methods
+    (cubic Hermite)."""
+    if method != DOPRI5:
+        return 0.0
+    return h * (_D1 * f[j] + _D3 * k3[j] + _D4 * k4[j] + _D5 * k5[j] + _D6 * k6[j] + _D7 * fnew[j])
+
+
+@jit_inline
+def dense_value(y0, y1, d0, d1, h, r5, theta):
+    """Interpolant at fraction ``theta`` of a step of size h from (y0, slope d0) to
+    (y1, slope d1): DOPRI5's continuous extension (order 4) with its coefficient
+    ``r5``, the cubic Hermite interpolant for ``r5`` = 0 (RK4, RODAS4).
+
+    The extrema of a cycle are read from it: with the cubic Hermite interpolant over
+    0.5 D0/V steps they scattered by ~1e-4 of the amplitude from cycle to cycle,
+    too much to extrapolate the cycle-to-cycle sequence near Kc
+    (test_classification.py); the dense output is as accurate as the steps.
+    """
+    r2 = y1 - y0
+    r3 = h * d0 - r2
+    r4 = r2 - h * d1 - r3
+    return y0 + theta * (r2 + (1.0 - theta) * (r3 + theta * (r4 + (1.0 - theta) * r5)))
+
+
+@jit_inline
+def dense_slope(y0, y1, d0, d1, h, r5, theta):
+    """h × the time derivative of :func:`dense_value` at fraction ``theta``."""
+    r2 = y1 - y0
+    r3 = h * d0 - r2
+    r4 = r2 - h * d1 - r3
+    u = 1.0 - theta
+    return (
+        r2
+        + (u - theta) * r3
+        + theta * (2.0 - 3.0 * theta) * r4
+        + 2.0 * theta * u * (u - theta) * r5
+    )
+
+
+@jit_inline
+def dense_extremum(y0, y1, d0, d1, h, r5):
+    """Fraction θ ∈ [0, 1] of the step where the interpolant's slope vanishes, given
+    slopes d0 and d1 of opposite sign (bisection, 50 halvings)."""
+    lo = 0.0
+    hi = 1.0
+    rising = d0 > 0.0
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        if (dense_slope(y0, y1, d0, d1, h, r5, mid) > 0.0) == rising:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@jit
+def dense_crossing(y0, y1, d0, d1, h, r5, level):
+    """Fraction θ of the step where the interpolant rises through ``level``
+    (y0 < level ≤ y1; bisection, 50 halvings)."""
+    lo = 0.0
+    hi = 1.0
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        if dense_value(y0, y1, d0, d1, h, r5, mid) < level:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@jit_inline
+def next_step_size(method, h, err, max_step):
+    """The step after one of size ``h`` with error norm ``err`` (D0/V).
+
+    RK4 keeps its fixed step. The adaptive methods use the standard controller
+    0.9 err^(−1/(q+1)) (q: order of the error estimate), growing at most 5× and
+    at most to ``max_step`` after an accepted step, shrinking at least 5× after a
+    rejected one (and 5× when the error is not finite).
+    """
+    if method == RK4:
+        return h
+    expo = -0.25 if method == ROSENBROCK else -0.2
+    if err <= 1.0:
+        return min(max_step, h * min(5.0, 0.9 * max(err, 1e-10) ** expo))
+    if math.isfinite(err):
+        return h * max(0.2, 0.9 * err**expo)
+    return h * 0.2
+
+
+@jit
+def step_scratch(n):
+    """Scratch of the explicit steps for a state of ``n`` values: f, ynew, fnew, ytmp
+    and the stages k2 … k6 as the rows of one (5, n) array."""
+    return np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty((5, n))
+
+
+@jit
+def rosenbrock_scratch(method, n):
+    """Scratch of the RODAS4 step (stages, matrix, pivots); empty for other methods."""
+    if method == ROSENBROCK:
+        return np.empty((6, n)), np.empty((n, n)), np.empty(n, np.int64)
+    return np.empty((0, n)), np.empty((0, 0)), np.empty(0, np.int64)
