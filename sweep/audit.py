@@ -38,11 +38,15 @@ def audit_points(ds, sample=20, near_kc=0.01, seed=0):
 
 
 def audit_config(config, t_end):
-    """``config`` with end time ``t_end`` (its ``t_unit``) and early exit off."""
+    """``config`` with end time ``t_end`` (its ``t_unit``) and early exit off; λ1 (unless
+    the config never computes it) over the whole run, which tells chaotic and
+    quasi-periodic motion from undecided at the end."""
+    cls = config.classification
+    lyapunov = cls.lyapunov if cls.lyapunov == "never" else "always"
     return dataclasses.replace(
         config,
         integrator=dataclasses.replace(config.integrator, t_end=float(t_end)),
-        classification=dataclasses.replace(config.classification, early_exit=False),
+        classification=dataclasses.replace(cls, early_exit=False, lyapunov=lyapunov),
     )
 
 
@@ -100,7 +104,7 @@ def audit_result(result, sample=20, near_kc=0.01, t_end=None, seed=0, threads=No
         picked = build_grid(longer).rows(runs)
         results, _ = integrate_in_memory(picked.params, picked.y0, picked.settings, threads)
     else:
-        results = np.empty((0, layout.N_RESULTS))
+        results = np.empty((0, layout.N_RESULTS))  # no runs: only the regime column is read
     regime_file = ds["regime"].values.ravel()[runs]
     regime_audit = results[:, layout.R_REGIME].astype(np.int8)
     flags = {

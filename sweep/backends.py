@@ -80,7 +80,7 @@ class LocalThreads:
         """
         if self.threads == 1:
             for a, b in ranges:
-                res, yf = _outputs(b - a, y0.shape[1])
+                res, yf = _outputs(b - a, y0.shape[1], settings)
                 if b > a:
                     integrate_grid(params[a:b], y0[a:b], settings, res, yf)
                 yield a, b, res, yf
@@ -101,7 +101,7 @@ class LocalThreads:
                 with lock:
                     k, lo, hi = next(batches, (None, 0, 0))
                     if k is not None and out[k] is None:
-                        out[k] = _outputs(ranges[k][1] - ranges[k][0], y0.shape[1])
+                        out[k] = _outputs(ranges[k][1] - ranges[k][0], y0.shape[1], settings)
                 if k is None:
                     return
                 res, yf = out[k]
@@ -129,7 +129,7 @@ class LocalThreads:
                     done[k].wait()
                 if failures:
                     raise failures[0]
-                res, yf = out[k] or _outputs(0, y0.shape[1])
+                res, yf = out[k] or _outputs(0, y0.shape[1], settings)
                 out[k] = None  # the caller keeps its copy
                 yield a, b, res, yf
         finally:
@@ -147,11 +147,11 @@ def _batches(ranges, threads):
             yield k, lo, min(lo + size, b)
 
 
-def _outputs(n, n_vars):
-    """Empty ``(results, y_final)`` for ``n`` systems."""
-    from .kernels.layout import N_RESULTS
+def _outputs(n, n_vars, settings):
+    """Empty ``(results, y_final)`` for ``n`` systems of ``n_vars`` state variables."""
+    from .kernels.layout import result_width
 
-    return np.empty((n, N_RESULTS)), np.empty((n, n_vars))
+    return np.empty((n, result_width(settings))), np.empty((n, n_vars))
 
 
 class DaskTasks:

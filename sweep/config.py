@@ -30,6 +30,12 @@ METHODS = ("dopri5", "rk4", "rosenbrock")
 #: the linearly implicit rosenbrock stepper needs ~1e3 steps per cycle.
 DEFAULT_METHODS = {"inertial": "rosenbrock"}
 TIME_UNITS = ("D0/V", "s")
+#: When the largest Lyapunov exponent is computed: from t_end on, for runs not settled
+#: by then; over every whole run; or never.
+LYAPUNOV_MODES = ("unsettled", "always", "never")
+#: Most events whose maxima a run can report: the cycles the classifier keeps
+#: (``kernels.cycles.HISTORY``; a test checks the two agree).
+MAX_EVENTS = 128
 #: Which blocks a coupling spring k2 joins: neighbours in an open chain, neighbours
 #: in a closed ring, or every pair.
 COUPLINGS = ("chain", "ring", "all")
@@ -191,6 +197,14 @@ class Classification:
     slip_v_over_V: float = setting(
         2.0, "a block slips (slip_participation) while its v/V exceeds this", "(0, inf)"
     )
+    lyapunov: str = setting(
+        "unsettled", "when lyapunov_exponent is computed: from t_end on for runs not settled by "
+        "then, over every whole run (no run then stops before t_end), or never", LYAPUNOV_MODES,
+    )  # fmt: skip
+    events: int = setting(
+        32, "events (maxima of ln v of block 0) whose values and intervals each run reports "
+        "(the event dimension)", f"[0, {MAX_EVENTS}]",
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -240,6 +254,7 @@ class Config:
             ("nblock", self.nblock_outputs),
             ("heterogeneous", self.heterogeneous),
             ("ensemble", self.initial.ensemble > 0),
+            ("events", self.classification.events > 0),
         )
         return tuple(name for name, on in flags if on)
 

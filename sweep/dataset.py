@@ -23,7 +23,7 @@ from .config import parse_config
 from .errors import ConfigError, InputError
 from .physics import PARAMETERS
 from .store import ZARR_SUFFIX, replaced_atomically, require_zarr
-from .variables import REGIMES, variables_for
+from .variables import ATTRACTORS, REGIMES, variables_for
 
 
 def derived_fields(grid, results, y_final):
@@ -40,12 +40,17 @@ def derived_fields(grid, results, y_final):
     nb = config.blocks
     V = phys["V"]
     regime = r[:, layout.R_REGIME].astype(np.int8)
+    events = r[:, layout.R_CYCLE_EVENTS]
     period = r[:, layout.R_PERIOD] * time_unit
     lin = grid.linear
     growth, kc, omega = lin["growth_rate"], lin["kappa_c"], lin["omega"]
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         fields = {
             "regime": regime,
+            "attractor": r[:, layout.R_ATTRACTOR],
+            "cycle_events": events,
+            "lyapunov_exponent": r[:, layout.R_LYAPUNOV] / time_unit,
+            "lyapunov_error": r[:, layout.R_LYAPUNOV_ERROR] / time_unit,
             "lnv_amplitude": r[:, layout.R_LNV_MAX] - r[:, layout.R_LNV_MIN],
             "lnv_max": r[:, layout.R_LNV_MAX],
             "lnv_min": r[:, layout.R_LNV_MIN],
@@ -54,7 +59,7 @@ def derived_fields(grid, results, y_final):
             "period": period,
             "growth_rate": r[:, layout.R_GROWTH] / time_unit,
             "friction_drop": r[:, layout.R_FRICTION_DROP],
-            "slip_per_event": np.where(regime == layout.STICK_SLIP, V * period, np.nan),
+            "slip_per_event": np.where(events > 0, V * period / np.maximum(events, 1), np.nan),
             "t_runaway": r[:, layout.R_TAU_RUNAWAY] * time_unit,
             "t_final": r[:, layout.R_TAU_FINAL] * time_unit,
             "convergence": r[:, layout.R_CONVERGENCE],
@@ -70,6 +75,11 @@ def derived_fields(grid, results, y_final):
             "K_over_Kc": phys["K_W"] * phys["D0"] / kc,
             "onset_period": 2 * np.pi / omega * time_unit,
         }
+    m = config.classification.events
+    if m:
+        start = layout.N_RESULTS
+        fields["event_lnv_peak"] = r[:, start : start + m]
+        fields["event_interval"] = r[:, start + m : start + 2 * m] * time_unit[:, None]
     if config.model == "inertial":
         fields["inertial_force_final"] = y_final[:, 2 * nb : 3 * nb]
     if config.nblock_outputs:
@@ -115,6 +125,14 @@ def parameter_coords(config):
         np.arange(config.blocks, dtype=np.int32),
         {"long_name": "block index", "units": "1"},
     )
+    if config.classification.events:
+        m = config.classification.events
+        coords["event"] = (
+            "event",
+            np.arange(1 - m, 1, dtype=np.int32),
+            {"long_name": "event counted back from the last (0: the last event of the run)",
+             "units": "1"},
+        )  # fmt: skip
     if config.initial.ensemble:
         coords["member"] = (
             "member",
@@ -167,16 +185,19 @@ def data_variables(config, fields, shape=None):
             data, var_dims = regime_fractions(regime), dims + ("regime_name",)
         else:
             block = (config.blocks,) if var.per_block else ()
+            block += (config.classification.events,) if var.per_event else ()
             data = fields[var.name].reshape(run_shape + block)
             var_dims = run_dims + (("block",) if var.per_block else ())
+            var_dims += ("event",) if var.per_event else ()
             if ensemble and not var.per_member:  # the same for every member: the first
                 data = data[(..., 0) + (slice(None),) * len(block)]
                 var_dims = dims + var_dims[len(run_dims) :]
         data_vars[var.name] = (var_dims, data.astype(var.dtype), attrs)
-    regime_attrs = data_vars["regime"][2]
-    regime_attrs["flag_values"] = np.arange(len(REGIMES), dtype=np.int8)
-    regime_attrs["flag_meanings"] = " ".join(REGIMES)
-    regime_attrs.pop("units")
+    for name, meanings in (("regime", REGIMES), ("attractor", ATTRACTORS)):
+        attrs = data_vars[name][2]
+        attrs["flag_values"] = np.arange(len(meanings), dtype=np.int8)
+        attrs["flag_meanings"] = " ".join(meanings)
+        attrs.pop("units")
     return data_vars
 
 

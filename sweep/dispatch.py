@@ -56,7 +56,7 @@ def load_kernel(params, settings):
     try:
         integrate_grid(
             np.empty((0, params.shape[1])), np.empty((0, 2)), np.ascontiguousarray(settings),
-            np.empty((0, layout.N_RESULTS)), np.empty((0, 2)),
+            np.empty((0, layout.result_width(settings))), np.empty((0, 2)),
         )  # fmt: skip
     finally:
         notice.cancel()

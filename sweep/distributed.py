@@ -35,10 +35,10 @@ def chunk_task(params, y0, settings):
     Returns ``(results, y_final)``.
     """
     from .dispatch import integrate_grid
-    from .kernels.layout import N_RESULTS
+    from .kernels.layout import result_width
 
     params, y0, settings = (np.require(a, np.float64, ["C", "W"]) for a in (params, y0, settings))
-    results = np.empty((params.shape[0], N_RESULTS))
+    results = np.empty((params.shape[0], result_width(settings)))
     y_final = np.empty_like(y0)
     integrate_grid(params, y0, settings, results, y_final)
     return results, y_final

@@ -8,8 +8,12 @@ each undecided run is integrated again from that state for the time left up
 to the new end, with the config's settings otherwise, and its statistics
 replace the old ones. Times are shifted by the old ``t_final`` and the step
 and peak counts are added, so the file reads as if each run had gone straight
-on; the cycle statistics (envelope, period) start afresh at the restart.
-Every other run is left as it was, bit for bit.
+on; the cycle statistics (envelope, period, the events) start afresh at the
+restart. The continuation is judged like a run whose end time is half the time
+left: it stops once settled, and still unsettled at half time it carries the
+tangent for λ1 over the second half (without early exit, over all of it), so
+chaotic and quasi-periodic motion can be told from undecided. Every other run
+is left as it was, bit for bit.
 """
 
 import dataclasses
@@ -148,18 +152,25 @@ def extend_result(result, t_end=None, threads=None, source=None):
     n = grid.n
     t_final = ds["t_final"].values.reshape(n)[rows]
     undecided = grid.rows(rows)
-    params = undecided.params
-    params[:, layout.P_TAU_END] -= t_final / undecided.time_unit
-    params[:, layout.P_TAU_MAX] = params[:, layout.P_TAU_END]
+    params, settings = undecided.params, undecided.settings.copy()
+    remaining = params[:, layout.P_TAU_END] - t_final / undecided.time_unit
+    params[:, layout.P_TAU_MAX] = remaining
+    params[:, layout.P_TAU_END] = remaining
+    if longer.classification.early_exit:
+        # as a run: settle if it can; still unsettled at half time, carry the tangent
+        # for λ1 over the second half (classification.lyapunov: unsettled)
+        params[:, layout.P_TAU_END] = 0.5 * remaining
+    elif settings[layout.S_LYAPUNOV] == layout.LYAP_UNSETTLED:
+        settings[layout.S_LYAPUNOV] = layout.LYAP_ALWAYS  # fixed length: λ1 over all of it
     y0 = np.ascontiguousarray(y_stored[rows])
-    results, y_final = integrate_in_memory(params, y0, undecided.settings, threads)
+    results, y_final = integrate_in_memory(params, y0, settings, threads)
     fields = derived_fields(undecided, results, y_final)
     out = ds.copy(deep=True)
     for var in variables_for(config.blocks, config.model, config.features):
         if var.name in LINEAR_THEORY or not var.per_member:
             continue
         da = out[var.name]
-        flat = da.values.reshape((n, -1) if var.per_block else n).copy()
+        flat = da.values.reshape((n, -1) if var.per_block or var.per_event else n).copy()
         new = fields[var.name]
         if var.name in SHIFTED:
             new = new + t_final

@@ -29,6 +29,11 @@ MODEL_CODES = {
 LAW_CODES = {"aging": layout.AGING, "slip": layout.SLIP}
 COUPLING_CODES = {"chain": layout.CHAIN, "ring": layout.RING, "all": layout.ALL}
 METHOD_CODES = {"dopri5": layout.DOPRI5, "rk4": layout.RK4, "rosenbrock": layout.ROSENBROCK}
+LYAPUNOV_CODES = {
+    "never": layout.LYAP_NEVER,
+    "unsettled": layout.LYAP_UNSETTLED,
+    "always": layout.LYAP_ALWAYS,
+}
 
 
 def physical_parameters(config):
@@ -75,6 +80,8 @@ def settings_array(config):
     s[layout.S_EARLY_EXIT] = 1.0 if cls.early_exit else 0.0
     s[layout.S_SLIP_LNV] = math.log(cls.slip_v_over_V)
     s[layout.S_COUPLING] = COUPLING_CODES[config.coupling]
+    s[layout.S_LYAPUNOV] = LYAPUNOV_CODES[cls.lyapunov]
+    s[layout.S_EVENTS] = cls.events
     return s
 
 

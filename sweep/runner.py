@@ -31,8 +31,8 @@ from .backends import DaskTasks, LocalThreads, open_backend
 from .config import parse_config
 from .dataset import build_dataset, write_netcdf
 from .errors import ConfigError, InputError, Interrupted, PartError, RunError
-from .grid import build_grid, state_size
-from .kernels.layout import N_RESULTS
+from .grid import build_grid, settings_array, state_size
+from .kernels.layout import result_width
 from .progress import Progress
 
 log = logging.getLogger(__name__)
@@ -157,7 +157,7 @@ def integrate_in_memory(params, y0, settings, threads=None, chunk_size=None, pro
     backend.compile(params, settings)
     n = params.shape[0]
     chunk_size = chunk_size or _default_chunk_size(n, backend, shard=None)
-    results = np.empty((n, N_RESULTS))
+    results = np.empty((n, result_width(settings)))
     y_final = np.empty_like(y0)
     run_chunks(backend, params, y0, settings, chunk_ranges(n, chunk_size), results, y_final,
                progress)  # fmt: skip
@@ -284,7 +284,7 @@ class _PartStore:
         self.config = config
         self.chash = store.config_hash(config)
         self.n = n
-        self.results = np.empty((n, N_RESULTS))
+        self.results = np.empty((n, result_width(settings_array(config))))
         self.y_final = np.empty((n, n_vars))
         self.saved = 0
 
@@ -307,7 +307,7 @@ class _ZarrStore:
     def __init__(self, zarr_result, grid):
         self.store = zarr_result
         self.folder = zarr_result.path
-        self.results = np.empty((grid.n, N_RESULTS))
+        self.results = np.empty((grid.n, result_width(grid.settings)))
         self.y_final = np.empty_like(grid.y0)
 
     @property
@@ -431,7 +431,7 @@ def _merge_locked(paths, out):
             problems.append(f"parts {chash}: no readable part of this rsf-sweep version")
             continue
         n = math.prod(config.run_shape)
-        results = np.empty((n, N_RESULTS))
+        results = np.empty((n, result_width(settings_array(config))))
         y_final = np.empty((n, state_size(config)))
         have = np.zeros(n, bool)
         used, bad = store.fill_from_parts(entries, results, y_final, have, np.ones(n, bool))

@@ -129,7 +129,7 @@ def compute_trace(config, points=4000):
     fine = points * OVERSAMPLE
     rec_t = np.empty(fine + 1)
     rec_y = np.empty((fine + 1, y0.shape[1]))
-    result = np.empty((1, layout.N_RESULTS))
+    result = np.empty((1, layout.result_width(settings)))
     y_final = np.empty_like(y0)
     rec_dt = params[0, layout.P_TAU_END] / (fine - 1)
     integrate_grid(params[:1], y0[:1], settings, result, y_final, rec_dt, rec_t, rec_y)
@@ -182,7 +182,7 @@ def trace_attributes(grid, result, y_final):
     attrs["t_end_units"] = "s"
     fields = derived_fields(grid, result, y_final)
     for var in variables_for(config.blocks, config.model, config.features):
-        if var.per_block or var.per_regime:
+        if var.per_block or var.per_regime or var.per_event:
             continue
         value = fields[var.name][0]
         if var.name == "regime":

@@ -7,7 +7,8 @@ sweeps of at least that many blocks; ``models``: written only for these
 models (empty: every model); ``feature``: written only for sweeps with that
 feature (``Config.features``: ``nblock``, ``heterogeneous``, ``ensemble``);
 ``per_member``: one value per run (with an ensemble, a ``member`` dimension),
-else one per grid point; ``per_regime``: a trailing ``regime`` dimension.
+else one per grid point; ``per_regime``: a trailing ``regime`` dimension;
+``per_event``: a trailing ``event`` dimension (the last events of each run).
 """
 
 from dataclasses import dataclass
@@ -15,6 +16,9 @@ from dataclasses import dataclass
 #: Regime names in code order (``kernels.layout.STEADY`` … ``UNDECIDED``; the CF flag_values /
 #: flag_meanings of ``regime``). Output vocabulary, so it lives here, not with the kernels.
 REGIMES = ("steady", "stick_slip", "runaway", "undecided")
+#: What a run settled on, in code order (``kernels.layout.FIXED_POINT`` … ``UNBOUNDED``;
+#: the flag_values / flag_meanings of ``attractor``).
+ATTRACTORS = ("fixed_point", "periodic", "quasi_periodic", "chaotic", "unresolved", "unbounded")
 
 
 @dataclass(frozen=True)
@@ -32,15 +36,36 @@ class Variable:
     feature: str = ""
     per_member: bool = True
     per_regime: bool = False
+    per_event: bool = False
 
 
 VARIABLES = (
     Variable("regime", "int8", "1", "dynamical regime",
-             "steady, stick_slip, runaway or undecided (see flag_values/flag_meanings)"),
+             "steady, stick_slip, runaway or undecided (see flag_values/flag_meanings); "
+             "stick_slip is bounded oscillation: a cycle of one or more events, or "
+             "quasi-periodic or chaotic motion (see attractor)"),
+    Variable("attractor", "int8", "1", "kind of attractor",
+             "fixed_point (steady), periodic (a cycle of cycle_events events), quasi_periodic "
+             "(lyapunov_exponent consistent with 0, no cycle of up to 32 events), chaotic "
+             "(lyapunov_exponent > 0 beyond 3 lyapunov_error), unresolved (undecided), "
+             "unbounded (runaway); see flag_values/flag_meanings"),
+    Variable("cycle_events", "int32", "1", "events per cycle",
+             "number of events (maxima of ln v of block 0) after which a periodic run's "
+             "motion repeats: 1 for a simple cycle, n for a period-n cycle; 0 where the run is "
+             "not periodic"),
+    Variable("lyapunov_exponent", "float64", "s-1", "largest Lyapunov exponent",
+             "lambda1 from a tangent vector carried beside the state (Benettin et al. 1980), a "
+             "least-squares fit of its log growth after a transient; computed from t_end on for "
+             "runs not settled by then (classification_lyapunov: unsettled), over every run "
+             "(always) or never; NaN where not computed or the window was too short"),
+    Variable("lyapunov_error", "float64", "s-1", "standard error of lyapunov_exponent",
+             "standard error of the slopes of the fit's blocks (the window after the transient "
+             "cut into 7 blocks)"),
     Variable("lnv_amplitude", "float64", "1", "peak-to-peak ln(v/V)",
-             "max - min of ln(v/V) over all blocks in the final window (the last completed "
-             "oscillation cycle; for runaway runs and runs without two maxima, the cycle in "
-             "progress)"),
+             "max - min of ln(v/V) over all blocks in the final window: the last completed "
+             "cycle of a periodic run (all its events), the last events kept (up to 128) of "
+             "chaotic and quasi-periodic runs, else the last interval between maxima of ln v of "
+             "block 0; for runaway runs and runs without two maxima, the interval in progress"),
     Variable("lnv_max", "float64", "1", "maximum ln(v/V)", "in the final window"),
     Variable("lnv_min", "float64", "1", "minimum ln(v/V)", "in the final window"),
     Variable("v_max", "float64", "um s-1", "maximum slip velocity",
@@ -49,15 +74,19 @@ VARIABLES = (
     Variable("v_min", "float64", "um s-1", "minimum slip velocity",
              "V exp(lnv_min); may underflow to 0 in deep stick phases (use lnv_min)"),
     Variable("period", "float64", "s", "oscillation period",
-             "time between the last two maxima of ln v of block 0; NaN without two maxima"),
+             "of a periodic run the full period of its cycle (the sum of the intervals of its "
+             "cycle_events events); otherwise the time between the last two maxima of ln v of "
+             "block 0; NaN without two maxima"),
     Variable("growth_rate", "float64", "s-1", "envelope growth rate",
-             "ln(ratio of the last two peak-to-trough amplitudes of ln v of block 0) / period; "
+             "ln(ratio of the last two peak-to-trough amplitudes of ln v of block 0, one cycle "
+             "apart) / period; "
              "negative: decaying, about 0: limit cycle, positive: growing; NaN where either "
              "amplitude is below classification_steady_amplitude (round-off)"),
     Variable("friction_drop", "float64", "1", "friction drop per event",
              "max - min of the friction coefficient over the final window (largest over blocks)"),
     Variable("slip_per_event", "float64", "um", "slip per event",
-             "V * period for stick-slip limit cycles (one event per cycle); NaN otherwise"),
+             "V * period / cycle_events for periodic stick-slip (the load point's advance per "
+             "event); NaN otherwise"),
     Variable("t_runaway", "float64", "s", "runaway time",
              "time at which v first exceeded the velocity cap or the state became non-finite; "
              "NaN if the run did not run away"),
@@ -67,9 +96,10 @@ VARIABLES = (
     Variable("convergence", "float64", "1", "distance of the last cycle to the limit cycle",
              "estimated relative distance of the final cycle's features (extremes of ln v, "
              "peak-to-peak, period) to those of the limit cycle, from the Aitken extrapolation "
-             "of the cycle-to-cycle sequence; stick_slip runs have at most "
-             "classification_accuracy; inf where the cycles do not contract yet; NaN for "
-             "steady and runaway runs"),
+             "of the cycle-to-cycle sequence (per residue class for a cycle of several "
+             "events); periodic runs have at most classification_accuracy; elsewhere the best "
+             "over the cycles tried, inf where the cycles do not contract; NaN for steady and "
+             "runaway runs"),
     Variable("n_steps", "int32", "1", "accepted integration steps", ""),
     Variable("n_rejected", "int32", "1", "rejected integration steps", "adaptive method only"),
     Variable("n_peaks", "int32", "1", "maxima of ln v of block 0", ""),
@@ -106,6 +136,13 @@ VARIABLES = (
     Variable("regime_fraction", "float64", "1", "fraction of the ensemble in each regime",
              "fraction of the initial-condition ensemble's members that ended in the regime",
              feature="ensemble", per_member=False, per_regime=True),
+    Variable("event_lnv_peak", "float64", "1", "ln(v/V) of block 0 at each of the last events",
+             "the last classification_events maxima of ln v of block 0 (the events), oldest "
+             "first along event (0: the last); NaN before a run's first; an orbit diagram is "
+             "this against a swept parameter", feature="events", per_event=True),
+    Variable("event_interval", "float64", "s", "time from the previous event",
+             "interval between each of the last events and the event before it",
+             feature="events", per_event=True),
     Variable("linear_growth_rate", "float64", "s-1", "linear growth rate",
              "max Re(lambda) of the system linearised about steady sliding (analytic normal modes "
              "for identical blocks, eigenvalues of the Jacobian for unequal ones)",

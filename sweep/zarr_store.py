@@ -36,7 +36,7 @@ import xarray as xr
 
 from .dataset import data_variables, derived_fields, parameter_coords, provenance
 from .errors import InputError
-from .kernels.layout import N_RESULTS
+from .kernels.layout import result_width
 from .store import config_hash, require_zarr
 
 log = logging.getLogger(__name__)
@@ -177,7 +177,8 @@ def _field_shapes(grid):
     """Shape and dtype of every flat field of one grid point (all its members):
     ``derived_fields`` of the grid's first rows."""
     m = grid.config.members
-    fields = derived_fields(grid.rows(slice(0, m)), np.zeros((m, N_RESULTS)), grid.y0[:m])
+    results = np.zeros((m, result_width(grid.settings)))
+    fields = derived_fields(grid.rows(slice(0, m)), results, grid.y0[:m])
     return {name: (f.shape, f.dtype) for name, f in fields.items()}
 
 

@@ -105,7 +105,7 @@ def run_recorded(config, rec_dt, index=0):
     n_rec = int(params[index, layout.P_TAU_END] / rec_dt) + 3
     rec_t = np.zeros(n_rec)
     rec_y = np.zeros((n_rec, y0.shape[1]))
-    result = np.zeros((1, layout.N_RESULTS))
+    result = np.zeros((1, layout.result_width(settings)))
     y_final = np.zeros((1, y0.shape[1]))
     row = slice(index, index + 1)
     integrate_grid(params[row], y0[row], settings, result, y_final, rec_dt, rec_t, rec_y)

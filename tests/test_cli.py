@@ -80,7 +80,7 @@ def schema(quick_run):
 
 def test_file_opens_without_the_package(schema):
     assert schema["sweep_imported"] is False
-    assert schema["dims"] == {"K_W": 9, "block": 1}
+    assert schema["dims"] == {"K_W": 9, "block": 1, "event": 32}
 
 
 def test_file_schema(schema):
@@ -88,14 +88,14 @@ def test_file_schema(schema):
     assert coord["dims"] == ["K_W"]
     assert coord["units"] == PARAMETERS["K_W"].units == "um-1"
     assert coord["long_name"] == PARAMETERS["K_W"].long_name
-    table = {v.name: v for v in variables_for(1)}
+    table = {v.name: v for v in variables_for(1, features=("events",))}
     assert set(schema["vars"]) == set(table)
     for name, var in table.items():
         got = schema["vars"][name]
-        assert got["dims"] == (["K_W", "block"] if var.per_block else ["K_W"]), name
+        assert got["dims"] == ["K_W"] + ["block"] * var.per_block + ["event"] * var.per_event
         assert got["dtype"] == var.dtype, name
         assert got["long_name"] == var.long_name, name
-        if name != "regime":
+        if name not in ("regime", "attractor"):  # flags: flag_values, no units
             assert got["units"] == var.units, name
     regime = schema["vars"]["regime"]
     assert regime["dtype"] == "int8"

@@ -17,6 +17,8 @@ from sweep.physics import PARAMETERS
 from sweep.variables import BY_NAME, REGIMES, VARIABLES, variables_for
 
 A, B = PAPER_A, PAPER_B
+#: The flag variables: CF flag_values/flag_meanings instead of units.
+FLAGS = ("regime", "attractor")
 ONE_BLOCK = {"sweep": {"K_W": (KC_W * np.array([0.8, 0.95, 1.0, 1.1])).tolist()}}
 TWO_BLOCKS = {
     "blocks": 2,
@@ -39,10 +41,11 @@ def test_variables_follow_the_table(result):
     assert ("sync_error" in ds) == (config.blocks >= 2)
     for name in expected:
         var, da = BY_NAME[name], ds[name]
-        assert da.dims == (dims + ("block",) if var.per_block else dims), name
+        trailing = ("block",) * var.per_block + ("event",) * var.per_event
+        assert da.dims == dims + trailing, name
         assert da.dtype == np.dtype(var.dtype), name
         assert da.attrs["long_name"] == var.long_name
-        if name != "regime":  # a flag variable has flag_values instead of units
+        if name not in FLAGS:  # a flag variable has flag_values instead of units
             assert da.attrs["units"] == var.units, name
 
 
@@ -55,7 +58,7 @@ def test_inertial_results_store_the_inertial_force():
     )  # fmt: skip
     ds = runner.compute(config, show_progress=False)
     _, y_final = run_grid(config)
-    assert set(ds.data_vars) == {v.name for v in variables_for(1, "inertial")}
+    assert set(ds.data_vars) == {v.name for v in variables_for(1, "inertial", config.features)}
     assert ds["inertial_force_final"].dims == ("K_W", "block")
     assert ds["inertial_force_final"].attrs["units"] == "1"
     np.testing.assert_array_equal(ds["inertial_force_final"].values, y_final[:, 2:3])
@@ -221,7 +224,7 @@ def test_readme_table_matches_the_schema():
         names, units = (cell.strip() for cell in row.strip("|").split("|")[:2])
         for name in re.findall(r"`(\w+)`", names):
             documented[name] = pretty[units]
-    declared = {v.name: (None if v.name == "regime" else v.units) for v in VARIABLES}
+    declared = {v.name: (None if v.name in FLAGS else v.units) for v in VARIABLES}
     assert documented == declared
 
 

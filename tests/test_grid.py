@@ -165,7 +165,7 @@ def test_local_threads_give_the_serial_kernels_numbers(threads):
     numbers of one serial kernel call over the whole grid, whatever the chunks."""
     g = grid.build_grid(make_config(MIXED))
     n = g.params.shape[0]
-    results = np.full((n, layout.N_RESULTS), -1.0)
+    results = np.full((n, layout.result_width(g.settings)), -1.0)
     y_final = np.full_like(g.y0, -1.0)
     integrate_grid(g.params, g.y0, g.settings, results, y_final)
     ranges = [(0, 3), (3, n)]

@@ -136,15 +136,16 @@ def test_config_mapping_round_trips_the_nblock_keys():
     again = parse_config(config_mapping(config))
     for field in ("coupling", "block_parameters", "spread", "initial", "parameters"):
         assert getattr(again, field) == getattr(config, field)
-    assert again.features == ("nblock", "heterogeneous", "ensemble")
+    assert again.features == ("nblock", "heterogeneous", "ensemble", "events")
 
 
 def test_every_multi_block_config_has_the_nblock_outputs():
     """A chain without the new keys gets the N-block outputs too (sync_order,
     slip_participation: any result of two or more blocks); one block does not."""
-    assert nblock_config().features == ("nblock",)
-    assert nblock_config(coupling="chain").features == ("nblock",)
-    assert make_config().features == ()
+    assert nblock_config().features == ("nblock", "events")
+    assert nblock_config(coupling="chain").features == ("nblock", "events")
+    assert make_config().features == ("events",)
+    assert make_config(classification={"events": 0}).features == ()
 
 
 def test_parts_of_other_couplings_or_blocks_are_not_reused():

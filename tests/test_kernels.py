@@ -428,10 +428,11 @@ def test_aitken_limit_refuses_sequences_that_do_not_contract():
 
 def history(nb, rows):
     """Cycle history as the kernel keeps it from a list of per-cycle rows
-    (max ℓ_i …, min ℓ_i …, period, peak-to-peak of mean ℓ)."""
-    hist = np.zeros((2 * nb + 2, cycles.HISTORY))
+    (max ℓ_i …, min ℓ_i …, period, peak-to-peak of mean ℓ, then ℓ_i at the event of
+    blocks 1 … nb − 1; rows without those get zeros)."""
+    hist = np.zeros((cycles.n_observables(nb), cycles.HISTORY))
     for n, row in enumerate(rows):
-        hist[:, n % cycles.HISTORY] = row
+        hist[: len(row), n % cycles.HISTORY] = row
     return hist, len(rows)
 
 
@@ -508,3 +509,100 @@ def test_early_exit_never_changes_a_settled_regime():
             regimes.append(run_grid(config)[0][:, layout.R_REGIME])
         np.testing.assert_array_equal(regimes[0], regimes[1])
         assert not np.any(regimes[0] == layout.UNDECIDED)
+
+
+# --- cycles of several events (cycles.multi_event_verdict) --------------------------
+
+
+def period_n_cycles(peaks, intervals, count, q=0.7, offset=0.02):
+    """One-block cycle rows (peak, min, interval, unused) of a cycle of len(peaks)
+    events approached geometrically (ratio ``q`` per cycle of events, from ``offset``)."""
+    n = len(peaks)
+    rows = []
+    for k in range(count):
+        d = offset * q ** (k // n)
+        rows.append([peaks[k % n] + d, -1.0 - d, intervals[k % n] * (1 + d), 0.0])
+    return rows
+
+
+@pytest.mark.parametrize("n", [2, 3, 5, 12, 32])
+def test_a_cycle_of_n_events_is_found_with_its_n(n):
+    """Every residue class converging to its own limit: a cycle of n events (up to 32,
+    which needs four cycles of each of its 32 classes)."""
+    rng = np.random.default_rng(n)
+    peaks, intervals = 1.0 + rng.uniform(0, 1, n), 20 + 200 * rng.uniform(0, 1, n)
+    hist, count = history(1, period_n_cycles(peaks, intervals, 4 * n + 8, q=0.5, offset=1e-3))
+    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
+    events, conv = cycles.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
+    assert events == n and conv <= 1e-3
+
+
+def test_a_simple_cycle_approached_in_alternation_is_left_to_the_simple_test():
+    """Overshooting alternately (ratio −0.95), the two residue classes converge too, but
+    to the same limit: not a cycle of 2 events (the simple cycle's own test settles it,
+    so every simple cycle keeps its numbers)."""
+    rows = [[1.0 + 0.01 * (-0.95) ** k, -1.0, 30.0, 0.0] for k in range(40)]
+    hist, count = history(1, rows)
+    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
+    events, _ = cycles.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
+    assert events == 0
+
+
+def test_a_cycle_whose_limits_repeat_sooner_is_the_shorter_cycle():
+    """Limits that repeat every 2 events, approached with a pattern of period 4, are a
+    cycle of 2 events."""
+    rows = []
+    for k in range(48):
+        d = 0.01 * 0.6 ** (k // 4) * (1 if k % 4 < 2 else -1)
+        rows.append([(1.2, 1.5)[k % 2] + d, -1.0, (30.0, 90.0)[k % 2], 0.0])
+    hist, count = history(1, rows)
+    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
+    events, _ = cycles.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
+    assert events == 2
+
+
+def test_an_irregular_sequence_has_no_cycle():
+    """Event maxima of a chaotic map (the logistic map at r = 4) repeat at no n ≤ 32."""
+    x, rows = 0.3, []
+    for _ in range(128):
+        x = 4 * x * (1 - x)
+        rows.append([1.0 + x, -1.0, 30.0 + 10 * x, 0.0])
+    hist, count = history(1, rows)
+    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
+    events, conv = cycles.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
+    assert events == 0 and not conv <= 1e-3
+
+
+def two_block_rows(phases):
+    """Two-block cycle rows (max ℓ_0, max ℓ_1, min ℓ_0, min ℓ_1, interval, in-phase
+    amplitude, ℓ_1 at the event) with constant extremes and ``phases`` as ℓ_1 at the event."""
+    return [[1.0, 0.8, -1.0, -0.9, 40.0, 0.5, ph] for ph in phases]
+
+
+def test_a_drifting_phase_between_blocks_is_no_simple_cycle():
+    """Two blocks whose per-cycle extremes repeat exactly while block 1 drifts in phase
+    against block 0 (ℓ_1 at block 0's maximum wanders: uncoupled blocks with unrelated
+    periods) are not on a simple cycle; with the phase repeating they are."""
+    wandering = two_block_rows(np.sin(0.7 * np.arange(12)))
+    hist, count = history(2, wandering)
+    assert cycles.cycle_verdict(hist, count, 2, 1e-3, 1e-6, 0.01, 1e-8, 1e-10)[0] == -1
+    locked = two_block_rows(np.full(12, 0.3))
+    hist, count = history(2, locked)
+    assert cycles.cycle_verdict(hist, count, 2, 1e-3, 1e-6, 0.01, 1e-8, 1e-10)[0] == (
+        layout.STICK_SLIP
+    )
+
+
+def test_noise_floor_cycle_is_settled_at_the_end_but_a_slow_drift_is_not():
+    """Cycle values that wander within 1e-6 without contracting (noise, a faint
+    modulation) settle as a simple cycle at a run's end (simple_cycle_within_spread);
+    a monotone drift as slow (an oscillation growing away from an unstable fixed point
+    just below Kc) never does."""
+    rng = np.random.default_rng(0)
+    noisy = [[1.0 + 1e-6 * rng.standard_normal(), -1.0, 30.0, 0.0] for _ in range(40)]
+    hist, count = history(1, noisy)
+    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
+    assert cycles.simple_cycle_within_spread(hist, count, 1, 1e-3, 1e-8, 1e-10, limits) < 1e-3
+    drift = [[1.0 + 1e-6 * k, -1.0 - 1e-6 * k, 30.0, 0.0] for k in range(40)]
+    hist, count = history(1, drift)
+    assert np.isinf(cycles.simple_cycle_within_spread(hist, count, 1, 1e-3, 1e-8, 1e-10, limits))

@@ -30,7 +30,7 @@ def kernel_final_state(config):
     """(results row, y_final row) of the one system of ``config`` from the sweep's grid kernel."""
     g = build_grid(config)
     params, y0, settings = g.params, g.y0, g.settings
-    results = np.empty((1, layout.N_RESULTS))
+    results = np.empty((1, layout.result_width(settings)))
     y_final = np.empty_like(y0)
     integrate_grid(params, y0, settings, results, y_final)
     return results[0], y_final[0]

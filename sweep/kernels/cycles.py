@@ -1,8 +1,14 @@
 """The cycle classifier: statistics of each oscillation cycle and the return-map verdict.
 
-Each run keeps only running statistics over the current oscillation cycle (from
-one maximum of ℓ_0 to the next) and over the last completed one, plus a short
-history of each cycle's observables, so memory does not depend on run length.
+An *event* is a maximum of ℓ_0 (ln v/V of block 0); a *cycle* of the classifier
+runs from one event to the next. Each run keeps running statistics over the
+current cycle and the last ``HISTORY`` completed ones, so memory does not depend
+on run length. After every event the cycle-to-cycle sequence of each observable
+(extremes of every block's ℓ, the interval, the in-phase amplitude) is
+extrapolated: the run has settled on a simple cycle when every observable is
+within ``accuracy`` of its limit, on a cycle of n events when every residue class
+of the sequence mod n is (:func:`multi_event_verdict`), and onto steady sliding
+when the amplitudes extrapolate to zero.
 """
 
 import math
@@ -21,14 +27,38 @@ LINEAR_AMPLITUDE = 0.1
 # the integrator's local error tolerance, from one cycle to the next count as
 # converged to round-off (their ratio of differences would be noise).
 NOISE_FACTOR = 10.0
-# Cycles of history kept per observable (the extrapolation uses the last four).
-HISTORY = 4
+#: Terms of a sequence the extrapolation uses (:func:`aitken_limit`): a verdict needs
+#: this many completed cycles, per residue class for a cycle of several events.
+TERMS = 4
+#: Longest cycle recognised, in events.
+MAX_CYCLE_EVENTS = 32
+#: Completed cycles kept per observable: TERMS for each residue class of the longest.
+HISTORY = TERMS * MAX_CYCLE_EVENTS
+#: A sequence that does not contract geometrically (Aitken's ratio test fails: noise,
+#: or a faint modulation) is settled to within its spread when it stays within
+#: ``accuracy`` over all its kept cycles, at least this many (per residue class), and
+#: turns at least twice: a slow monotone drift (an oscillation growing away from an
+#: unstable fixed point at 1e-5 of Kc) never counts (test_classification.py).
+STEADY_TERMS = 16
+#: Cycles of several events are looked for only while the simple cycle's convergence
+#: exceeds this many times ``accuracy`` (close to a simple cycle, it settles first;
+#: the search costs a few hundred ns per event, test_cycles.py bench).
+SEARCH_FACTOR = 100.0
 
 
-# --- rows of a cycle's per-block statistics (win, last in integrate_system) --
+# --- rows of a cycle's per-block statistics (win in integrate_system) -------
 W_LMAX, W_LMIN, W_MUMAX, W_MUMIN = range(4)  # extremes of ℓ_i and of friction A ℓ_i + B ψ_i
 W_T_PEAK = 4  # time of block i's last maximum of ℓ_i in the cycle (D0/V)
 N_WINDOW = 5
+#: The rows of ``win`` kept for each completed cycle (``past``: W_LMAX … W_MUMIN).
+N_PAST = 4
+# --- columns of the scalars kept for each completed cycle (``past_cs``) ------
+(
+    X_SYNC,  # max |ℓ_i − ℓ_0| in the cycle
+    X_SLIP_SUM,  # Σ fractions of slipping blocks of the slip events ended in the cycle
+    X_SLIP_EVENTS,  # number of those events
+) = range(3)
+N_PAST_CS = 3
 
 # --- entries of the scalar cycle state ``cs`` of integrate_system ------------
 (
@@ -42,21 +72,20 @@ N_WINDOW = 5
     C_N_AGREE,  # consecutive cycles with the same verdict
     C_VERDICT,  # the last cycle's verdict (−1: none yet)
     C_CONV,  # the last cycle's estimated relative distance to its limit
+    C_EVENTS,  # events per cycle of the last verdict (1: a simple cycle)
     C_WIN_SYNC,  # max |ℓ_i − ℓ_0| in the current cycle
     C_WIN_MBAR_MAX,  # max of mean ℓ_i in the current cycle
     C_WIN_MBAR_MIN,  # min of mean ℓ_i in the current cycle
     C_WIN_T_PEAK_LAST,  # time of the last block's maximum of ℓ in the current cycle
-    C_LAST_SYNC,  # max |ℓ_i − ℓ_0| in the last completed cycle
     C_LAST_PHASE,  # phase lag of the last block in the last completed cycle
     C_LNV_MAX_RUN,  # max ℓ_i over the whole run
     C_LAST_ORDER,  # Kuramoto order parameter of the last completed cycle
-    C_LAST_PARTICIPATION,  # mean fraction of blocks per slip event, last completed cycle
     C_SLIPPING,  # 1 while some block slips (ℓ_i > S_SLIP_LNV) after the current step
     C_IN_EVENT,  # 1 while a slip event lasts
     C_SLIP_SUM,  # Σ fractions of slipping blocks of the events ended in the current cycle
     C_SLIP_EVENTS,  # number of those events
-) = range(23)
-N_CYCLE_STATE = 23
+) = range(22)
+N_CYCLE_STATE = 22
 
 
 @jit
@@ -134,7 +163,7 @@ def steady_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, atol):
     must the in-phase coordinate mean(ℓ_i) (row 2 nb + 1), so a slowly decaying
     in-phase mode hidden behind a faster anti-phase one is seen.
     """
-    if not (lin_growth < 0.0) or n_cycles < HISTORY:
+    if not (lin_growth < 0.0) or n_cycles < TERMS:
         return False
     noise = NOISE_FACTOR * atol
     for i in range(nb):
@@ -161,7 +190,7 @@ def cycle_convergence(hist, n_cycles, nb, rtol, atol):
     too); for the period, the period; for the in-phase amplitude, the peak-to-peak
     ℓ. inf with fewer than four cycles or where an observable does not contract.
     """
-    if n_cycles < HISTORY:
+    if n_cycles < TERMS:
         return np.inf
     ptp = 0.0
     for i in range(nb):
@@ -193,14 +222,207 @@ def cycle_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, at
 
     Steady: :func:`steady_verdict`. Stick-slip: every cycle observable within
     ``accuracy`` (relative, see :func:`cycle_convergence`) of its extrapolated
-    limit, so the reported features are those of the limit cycle to that accuracy.
+    limit, so the reported features are those of the limit cycle to that accuracy,
+    and with several blocks the other blocks at the event repeating too
+    (:func:`section_settled`).
     """
     if steady_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, atol):
         return STEADY, np.nan
     conv = cycle_convergence(hist, n_cycles, nb, rtol, atol)
     if conv <= accuracy:
+        if not section_settled(hist, n_cycles, nb, accuracy, rtol, atol):
+            return -1, np.inf
         return STICK_SLIP, conv
     return -1, conv
+
+
+@jit
+def span_ptp(hist, n_cycles, nb, n):
+    """Peak-to-peak ℓ over the last ``n`` cycles: the largest over blocks of the
+    highest maximum minus the lowest minimum of ℓ_i."""
+    ptp = 0.0
+    for i in range(nb):
+        hi = -np.inf
+        lo = np.inf
+        for back in range(n):
+            hi = max(hi, history_value(hist, i, n_cycles, back))
+            lo = min(lo, history_value(hist, nb + i, n_cycles, back))
+        ptp = max(ptp, hi - lo)
+    return ptp
+
+
+@jit
+def recurrence(hist, n_cycles, nb, n, peak_scale):
+    """How far the last cycle is from the one ``n`` cycles before it: the change of
+    the event's ℓ_0 relative to ``peak_scale`` plus the relative change of the interval."""
+    d_peak = history_value(hist, 0, n_cycles, 0) - history_value(hist, 0, n_cycles, n)
+    interval = history_value(hist, 2 * nb, n_cycles, 0)
+    d_interval = interval - history_value(hist, 2 * nb, n_cycles, n)
+    return abs(d_peak) / peak_scale + abs(d_interval / interval)
+
+
+@jit
+def class_scale(k, nb, ptp, value):
+    """Scale of observable ``k`` (as in :func:`cycle_convergence`): min(1, ptp/2) for
+    the extremes of ℓ and the other blocks' ℓ at the event, the interval itself
+    (``value``), ptp for the in-phase amplitude."""
+    if k == 2 * nb:
+        return abs(value)
+    if k == 2 * nb + 1:
+        return ptp
+    return min(1.0, 0.5 * ptp)
+
+
+@jit
+def n_observables(nb):
+    """Rows of ``hist``: max ℓ_i and min ℓ_i per block, the interval, the in-phase
+    amplitude (unused for one block), then ℓ_i at the event of blocks 1 … nb − 1."""
+    return 3 * nb + 1
+
+
+@jit
+def section_settled(hist, n_cycles, nb, accuracy, rtol, atol):
+    """Whether the other blocks' ℓ at the event (rows 2 nb + 2 …, the return map's
+    coordinates that the per-cycle extremes miss) repeat from cycle to cycle: each
+    extrapolates within ``accuracy`` (scale min(1, ptp/2)) or its last four values lie
+    within that. Two uncoupled blocks with unrelated periods have constant per-cycle
+    extremes but a drifting phase: not a cycle."""
+    scale = min(1.0, 0.5 * span_ptp(hist, n_cycles, nb, 1))
+    for k in range(2 * nb + 2, n_observables(nb)):
+        x0, x1, x2, x3 = last_four(hist, k, n_cycles)
+        limit, error = aitken_limit(x0, x1, x2, x3, NOISE_FACTOR * (atol + rtol * abs(x3)))
+        spread = max(x0, x1, x2, x3) - min(x0, x1, x2, x3)
+        if not (min(error + abs(limit - x3), spread) <= accuracy * scale):
+            return False
+    return True
+
+
+@jit
+def class_spread(hist, k, n_cycles, n, r, terms):
+    """Largest minus smallest value of observable ``k`` over the last ``terms`` cycles
+    of residue class ``r`` mod ``n``; inf unless the sequence turns (its differences
+    change sign) at least twice."""
+    hi = -np.inf
+    lo = np.inf
+    turns = 0
+    x_prev = history_value(hist, k, n_cycles, r)
+    d_prev = 0.0
+    for j in range(terms):
+        x = history_value(hist, k, n_cycles, r + j * n)
+        hi = max(hi, x)
+        lo = min(lo, x)
+        d = x - x_prev
+        if d * d_prev < 0.0:
+            turns += 1
+        if d != 0.0:
+            d_prev = d
+        x_prev = x
+    return hi - lo if turns >= 2 else np.inf
+
+
+@jit
+def classes_convergence(hist, n_cycles, nb, n, bound, rtol, atol, limits):
+    """Estimated relative distance of the last ``n`` cycles to a cycle of ``n`` events.
+
+    :func:`cycle_convergence` applied to each residue class of the cycle sequence
+    mod ``n`` (every ``n``-th cycle, the last four of each), scales from the
+    peak-to-peak over the ``n`` cycles; the extrapolated limits go to
+    ``limits[k, r]`` (observable k, class of the cycle r cycles before the last).
+    Where the extrapolation fails or exceeds ``bound``, a class with at least
+    ``STEADY_TERMS`` cycles kept counts as settled to within the spread of all of
+    them if it turns (:func:`class_spread`, limit: its last value). Stops with inf as soon as one
+    class exceeds ``bound``.
+    """
+    ptp = span_ptp(hist, n_cycles, nb, n)
+    terms = min(n_cycles, HISTORY) // n
+    worst = 0.0
+    for k in range(n_observables(nb)):
+        if k == 2 * nb + 1 and nb == 1:
+            continue
+        for r in range(n):
+            x0 = history_value(hist, k, n_cycles, r + 3 * n)
+            x1 = history_value(hist, k, n_cycles, r + 2 * n)
+            x2 = history_value(hist, k, n_cycles, r + n)
+            x3 = history_value(hist, k, n_cycles, r)
+            noise = NOISE_FACTOR * (atol + rtol * abs(x3))
+            limit, error = aitken_limit(x0, x1, x2, x3, noise)
+            scale = class_scale(k, nb, ptp, x3)
+            distance = (error + abs(limit - x3)) / scale if scale > 0.0 else np.inf
+            if not (distance <= bound) and terms >= STEADY_TERMS and scale > 0.0:
+                distance = class_spread(hist, k, n_cycles, n, r, terms) / scale
+                limit = x3
+            if not (distance <= bound):
+                return np.inf
+            worst = max(worst, distance)
+            limits[k, r] = limit
+    return worst
+
+
+@jit
+def limit_period(limits, n, nb, ptp, accuracy):
+    """The smallest d dividing ``n`` with which the classes' limits repeat (within
+    twice ``accuracy`` of each observable's scale): the cycle's true number of events."""
+    for d in range(1, n):
+        if n % d != 0:
+            continue
+        repeats = True
+        for k in range(n_observables(nb)):
+            if k == 2 * nb + 1 and nb == 1:
+                continue
+            for r in range(n):
+                a = limits[k, r]
+                b = limits[k, (r + d) % n]
+                if not (abs(a - b) <= 2.0 * accuracy * class_scale(k, nb, ptp, a)):
+                    repeats = False
+        if repeats:
+            return d
+    return n
+
+
+@jit
+def multi_event_verdict(hist, n_cycles, nb, accuracy, rtol, atol, limits):
+    """The cycle of n ≥ 2 events that the run has settled on: ``(n, convergence)``,
+    or ``(0, the best convergence found)``.
+
+    Candidates are the n up to :data:`MAX_CYCLE_EVENTS` (four cycles of each residue
+    class kept) at which the last cycle comes closer to the one n cycles earlier
+    than to any nearer one (:func:`recurrence`): a cycle of n events returns to
+    itself after n cycles, not before. The first candidate whose classes are all
+    within ``accuracy`` (:func:`classes_convergence`) settles the run, unless its
+    limits repeat sooner: a simple cycle approached with alternating overshoots is
+    left to the simple cycle's own test (so every simple cycle settles as before), a
+    cycle of 4 events whose limits repeat every 2 is a cycle of 2.
+    """
+    longest = min(MAX_CYCLE_EVENTS, n_cycles // TERMS)
+    best = np.inf
+    if longest < 2:
+        return 0, best
+    peak_scale = max(min(1.0, 0.5 * span_ptp(hist, n_cycles, nb, 1)), 1e-300)
+    closest = recurrence(hist, n_cycles, nb, 1, peak_scale)
+    for n in range(2, longest + 1):
+        distance = recurrence(hist, n_cycles, nb, n, peak_scale)
+        if not (distance < closest):
+            continue
+        closest = distance
+        conv = classes_convergence(hist, n_cycles, nb, n, accuracy, rtol, atol, limits)
+        if conv <= accuracy:
+            events = limit_period(limits, n, nb, span_ptp(hist, n_cycles, nb, n), accuracy)
+            if events > 1:
+                return events, conv
+        best = min(best, conv)
+    return 0, best
+
+
+@jit
+def simple_cycle_within_spread(hist, n_cycles, nb, accuracy, rtol, atol, limits):
+    """Convergence of a run to a simple cycle with the spread test of
+    :func:`classes_convergence` (a cycle known to within ``accuracy`` whose
+    cycle-to-cycle values wander at the noise floor or with a faint modulation,
+    where the extrapolation's ratio test fails). Asked only of runs unsettled at
+    their end, so no run that settles by extrapolation changes."""
+    if n_cycles < STEADY_TERMS:
+        return np.inf
+    return classes_convergence(hist, n_cycles, nb, 1, accuracy, rtol, atol, limits)
 
 
 @jit_inline
@@ -329,11 +551,25 @@ def kuramoto_order(t_peak_blocks, t_peak, period, nb):
 
 
 @jit
-def close_cycle(t_peak, nb, win, last, hist, cs, accuracy, steady_amp, lin_growth, rtol, atol):
+def event_section(method, h, y, ynew, f, fnew, k3, k4, k5, k6, nb, theta, section):
+    """Every block's ℓ at the event at fraction ``theta`` of the step (dense output)."""
+    for i in range(nb):
+        r5 = dense_r5(method, i, h, f, k3, k4, k5, k6, fnew)
+        section[i] = dense_value(y[i], ynew[i], f[i], fnew[i], h, r5, theta)
+
+
+@jit
+def close_cycle(
+    t_peak, nb, win, past, past_cs, hist, limits, section, cs, accuracy, steady_amp, lin_growth,
+    rtol, atol,
+):  # fmt: skip
     """End the cycle at the maximum of ℓ_0 at ``t_peak`` (D0/V).
 
-    Adds the cycle to the history, judges it (:func:`cycle_verdict`) and keeps
-    its statistics as the last completed cycle.
+    Adds the cycle to the history (``hist``: the classifier's observables; ``past``,
+    ``past_cs``: what a reported window spans; ``section``: the blocks' ℓ at the event)
+    and judges it: :func:`cycle_verdict`, then, far from a simple cycle,
+    :func:`multi_event_verdict` (``limits``: its scratch, (rows of ``hist``,
+    MAX_CYCLE_EVENTS)).
     """
     period = t_peak - cs[C_T_PEAK]
     cs[C_PERIOD] = period
@@ -353,20 +589,32 @@ def close_cycle(t_peak, nb, win, last, hist, cs, accuracy, steady_amp, lin_growt
     hist[0, slot] = cs[C_PEAK_VALUE]
     hist[2 * nb, slot] = period
     hist[2 * nb + 1, slot] = cs[C_WIN_MBAR_MAX] - cs[C_WIN_MBAR_MIN]
+    for i in range(1, nb):
+        hist[2 * nb + 1 + i, slot] = section[i]
+    for k in range(N_PAST):
+        for i in range(nb):
+            past[slot, k, i] = win[k, i]
+    past_cs[slot, X_SYNC] = cs[C_WIN_SYNC]
+    past_cs[slot, X_SLIP_SUM] = cs[C_SLIP_SUM]
+    past_cs[slot, X_SLIP_EVENTS] = cs[C_SLIP_EVENTS]
     n_cycles += 1
     cs[C_N_CYCLES] = n_cycles
     verdict, conv = cycle_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, atol)
+    events = 1
+    if verdict < 0 and not (conv <= SEARCH_FACTOR * accuracy):
+        events, conv_n = multi_event_verdict(hist, n_cycles, nb, accuracy, rtol, atol, limits)
+        if events > 0:
+            verdict = STICK_SLIP
+            conv = conv_n
+        else:
+            events = 1
+            conv = min(conv, conv_n)
     cs[C_CONV] = conv
-    same = verdict >= 0 and verdict == int(cs[C_VERDICT])
+    same = verdict >= 0 and verdict == int(cs[C_VERDICT]) and events == int(cs[C_EVENTS])
     cs[C_N_AGREE] = cs[C_N_AGREE] + 1 if same else 1
     cs[C_VERDICT] = verdict
-    for k in range(N_WINDOW):
-        for i in range(nb):
-            last[k, i] = win[k, i]
+    cs[C_EVENTS] = events
     cs[C_LAST_ORDER] = kuramoto_order(win[W_T_PEAK], t_peak, period, nb)
-    events = cs[C_SLIP_EVENTS]
-    cs[C_LAST_PARTICIPATION] = cs[C_SLIP_SUM] / events if events > 0 else np.nan
-    cs[C_LAST_SYNC] = cs[C_WIN_SYNC]
     t_last = cs[C_WIN_T_PEAK_LAST]
     if nb > 1 and t_last == t_last:
         lag = (t_last - cs[C_T_PEAK]) / period
@@ -383,6 +631,7 @@ def new_cycle_state(y, nb):
     cs[C_N_AGREE] = 0.0
     cs[C_VERDICT] = -1.0
     cs[C_CONV] = np.inf
+    cs[C_EVENTS] = 1.0
     cs[C_SLIPPING] = 0.0
     cs[C_IN_EVENT] = 0.0
     lnv_max_run = -np.inf
@@ -395,14 +644,20 @@ def new_cycle_state(y, nb):
 @jit_inline
 def cycle_arrays(y, p, nb, A, B):
     """The classifier's arrays at the start of a run, the first cycle started at ``y``:
-    the current cycle (``win``) and the last completed one (``last``), ``W_*`` rows per
-    block; per completed cycle (``hist``): max ℓ_i, min ℓ_i, period, peak-to-peak of
-    mean(ℓ_i); the cycle state ``cs`` (``C_*``); ``slipped`` (1: block i slipped during
-    the current slip event)."""
+    the current cycle (``win``, ``W_*`` rows per block); per completed cycle, the last
+    ``HISTORY`` of them in a ring: the classifier's observables (``hist``: max ℓ_i, min
+    ℓ_i, interval, peak-to-peak of mean(ℓ_i)), the reported extremes (``past``: slot,
+    ``W_LMAX`` … ``W_MUMIN``, block) and scalars (``past_cs``: slot, ``X_*``); scratch
+    of the search for cycles of several events (``limits``); every block's ℓ at the
+    latest event (``section``); the cycle state ``cs`` (``C_*``); ``slipped`` (1: block
+    i slipped during the current slip event)."""
     win = np.empty((N_WINDOW, nb))
-    last = np.full((N_WINDOW, nb), np.nan)
-    hist = np.zeros((2 * nb + 2, HISTORY))
+    past = np.empty((HISTORY, N_PAST, nb))
+    past_cs = np.empty((HISTORY, N_PAST_CS))
+    hist = np.zeros((n_observables(nb), HISTORY))
+    limits = np.empty((n_observables(nb), MAX_CYCLE_EVENTS))
+    section = np.zeros(nb)
     cs = new_cycle_state(y, nb)
     start_cycle(y, p, nb, A, B, win, cs)
     slipped = np.zeros(nb)
-    return win, last, hist, cs, slipped
+    return win, past, past_cs, hist, limits, section, cs, slipped

@@ -1,8 +1,9 @@
 """The integration loop of one system and the grid kernel around it.
 
 ``grid_kernel`` builds one serial kernel per variant (model, state law, method,
-coupling, equal or unequal blocks); ``integrate_system`` steps one system,
-folds every step into the cycle classifier and writes its statistics.
+coupling, equal or unequal blocks); ``integrate_system`` steps one system, folds
+every step into the cycle classifier (and, where asked, the tangent for λ1) and
+writes its statistics.
 """
 
 import functools
@@ -14,14 +15,14 @@ from ..accelerate import jit, jit_inline, jit_kernel
 from . import source_digest
 from .cycles import (
     C_CONV,
+    C_EVENTS,
     C_GROWTH,
     C_IN_EVENT,
     C_LAST_ORDER,
-    C_LAST_PARTICIPATION,
     C_LAST_PHASE,
-    C_LAST_SYNC,
     C_LNV_MAX_RUN,
     C_N_AGREE,
+    C_N_CYCLES,
     C_N_PEAKS,
     C_PEAK_VALUE,
     C_PERIOD,
@@ -33,19 +34,34 @@ from .cycles import (
     C_WIN_MBAR_MAX,
     C_WIN_MBAR_MIN,
     C_WIN_SYNC,
+    HISTORY,
+    LINEAR_AMPLITUDE,
+    SEARCH_FACTOR,
     W_LMAX,
     W_LMIN,
     W_MUMAX,
     W_MUMIN,
+    X_SLIP_EVENTS,
+    X_SLIP_SUM,
+    X_SYNC,
     close_cycle,
     cycle_arrays,
     end_slip_event,
+    event_section,
+    history_value,
+    simple_cycle_within_spread,
+    span_ptp,
     start_cycle,
     update_cycle,
 )
 from .equations import rhs
 from .layout import (
+    CHAOTIC,
     DOPRI5,
+    FIXED_POINT,
+    LYAP_ALWAYS,
+    LYAP_UNSETTLED,
+    N_RESULTS,
     NO_RUNAWAY,
     NOT_FINITE,
     P_A,
@@ -55,12 +71,18 @@ from .layout import (
     P_MAX_STEP,
     P_TAU_END,
     P_TAU_MAX,
+    PERIODIC,
+    QUASI_PERIODIC,
+    R_ATTRACTOR,
     R_CONVERGENCE,
+    R_CYCLE_EVENTS,
     R_FRICTION_DROP,
     R_GROWTH,
     R_LNV_MAX,
     R_LNV_MAX_RUN,
     R_LNV_MIN,
+    R_LYAPUNOV,
+    R_LYAPUNOV_ERROR,
     R_N_PEAKS,
     R_N_RECORDED,
     R_N_REJECTED,
@@ -80,14 +102,19 @@ from .layout import (
     S_ATOL,
     S_CONFIRM_CYCLES,
     S_EARLY_EXIT,
+    S_EVENTS,
     S_LNV_CAP,
+    S_LYAPUNOV,
     S_MAX_STEPS,
     S_NBLOCKS,
     S_RTOL,
     S_SLIP_LNV,
     S_STEADY_AMP,
     STEADY,
+    STICK_SLIP,
+    UNBOUNDED,
     UNDECIDED,
+    UNRESOLVED,
 )
 from .steppers import (
     dense_crossing,
@@ -100,6 +127,15 @@ from .steppers import (
     step_rk4,
     step_rosenbrock,
     step_scratch,
+)
+from .tangent import (
+    L_ON,
+    LYAP_BLOCKS,
+    lyapunov_add,
+    lyapunov_estimate,
+    lyapunov_start,
+    tangent_arrays,
+    tangent_step,
 )
 
 
@@ -197,47 +233,179 @@ def cap_crossing(method, i, t, h, y, ynew, f, fnew, k3, k4, k5, k6, nb, lnv_cap,
     return tau
 
 
-@jit
-def final_regime(regime, t, tau_stop, y, cs, steady_amp, lin_growth):
-    """The regime of a run that ended without a settled verdict (``regime`` < 0):
-    undecided when the step budget ran out, else the last cycle's verdict, steady
-    when it decayed onto a linearly stable steady state, else undecided."""
-    if regime >= 0:
-        return regime
-    if t < tau_stop:  # step budget exhausted
-        return UNDECIDED
-    if cs[C_VERDICT] >= 0:
-        return int(cs[C_VERDICT])
-    if max_abs(y) < steady_amp and lin_growth < 0.0:
-        return STEADY
-    return UNDECIDED
+#: λ1 counts as positive (chaos) only beyond this many standard errors …
+LYAP_SIGMAS = 3.0
+#: … and when the tangent grew by more than e^LYAP_MIN_GROWTH over the fit (λ1 × span):
+#: a bounded oscillation of log |δ| on a cycle or torus (a few units) is not growth.
+LYAP_MIN_GROWTH = 10.0
 
 
 @jit
-def write_result(result, regime, t, n_steps, n_rejected, tau_runaway, nb, win, last, cs):
-    """The run's statistics into ``result`` (``R_*`` columns).
+def attractor_verdict(lam, lam_err, span, conv, accuracy, ptp):
+    """What an unsettled bounded run at its end time is, from λ1 (``lam`` ± ``lam_err``
+    over ``span``, V/D0 and D0/V), if it oscillates beyond the linear regime (``ptp``,
+    the peak-to-peak ℓ of its kept cycles, at least ``LINEAR_AMPLITUDE``: a run
+    resting on an unstable fixed point, an uncoupled block started exactly on it, has
+    λ1 > 0 but no oscillation): CHAOTIC where λ1 is positive beyond its error and the
+    growth is real (``LYAP_*``); QUASI_PERIODIC where λ1 is consistent with zero and
+    the event sequence is not closing in on any cycle of up to ``MAX_CYCLE_EVENTS``
+    events (its best convergence ``conv`` is not within ``SEARCH_FACTOR`` ×
+    ``accuracy``); else UNRESOLVED (λ1 negative: still contracting onto a cycle or
+    steady sliding; or no estimate)."""
+    if not (lam == lam and lam_err == lam_err and ptp >= LINEAR_AMPLITUDE):
+        return UNRESOLVED
+    if lam > LYAP_SIGMAS * lam_err and lam * span > LYAP_MIN_GROWTH:
+        return CHAOTIC
+    zero = abs(lam) <= LYAP_SIGMAS * lam_err or abs(lam) * span <= LYAP_MIN_GROWTH
+    if zero and not (conv <= SEARCH_FACTOR * accuracy):
+        return QUASI_PERIODIC
+    return UNRESOLVED
 
-    The final window is the last completed cycle, except for runaway runs and
-    runs that never completed one, which report the cycle in progress.
+
+@jit
+def final_regime(
+    regime, t, tau_stop, y, cs, hist, limits, nb, steady_amp, lin_growth, accuracy, rtol, atol,
+    lam, lam_err, span,
+):  # fmt: skip
+    """``(regime, attractor)`` of a run at its end.
+
+    A regime settled in the loop stands (stick-slip there is a cycle: PERIODIC).
+    Otherwise: undecided when the step budget ran out; else the last cycle's verdict
+    (a cycle of n events once it has held for n events: each residue class confirmed);
+    steady when it decayed onto a linearly stable steady state, or when its last cycle
+    is within the linear regime (peak-to-peak ℓ below ``LINEAR_AMPLITUDE``) and λ1 is
+    negative beyond its error (a slow decay, e.g. 0.2 % above Kc); a simple cycle known
+    to within ``accuracy`` by the spread of its last cycles
+    (:func:`simple_cycle_within_spread`); else bounded motion that is chaotic or
+    quasi-periodic by λ1 is stick-slip (:func:`attractor_verdict`), and anything
+    else undecided.
+    """
+    if regime < 0:
+        if t < tau_stop:  # step budget exhausted
+            return UNDECIDED, UNRESOLVED
+        if cs[C_VERDICT] >= 0 and cs[C_N_AGREE] >= cs[C_EVENTS]:
+            regime = int(cs[C_VERDICT])
+        elif max_abs(y) < steady_amp and lin_growth < 0.0:
+            regime = STEADY
+        elif (
+            lin_growth < 0.0
+            and lam < -LYAP_SIGMAS * lam_err
+            and (span_ptp(hist, int(cs[C_N_CYCLES]), nb, 1) < LINEAR_AMPLITUDE)
+        ):
+            regime = STEADY  # a small oscillation contracting at a stable fixed point's rate
+        else:
+            n_cycles = int(cs[C_N_CYCLES])
+            conv = simple_cycle_within_spread(hist, n_cycles, nb, accuracy, rtol, atol, limits)
+            if conv <= accuracy:
+                cs[C_CONV] = conv
+                cs[C_EVENTS] = 1
+                return STICK_SLIP, PERIODIC
+            ptp = span_ptp(hist, n_cycles, nb, min(n_cycles, HISTORY))
+            kind = attractor_verdict(lam, lam_err, span, cs[C_CONV], accuracy, ptp)
+            if kind == UNRESOLVED:
+                return UNDECIDED, UNRESOLVED
+            return STICK_SLIP, kind
+    if regime == STEADY:
+        return regime, FIXED_POINT
+    if regime == STICK_SLIP:
+        return regime, PERIODIC
+    if regime == RUNAWAY:
+        return regime, UNBOUNDED
+    return regime, UNRESOLVED
+
+
+@jit
+def window_cycles(attractor, cs, use_last):
+    """Completed cycles the reported extremes span: the n events of a periodic run's
+    cycle, every kept cycle of chaotic or quasi-periodic motion, else the last one
+    (0: the cycle in progress, where no cycle was completed or the run ran away)."""
+    if not use_last:
+        return 0
+    if attractor == PERIODIC:
+        return int(cs[C_EVENTS])
+    if attractor == CHAOTIC or attractor == QUASI_PERIODIC:
+        return min(int(cs[C_N_CYCLES]), HISTORY)
+    return 1
+
+
+@jit
+def write_events(result, hist, nb, n_cycles, n_events, cycle):
+    """The last ``n_events`` events' maxima of ℓ_0 and intervals (D0/V) into the columns
+    after the ``R_*`` ones, oldest first, NaN where the run had fewer; of a periodic run
+    (``cycle`` > 0 events per cycle) only its settled cycle's, the earlier ones being a
+    transient an orbit diagram must not show. A ``result`` row narrower than
+    ``layout.result_width`` gets none (numba checks no bounds)."""
+    if result.size < N_RESULTS + 2 * n_events:
+        return
+    kept = min(n_cycles, cycle) if cycle > 0 else n_cycles
+    for e in range(n_events):
+        back = n_events - 1 - e
+        peak = np.nan
+        interval = np.nan
+        if back < kept:
+            peak = history_value(hist, 0, n_cycles, back)
+            interval = history_value(hist, 2 * nb, n_cycles, back)
+        result[N_RESULTS + e] = peak
+        result[N_RESULTS + n_events + e] = interval
+
+
+@jit
+def write_result(
+    result, regime, attractor, t, n_steps, n_rejected, tau_runaway, nb, win, past, past_cs, hist,
+    cs, lam, lam_err, n_events,
+):  # fmt: skip
+    """The run's statistics into ``result`` (``R_*`` columns, then the event columns).
+
+    The final window (extremes, friction drop, synchronisation, slip participation)
+    spans :func:`window_cycles`; a periodic run's period is the sum of its cycle's
+    intervals and its growth rate compares amplitudes one cycle apart.
     """
     use_last = cs[C_N_PEAKS] >= 2 and regime != RUNAWAY
-    window = last if use_last else win
+    span = window_cycles(attractor, cs, use_last)
+    n_cycles = int(cs[C_N_CYCLES])
     lmax = -np.inf
     lmin = np.inf
     fdrop = 0.0
-    for i in range(nb):
-        lmax = max(lmax, window[W_LMAX, i])
-        lmin = min(lmin, window[W_LMIN, i])
-        fdrop = max(fdrop, window[W_MUMAX, i] - window[W_MUMIN, i])
-    sync = cs[C_LAST_SYNC] if use_last else cs[C_WIN_SYNC]
+    sync = 0.0
+    slip_sum = 0.0
+    slip_events = 0.0
+    if span == 0:
+        for i in range(nb):
+            lmax = max(lmax, win[W_LMAX, i])
+            lmin = min(lmin, win[W_LMIN, i])
+            fdrop = max(fdrop, win[W_MUMAX, i] - win[W_MUMIN, i])
+        sync = cs[C_WIN_SYNC]
+        slip_sum = cs[C_SLIP_SUM]
+        slip_events = cs[C_SLIP_EVENTS]
+    for back in range(span):
+        slot = (n_cycles - 1 - back) % HISTORY
+        for i in range(nb):
+            lmax = max(lmax, past[slot, W_LMAX, i])
+            lmin = min(lmin, past[slot, W_LMIN, i])
+            fdrop = max(fdrop, past[slot, W_MUMAX, i] - past[slot, W_MUMIN, i])
+        sync = max(sync, past_cs[slot, X_SYNC])
+        slip_sum += past_cs[slot, X_SLIP_SUM]
+        slip_events += past_cs[slot, X_SLIP_EVENTS]
+    period = cs[C_PERIOD]
+    growth = cs[C_GROWTH]
+    events = int(cs[C_EVENTS]) if attractor == PERIODIC else 0
+    if events > 1:
+        period = 0.0
+        for back in range(events):
+            period += history_value(hist, 2 * nb, n_cycles, back)
+        amp = history_value(hist, 0, n_cycles, 0) - history_value(hist, nb, n_cycles, 0)
+        amp_before = history_value(hist, 0, n_cycles, events) - history_value(
+            hist, nb, n_cycles, events
+        )
+        growth = math.log(amp / amp_before) / period
     result[R_REGIME] = regime
     result[R_TAU_FINAL] = t
     result[R_N_STEPS] = n_steps
     result[R_N_REJECTED] = n_rejected
     result[R_LNV_MAX] = lmax
     result[R_LNV_MIN] = lmin
-    result[R_PERIOD] = cs[C_PERIOD]
-    result[R_GROWTH] = cs[C_GROWTH]
+    result[R_PERIOD] = period
+    result[R_GROWTH] = growth
     result[R_FRICTION_DROP] = fdrop
     result[R_TAU_RUNAWAY] = tau_runaway
     result[R_SYNC_ERROR] = sync if nb > 1 else np.nan
@@ -246,19 +414,21 @@ def write_result(result, regime, t, n_steps, n_rejected, tau_runaway, nb, win, l
     result[R_LNV_MAX_RUN] = cs[C_LNV_MAX_RUN]
     steady_or_runaway = regime == STEADY or regime == RUNAWAY
     result[R_CONVERGENCE] = np.nan if steady_or_runaway else cs[C_CONV]
-    events = cs[C_SLIP_EVENTS]
     result[R_SYNC_ORDER] = cs[C_LAST_ORDER] if use_last else np.nan
-    if use_last:
-        result[R_SLIP_PARTICIPATION] = cs[C_LAST_PARTICIPATION]
-    else:
-        result[R_SLIP_PARTICIPATION] = cs[C_SLIP_SUM] / events if events > 0 else np.nan
+    result[R_SLIP_PARTICIPATION] = slip_sum / slip_events if slip_events > 0 else np.nan
+    result[R_ATTRACTOR] = attractor
+    result[R_CYCLE_EVENTS] = events
+    result[R_LYAPUNOV] = lam
+    result[R_LYAPUNOV_ERROR] = lam_err
+    write_events(result, hist, nb, n_cycles, n_events, events)
 
 
 @jit_inline
 def read_settings(settings):
     """The settings array (``S_*``) as typed values: blocks, rtol, atol, step budget,
     ln of the velocity cap, steady amplitude, accuracy, cycles to confirm (≥ 1),
-    early exit (bool) and ln of the slip threshold."""
+    early exit (bool), ln of the slip threshold, when λ1 is computed (``LYAP_*``) and
+    the number of events reported."""
     nb = int(settings[S_NBLOCKS])
     rtol = settings[S_RTOL]
     atol = settings[S_ATOL]
@@ -269,7 +439,12 @@ def read_settings(settings):
     n_confirm = max(1, int(settings[S_CONFIRM_CYCLES]))
     early_exit = settings[S_EARLY_EXIT] > 0.5
     slip_lnv = settings[S_SLIP_LNV]
-    return nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit, slip_lnv
+    lyap = int(settings[S_LYAPUNOV])
+    n_events = int(settings[S_EVENTS])
+    return (
+        nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit, slip_lnv,
+        lyap, n_events,
+    )  # fmt: skip
 
 
 @jit_inline
@@ -284,10 +459,15 @@ def integrate_system(
     ``model``, ``law``, ``method``, ``coupling`` and ``het`` (per-block columns in
     ``p``) are the kernel's variant: constants of :func:`grid_kernel`, whose inlined
     copy of this function keeps only that variant's branches.
+
+    The tangent for λ1 (``tangent.py``) is carried from ``tau_end`` on by runs not
+    settled by then (``LYAP_UNSETTLED``), or over the whole run (``LYAP_ALWAYS``,
+    which then settles no run before ``tau_end``).
     """
-    nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit, slip_lnv = (
-        read_settings(settings)
-    )
+    (
+        nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit, slip_lnv,
+        lyap, n_events,
+    ) = read_settings(settings)  # fmt: skip
     A = p[P_A]
     B = p[P_B]
     tau_end = p[P_TAU_END]
@@ -302,7 +482,12 @@ def integrate_system(
     k3, k4, k5, k6 = k[1], k[2], k[3], k[4]  # the stages dense output needs
     ev = np.empty(nb)
     k_ros, mat, perm = rosenbrock_scratch(method, n)
-    win, last, hist, cs, slipped = cycle_arrays(y, p, nb, A, B)
+    win, past, past_cs, hist, limits, section, cs, slipped = cycle_arrays(y, p, nb, A, B)
+    delta, work, stages, ros_k, ros_mat, ros_perm, ly = tangent_arrays(method, n)
+    if lyap == LYAP_ALWAYS:
+        lyapunov_start(ly, delta, 0.0, tau_end / LYAP_BLOCKS)
+    # no run is settled before tau_end while λ1 is measured over whole runs
+    t_settle = tau_end if lyap == LYAP_ALWAYS else 0.0
 
     n_rec = record_start(y, rec_t, rec_y)
 
@@ -321,6 +506,8 @@ def integrate_system(
             if cs[C_VERDICT] >= 0:
                 regime = int(cs[C_VERDICT])
                 break
+            if lyap == LYAP_UNSETTLED and tau_max > t:
+                lyapunov_start(ly, delta, t, (tau_max - t) / LYAP_BLOCKS)
         if n_steps + n_rejected >= max_steps:
             break
         h = min(h, tau_stop - t)
@@ -359,10 +546,19 @@ def integrate_system(
                 t += h
             break
 
+        if ly[L_ON] > 0.0:
+            growth = tangent_step(
+                y, ynew, h, delta, work, stages, ros_k, ros_mat, ros_perm, p, nb, ev, rtol, atol,
+                model, law, method, coupling, het,
+            )  # fmt: skip
+            lyapunov_add(ly, t + h, h, growth)
+
         new_peak, theta_peak = update_cycle(
             method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, p, nb, A, B, win, cs, slipped,
             slip_lnv,
         )  # fmt: skip
+        if new_peak and nb > 1:
+            event_section(method, h, y, ynew, f, fnew, k3, k4, k5, k6, nb, theta_peak, section)
         if cs[C_SLIPPING] > 0.0:
             cs[C_IN_EVENT] = 1.0
         elif cs[C_IN_EVENT] > 0.0:
@@ -403,24 +599,38 @@ def integrate_system(
             cs[C_N_PEAKS] += 1
             if cs[C_N_PEAKS] >= 2:
                 close_cycle(
-                    t_new_peak, nb, win, last, hist, cs, accuracy, steady_amp, lin_growth, rtol,
-                    atol,
+                    t_new_peak, nb, win, past, past_cs, hist, limits, section, cs, accuracy,
+                    steady_amp, lin_growth, rtol, atol,
                 )  # fmt: skip
             cs[C_T_PEAK] = t_new_peak
             # the new cycle starts at this peak
             start_cycle(y, p, nb, A, B, win, cs)
             win[W_LMAX, 0] = max(win[W_LMAX, 0], cs[C_PEAK_VALUE])
-            if early_exit and cs[C_VERDICT] >= 0 and cs[C_N_AGREE] >= n_confirm:
+            # a cycle of n events must hold for n_confirm whole cycles: each of its
+            # residue classes gets n_confirm new terms (one event gives only one)
+            settled = cs[C_VERDICT] >= 0 and cs[C_N_AGREE] >= n_confirm * cs[C_EVENTS]
+            if early_exit and settled and t >= t_settle:
                 regime = int(cs[C_VERDICT])
                 break
 
         # decayed onto a linearly stable steady state
-        if early_exit and lin_growth < 0.0 and max_abs(y) < steady_amp:
+        if early_exit and lin_growth < 0.0 and max_abs(y) < steady_amp and t >= t_settle:
             regime = STEADY
             break
 
-    regime = final_regime(regime, t, tau_stop, y, cs, steady_amp, lin_growth)
-    write_result(result, regime, t, n_steps, n_rejected, tau_runaway, nb, win, last, cs)
+    lam, lam_err, span = lyapunov_estimate(ly)
+    by_cycles = regime >= 0 or cs[C_VERDICT] >= 0  # settled by the cycle classifier
+    regime, attractor = final_regime(
+        regime, t, tau_stop, y, cs, hist, limits, nb, steady_amp, lin_growth, accuracy, rtol,
+        atol, lam, lam_err, span,
+    )  # fmt: skip
+    if attractor == UNBOUNDED or (by_cycles and lyap == LYAP_UNSETTLED):
+        # λ1 of the part of the run before a runaway or before it settled: a transient's
+        lam, lam_err = np.nan, np.nan
+    write_result(
+        result, regime, attractor, t, n_steps, n_rejected, tau_runaway, nb, win, past, past_cs,
+        hist, cs, lam, lam_err, n_events,
+    )  # fmt: skip
     y_final[:] = y
     result[R_N_RECORDED] = record_end(t, y, rec_t, rec_y, n_rec)
 

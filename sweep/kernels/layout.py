@@ -15,6 +15,11 @@ AGING, SLIP = 0, 1
 DOPRI5, RK4, ROSENBROCK = 0, 1, 2
 STEADY, STICK_SLIP, RUNAWAY, UNDECIDED = 0, 1, 2, 3
 CHAIN, RING, ALL = 0, 1, 2  # coupling springs: neighbours of a chain, of a ring, every pair
+# what a run settled on (R_ATTRACTOR); names in sweep/variables.py
+FIXED_POINT, PERIODIC, QUASI_PERIODIC, CHAOTIC, UNRESOLVED, UNBOUNDED = range(6)
+# when the tangent for λ1 is carried (S_LYAPUNOV): never, from t_end for runs not settled
+# by then, or over every whole run
+LYAP_NEVER, LYAP_UNSETTLED, LYAP_ALWAYS = range(3)
 
 # --- columns of the per-system parameter array (all dimensionless) ----------
 (
@@ -58,8 +63,10 @@ N_BLOCK_PARAMS = 4
     S_EARLY_EXIT,  # 1: stop as soon as the regime is settled
     S_SLIP_LNV,  # a block slips (slip events, R_SLIP_PARTICIPATION) while ℓ_i exceeds this
     S_COUPLING,  # CHAIN | RING | ALL
-) = range(14)
-N_SETTINGS = 14
+    S_LYAPUNOV,  # LYAP_NEVER | LYAP_UNSETTLED | LYAP_ALWAYS
+    S_EVENTS,  # events whose ℓ_0 maxima and intervals each run reports (columns after R_*)
+) = range(16)
+N_SETTINGS = 16
 
 # --- columns of the per-system statistics array -----------------------------
 (
@@ -81,8 +88,20 @@ N_SETTINGS = 14
     R_CONVERGENCE,  # estimated relative distance of the last cycle to its limit
     R_SYNC_ORDER,  # Kuramoto order parameter of the blocks' phases, final window
     R_SLIP_PARTICIPATION,  # mean fraction of blocks slipping per slip event, final window
-) = range(18)
-N_RESULTS = 18
+    R_ATTRACTOR,  # FIXED_POINT | PERIODIC | QUASI_PERIODIC | CHAOTIC | UNRESOLVED | UNBOUNDED
+    R_CYCLE_EVENTS,  # events (maxima of ℓ_0) per cycle of a periodic run, else 0
+    R_LYAPUNOV,  # largest Lyapunov exponent (V/D0); NaN where the tangent was not carried
+    R_LYAPUNOV_ERROR,  # its standard error (V/D0)
+) = range(22)
+N_RESULTS = 22
+# After the R_* columns: the last S_EVENTS events' maxima of ℓ_0, then their intervals
+# from the event before (D0/V), oldest first, NaN before the first.
+
+
+def result_width(settings):
+    """Columns of the statistics array of a run with ``settings`` (``S_*``)."""
+    return N_RESULTS + 2 * int(settings[S_EVENTS])
+
 
 # Outcomes of a step's runaway test besides the index of the block that crossed
 # the cap (runaway_index).

@@ -1,0 +1,179 @@
+"""The largest Lyapunov exponent (``sweep/kernels/tangent.py``): the tangent step is the
+derivative of the run's own step map; λ1 is the linear growth rate at a stable fixed
+point and zero on a limit cycle; carrying the tangent changes nothing else.
+(λ1 against a SciPy Benettin estimate on a chaotic run: ``test_attractors.py``.)"""
+
+import numpy as np
+import pytest
+from conftest import KC_W, PAPER_A, PAPER_B, kc_w, make_config, run_grid
+
+from sweep.grid import build_grid
+from sweep.kernels import equations, layout, steppers, tangent
+from sweep.runner import compute
+from sweep.variables import ATTRACTORS
+
+CODES = {"quasi-static": layout.QUASI_STATIC, "quasi-dynamic": layout.QUASI_DYNAMIC,
+         "inertial": layout.INERTIAL}  # fmt: skip
+METHODS = {"dopri5": layout.DOPRI5, "rk4": layout.RK4, "rosenbrock": layout.ROSENBROCK}
+
+
+def take_step(method, y, h, p, model, nb):
+    """The end of one step of ``method`` from ``y`` (the kernels' own steppers)."""
+    n = y.size
+    ev, f, ytmp, ynew, fnew = np.empty(nb), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    codes = (model, layout.AGING, layout.CHAIN, False)
+    equations.rhs(y, p, *codes, nb, ev, f)
+    if method == layout.DOPRI5:
+        steppers.step_dopri5(y, f, h, p, *codes, nb, ev, np.empty((5, n)), ytmp, ynew, fnew,
+                             1e-8, 1e-10)  # fmt: skip
+    elif method == layout.RK4:
+        steppers.step_rk4(y, f, h, p, *codes, nb, ev, np.empty((5, n)), ytmp, ynew)
+    else:
+        steppers.step_rosenbrock(y, f, h, p, *codes, nb, ev, np.empty((6, n)), np.empty((n, n)),
+                                 np.empty(n, np.int64), ytmp, ynew, fnew, 1e-8, 1e-10)  # fmt: skip
+    return ynew
+
+
+@pytest.mark.parametrize("method", ["dopri5", "rk4", "rosenbrock"])
+@pytest.mark.parametrize("model", ["quasi-static", "inertial"])
+def test_tangent_step_is_the_derivative_of_the_step_map(method, model):
+    """``tangent_step`` carries δ by the derivative of the method's step map: against a
+    central difference of the step map (step 1e-5: error ~1e-10) in a slip of two
+    coupled blocks, to 1e-6 (the tangent's own forward difference: ~1e-8)."""
+    nb, m = 2, CODES[model]
+    p = np.zeros(layout.N_PARAMS)
+    p[layout.P_A], p[layout.P_B], p[layout.P_KAPPA1], p[layout.P_KAPPA2] = (
+        PAPER_A,
+        PAPER_B,
+        0.04,
+        0.02,
+    )
+    p[layout.P_MASS] = 0.5
+    y = np.array([1.2, -0.4, -0.8, 0.3] + ([0.02, -0.01] if model == "inertial" else []))
+    n, h = y.size, 0.05
+    delta = np.linspace(1.0, 2.0, n)
+    delta /= np.linalg.norm(delta)
+    expected = np.array([
+        (take_step(METHODS[method], y + 1e-5 * e, h, p, m, nb)
+         - take_step(METHODS[method], y - 1e-5 * e, h, p, m, nb)) / 2e-5
+        for e in np.eye(n)
+    ]).T @ delta  # fmt: skip
+    ynew = take_step(METHODS[method], y, h, p, m, nb)
+    scratch = tangent.tangent_arrays(METHODS[method], n)
+    growth = tangent.tangent_step(
+        y, ynew, h, delta, *scratch[1:6], p, nb, np.empty(nb), 1e-8, 1e-10,
+        m, layout.AGING, METHODS[method], layout.CHAIN, False,
+    )  # fmt: skip
+    np.testing.assert_allclose(np.exp(growth) * delta, expected, rtol=1e-6, atol=1e-9)
+
+
+STEADY_CASES = {
+    "one block, K = 1.05 Kc": {"sweep": {"K_W": [1.05 * KC_W]}},
+    "one block, K = 1.3 Kc": {"sweep": {"K_W": [1.3 * KC_W]}},
+    "two blocks": {"blocks": 2, "parameters": {"k2_W": 0.01}, "sweep": {"K_W": [1.1 * KC_W]},
+                   "initial": {"v_over_V": [1.0, 1.0], "phi_over_phi_ss": [1.01, 1.0]}},
+    "radiation damping": {"model": "quasi-dynamic", "parameters": {"eta_W": 0.01},
+                          "sweep": {"K_W": [1.1 * kc_w("quasi-dynamic", eta_w=0.01)]}},
+    "inertia": {"model": "inertial", "parameters": {"m_W": 1.0},
+                "sweep": {"K_W": [1.1 * kc_w("inertial", m_w=1.0)]},
+                "integrator": {"method": "rosenbrock"}},
+}  # fmt: skip
+
+
+def lyapunov_run(case, t_end=2000.0):
+    """``case`` with λ1 over the whole run (``lyapunov: always``) to ``t_end`` D0/V."""
+    sections = {k: v for k, v in case.items() if k not in ("blocks", "model")}
+    base = {k: v for k, v in case.items() if k in ("blocks", "model")}
+    sections["integrator"] = {**sections.get("integrator", {}), "t_end": t_end}
+    sections["classification"] = {"lyapunov": "always"}
+    return compute(make_config(base, **sections), show_progress=False).isel(K_W=0)
+
+
+@pytest.mark.parametrize("name", STEADY_CASES)
+def test_lyapunov_exponent_of_steady_sliding_is_the_linear_growth_rate(name):
+    """At a stable fixed point λ1 is the largest real part of the Jacobian's eigenvalues
+    (the stored linear_growth_rate, from the physics' normal modes): within 1 %."""
+    ds = lyapunov_run(STEADY_CASES[name])
+    assert ATTRACTORS[int(ds["attractor"])] == "fixed_point"
+    linear = float(ds["linear_growth_rate"])
+    assert linear < 0
+    np.testing.assert_allclose(float(ds["lyapunov_exponent"]), linear, rtol=0.01)
+    assert float(ds["lyapunov_error"]) < 0.01 * abs(linear)
+
+
+CYCLE_CASES = {
+    "radiation damping": {"model": "quasi-dynamic", "parameters": {"eta_W": 0.01},
+                          "sweep": {"K_W": [0.9 * kc_w("quasi-dynamic", eta_w=0.01)]}},
+    "inertia": {"model": "inertial", "parameters": {"m_W": 1.0},
+                "sweep": {"K_W": [0.8 * kc_w("inertial", m_w=1.0)]},
+                "integrator": {"method": "rosenbrock"}},
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("name", CYCLE_CASES)
+def test_lyapunov_exponent_of_a_limit_cycle_is_zero(name):
+    """On a limit cycle λ1 = 0 (the direction along the flow neither grows nor decays):
+    within its error, and far below the cycle's own rate 1/period."""
+    ds = lyapunov_run(CYCLE_CASES[name], t_end=4000.0)
+    assert (ATTRACTORS[int(ds["attractor"])], int(ds["cycle_events"])) == ("periodic", 1)
+    lam, err = float(ds["lyapunov_exponent"]), float(ds["lyapunov_error"])
+    assert abs(lam) <= 3 * err
+    assert 3 * err < 1e-3 / float(ds["period"])
+
+
+#: Results of the trajectory itself, whatever decides the label at the end: the final
+#: time and state, the integrator's work, the maxima seen and the largest ln v.
+TRAJECTORY = [layout.R_TAU_FINAL, layout.R_N_STEPS, layout.R_N_REJECTED, layout.R_N_PEAKS,
+              layout.R_LNV_MAX_RUN, layout.R_TAU_RUNAWAY]  # fmt: skip
+
+
+def test_carrying_the_tangent_changes_no_trajectory():
+    """The state's steps do not depend on the tangent: the same runs (steady, cycle,
+    runaway, and one unsettled at t_end that carries it from there) follow the same
+    trajectory without λ1, with it from t_end on, and (early exit off) over the whole
+    run: the same final state, steps and maxima, bit for bit, and runs settled by
+    their cycles keep every number. Only the label of a run still unsettled at its end
+    may use λ1."""
+    ks = [1.1 * KC_W, 0.9 * KC_W, 1.0 * KC_W, 1.0002 * KC_W]
+    base = {"sweep": {"K_W": ks}, "integrator": {"t_end": 400.0}}
+    runs = {}
+    for mode in ("never", "unsettled", "always"):
+        for early in (True, False):
+            config = make_config(base, classification={"lyapunov": mode, "early_exit": early})
+            runs[mode, early] = run_grid(config)
+    lam = [layout.R_LYAPUNOV, layout.R_LYAPUNOV_ERROR]
+    pairs = [(("never", True), ("unsettled", True)), (("never", False), ("unsettled", False)),
+             (("never", False), ("always", False))]  # fmt: skip
+    for a, b in pairs:
+        (res_a, yf_a), (res_b, yf_b) = runs[a], runs[b]
+        np.testing.assert_array_equal(yf_a, yf_b)
+        np.testing.assert_array_equal(res_a[:, TRAJECTORY], res_b[:, TRAJECTORY])
+        settled = res_a[:, layout.R_REGIME] != layout.UNDECIDED
+        other = np.setdiff1d(np.arange(res_a.shape[1]), lam)
+        np.testing.assert_array_equal(res_a[settled][:, other], res_b[settled][:, other])
+    assert np.isnan(runs["never", False][0][:, lam]).all()
+    always = runs["always", False][0]
+    assert np.isfinite(always[0, layout.R_LYAPUNOV])  # steady: λ1 over the whole run
+    assert always[1, layout.R_REGIME] == layout.RUNAWAY and np.isnan(always[1, lam]).all()
+
+
+def test_lyapunov_estimate_needs_two_blocks_after_the_transient():
+    """λ1 is the fit over the window after the first of its eight blocks; with fewer
+    than two blocks after that there is no error estimate, hence NaN."""
+    ly = np.zeros(tangent.N_LYAP)
+    tangent.lyapunov_start(ly, np.empty(4), 0.0, 10.0)
+    for k in range(1, 25):  # S(t) = 0.3 t sampled every 1: 2.4 blocks in all
+        tangent.lyapunov_add(ly, float(k), 1.0, 0.3)
+    assert np.isnan(tangent.lyapunov_estimate(ly)[0])
+    for k in range(25, 41):
+        tangent.lyapunov_add(ly, float(k), 1.0, 0.3)
+    lam, err, span = tangent.lyapunov_estimate(ly)
+    assert lam == pytest.approx(0.3) and err == pytest.approx(0.0, abs=1e-12)
+    assert span == pytest.approx(30.0)
+
+
+def test_grid_settings_carry_the_lyapunov_mode_and_event_count():
+    config = make_config(classification={"lyapunov": "always", "events": 7})
+    g = build_grid(config)
+    assert g.settings[layout.S_LYAPUNOV] == layout.LYAP_ALWAYS
+    assert layout.result_width(g.settings) == layout.N_RESULTS + 14
