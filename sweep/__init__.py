@@ -12,7 +12,8 @@ Importing the package compiles nothing; kernels compile on first use::
 Kernels: :func:`compile_kernels` (warm numba's cache before job arrays);
 configs: :func:`load_config`, :func:`with_changes`, :func:`examples.names`;
 figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
-:func:`plot_trace` (``sweep/plots.py``); traces: ``sweep.trace.compute_trace``.
+:func:`plot_orbit_diagram`, :func:`plot_trace` (``sweep/plots.py``);
+traces: ``sweep.trace.compute_trace``.
 """
 
 from . import examples
@@ -25,6 +26,7 @@ _LAZY = {
     "plot_result": "plots",
     "plot_variable": "plots",
     "plot_bifurcation": "plots",
+    "plot_orbit_diagram": "plots",
     "plot_trace": "plots",
     "save_figure": "plots",
 }
@@ -49,6 +51,7 @@ __all__ = [
     "load_config",
     "parse_config",
     "plot_bifurcation",
+    "plot_orbit_diagram",
     "plot_result",
     "plot_trace",
     "plot_variable",

@@ -203,6 +203,14 @@ def add_figure_commands(sub):
         "instead of the phase diagram",
     )
     plot.add_argument(
+        "--orbit",
+        nargs="?",
+        const="",
+        metavar="AXIS",
+        help="orbit diagram instead: the last events' maxima of ln v and the Lyapunov "
+        "exponent along AXIS (default: the first sweep axis)",
+    )
+    plot.add_argument(
         "--out", help="output .png, .pdf or .svg (default: the result's path with .png)"
     )
     _add_dpi(plot)
@@ -410,15 +418,22 @@ def cmd_examples(args):
 
 
 def cmd_plot(args):
+    import functools
     from pathlib import Path
 
     from .dataset import read_result
-    from .plots import plot_result, plot_variable
+    from .plots import plot_orbit_diagram, plot_result, plot_variable
 
     ds = read_result(args.result)
-    suffix = f"_{args.var}.png" if args.var else ".png"
+    if args.var and args.orbit is not None:
+        raise InputError(args.result, ["give --var or --orbit, not both"])
+    if args.orbit is not None:
+        suffix, draw = "_orbit.png", functools.partial(plot_orbit_diagram, ds, args.orbit or None)
+    elif args.var:
+        suffix, draw = f"_{args.var}.png", functools.partial(plot_variable, ds, args.var)
+    else:
+        suffix, draw = ".png", functools.partial(plot_result, ds)
     out = args.out or Path(args.result).with_name(Path(args.result).stem + suffix)
-    draw = (lambda: plot_variable(ds, args.var)) if args.var else (lambda: plot_result(ds))
     print(f"wrote {_plotted(args.result, draw, out, args.dpi)}")
     return 0
 

@@ -3,7 +3,8 @@
 Every system is derived from ``configs/paper.yaml`` (the paper's one-block
 system, read with D0 = 1 µm: erratum 1) and integrated as a trace
 (``sweep/trace.py``); the phase diagram and bifurcation diagram come from
-ordinary sweeps (``configs/twoblock.yaml``, ``configs/bifurcation_*.yaml``).
+ordinary sweeps (``configs/twoblock.yaml``, ``configs/bifurcation_*.yaml``), the orbit
+diagram of two unequal inertial blocks from ``configs/route_to_chaos.yaml``.
 
 Where the paper's quasi-static model runs away (K < Kc has no stick-slip limit
 cycle), the figures show the runaway and, beside it, the same system with a
@@ -266,6 +267,7 @@ def make_figures(
     twoblock="twoblock",
     bifurcation=("bifurcation_qs", "bifurcation_qd"),
     nblock=("nblock", "heterogeneous"),
+    route="route_to_chaos",
     out_dir="results",
     threads=None,
     suffix=".png",
@@ -274,10 +276,10 @@ def make_figures(
     """Regenerate every paper figure into ``out_dir``; returns the file paths.
 
     Configs are paths or names of packaged examples (``sweep/examples.py``), so
-    this works from any folder. ``suffix``: ``.png``, ``.pdf`` or ``.svg``;
-    ``dpi``: resolution of PNGs.
+    this works from any folder; ``route``: the 1-D sweep whose orbit diagram is drawn.
+    ``suffix``: ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
     """
-    from .plots import plot_bifurcation, plot_result
+    from .plots import plot_bifurcation, plot_orbit_diagram, plot_result
     from .runner import compute
 
     out_dir = Path(out_dir)
@@ -287,6 +289,7 @@ def make_figures(
     bifurcation_configs = [load_config(p) for p in bifurcation]
     for path in nblock:
         load_config(path)
+    route_config = load_config(route)
     check_writable(out_dir / f"fig1_one_block{suffix}", str(out_dir), "--out-dir", suffix)
     paths = [
         save_figure(figure_one_block(config), out_dir / f"fig1_one_block{suffix}", dpi),
@@ -304,4 +307,12 @@ def make_figures(
     paths.append(save_figure(fig, out_dir / f"bifurcation{suffix}", dpi))
     fig = figure_nblock(*nblock, threads=threads)
     paths.append(save_figure(fig, out_dir / f"nblock{suffix}", dpi))
+    caption = (
+        "D0 = 1.0 and 0.6 µm (mean 0.8). K rising: a torus, the simple cycle's period "
+        "doubling, the simple cycle, a slip and a stick bump (off the scale, ln v/V ≈ −25) "
+        "doubling to four events, chaos with periodic windows, the simple cycle again"
+    )
+    route = compute(route_config, threads=threads, show_progress=False)
+    fig = plot_orbit_diagram(route, caption=caption, lnv_range=(0.5, 2.5))
+    paths.append(save_figure(fig, out_dir / f"route_to_chaos{suffix}", dpi))
     return paths

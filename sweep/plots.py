@@ -614,6 +614,84 @@ def draw_trace(ax, ds, legend=True):
         ax.legend(loc="lower right", fontsize=8, framealpha=0.8)
 
 
+#: Colour of each attractor kind in an orbit diagram (Okabe–Ito palette, colour-blind safe).
+ATTRACTOR_COLOURS = {
+    "fixed_point": "#0072B2",
+    "periodic": "#009E73",
+    "quasi_periodic": "#E69F00",
+    "chaotic": "#CC79A7",
+    "unresolved": "#999999",
+    "unbounded": "#D55E00",
+}
+
+
+def plot_orbit_diagram(ds, axis=None, ax=None, caption="", lnv_range=None):
+    """Orbit diagram of a sweep result: the last events' maxima of ln v (block 0)
+    against one sweep axis; returns the Figure.
+
+    Each run's ``event_lnv_peak`` (a periodic run: its cycle's n events; chaotic and
+    quasi-periodic runs: their last kept events) as points coloured by attractor,
+    and below, the largest Lyapunov exponent with its error where it was computed.
+    ``axis``: the sweep axis along x (default the first with more than one value);
+    the other axes are taken at their first value (named in the title). With
+    ``ax``, only the orbit panel is drawn there. ``caption``: an extra title line.
+    ``lnv_range``: (low, high) of ln(v/V) shown, e.g. only the slips, where the small
+    bumps of a sticking block (ln v/V ≈ −25) would squash them (default: all).
+
+    Raises ``ValueError`` for a result without events (``classification.events: 0``)
+    or an unknown axis.
+    """
+    if "event_lnv_peak" not in ds:
+        raise ValueError("no event maxima in this result (its classification.events is 0)")
+    dims = list(ds["regime"].dims)
+    axis = axis or next((d for d in dims if ds.sizes[d] > 1), dims[0])
+    if axis not in dims:
+        raise ValueError(f"no sweep axis {axis!r}; the axes are {', '.join(dims)}")
+    others = {d: 0 for d in dims if d != axis}
+    fixed = parameter_text({d: ds[d].values[0] for d in others})
+    ds = ds.isel(others)
+    if ax is None:
+        fig = new_figure(figsize=(9.0, 6.4))
+        ax, ax_lam = fig.subplots(2, 1, sharex=True, height_ratios=(2.2, 1.0))
+    else:
+        fig, ax_lam = ax.figure, None
+    x = ds[axis].values
+    kinds = dict(zip((int(c) for c in ds["attractor"].attrs["flag_values"]),
+                     ds["attractor"].attrs["flag_meanings"].split(), strict=True))  # fmt: skip
+    peaks = ds["event_lnv_peak"].values
+    for code, kind in kinds.items():
+        rows = ds["attractor"].values == code
+        if not rows.any():
+            continue
+        xs, ys = np.repeat(x[rows], peaks.shape[1]), peaks[rows].ravel()
+        kept = np.isfinite(ys)  # NaN: fewer events than kept, or before the settled cycle
+        ax.scatter(xs[kept], ys[kept], s=4, lw=0, color=ATTRACTOR_COLOURS[kind],
+                   label=f"{kind.replace('_', '-')} ({int(rows.sum())})")  # fmt: skip
+    ax.set_ylabel(
+        axis_label(ds["event_lnv_peak"]).replace("at each of the last events", "at events")
+    )
+    if lnv_range is not None:
+        ax.set_ylim(*lnv_range)
+    ax.legend(loc="best", fontsize=8, markerscale=3)
+    ax.set_title("orbit diagram: maxima of ln v at the last events", fontsize=10)
+    for a in (ax, ax_lam):
+        if a is not None:
+            a.set_xscale("log" if _log_spaced(x) else "linear")
+    last = ax_lam or ax
+    last.set_xlabel(axis_label(ds[axis]))
+    if ax_lam is not None:
+        lam, err = ds["lyapunov_exponent"].values, ds["lyapunov_error"].values
+        colours = [ATTRACTOR_COLOURS[kinds[int(c)]] for c in ds["attractor"].values]
+        ax_lam.axhline(0.0, color="#BBBBBB", lw=0.8)
+        ax_lam.errorbar(x, lam, yerr=err, fmt="none", ecolor="#BBBBBB", lw=0.8)
+        ax_lam.scatter(x, lam, s=10, c=colours)
+        ax_lam.set_ylabel(axis_label(ds["lyapunov_exponent"]))
+        ax.set_xlabel("")
+        note = "; ".join(filter(None, [fixed and f"at {fixed}", initial_text(ds)]))
+        _suptitle(fig, [f"{ds.attrs.get('sweep_name', '')}: {describe(ds)}", note, caption])
+    return fig
+
+
 def plot_trace(ds, ax=None):
     """Block velocity against time of one trace (``sweep/trace.py``); returns the Figure.
 

@@ -10,6 +10,7 @@ from sweep.config import config_mapping, load_config, parse_config
 from sweep.dataset import write_netcdf
 from sweep.plots import (
     REGIME_COLOURS,
+    axis_label,
     bifurcation_curves,
     critical_crossings,
     plot_bifurcation,
@@ -25,7 +26,9 @@ from sweep.variables import REGIMES
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-PAPER_FIGURES = ("fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation", "nblock")
+PAPER_FIGURES = (
+    "fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation", "nblock", "route_to_chaos"
+)  # fmt: skip
 
 
 def small(path, name, **changes):
@@ -248,14 +251,17 @@ def test_make_figures_on_small_configs(tmp_path):
     )
     qs = small(CONFIGS / "bifurcation_qs.yaml", "qs_small", sweep={"K_W": [0.04, 0.045, 0.055]})
     nblock, heterogeneous = small_nblock_configs()
+    route = small(CONFIGS / "route_to_chaos.yaml", "route_small",
+                  sweep={"K_W": [0.0042, 0.005]}, classification={"max_t_end": 3000.0})  # fmt: skip
     paths = []
-    for config in (paper, twoblock, qs, nblock, heterogeneous):
+    for config in (paper, twoblock, qs, nblock, heterogeneous, route):
         path = tmp_path / f"{config.name}.yaml"
         path.write_text(config.text)
         paths.append(path)
     out = make_figures(
-        paths[0], paths[1], (paths[2],), nblock=paths[3:], out_dir=tmp_path / "figures", threads=1
-    )
+        paths[0], paths[1], (paths[2],), nblock=paths[3:5], route=paths[5],
+        out_dir=tmp_path / "figures", threads=1,
+    )  # fmt: skip
     assert [p.stem for p in out] == list(PAPER_FIGURES)
     for path in out:
         assert_png(path)
@@ -350,7 +356,7 @@ def test_plot_variable_labels_units_and_draws_on_a_given_axes(one_d, two_d):
     assert plot_variable(one_d, "period", ax=ax) is ax.figure
     assert ax.get_ylabel() == "oscillation period [s]"
     assert plot_variable(two_d, "regime").axes[0].get_title() == "dynamical regime"
-    with pytest.raises(ValueError, match="valid names: regime, lnv_amplitude"):
+    with pytest.raises(ValueError, match="valid names: regime, attractor"):
         plot_variable(one_d, "nope")
 
 
@@ -380,3 +386,32 @@ def test_reading_and_plotting_results_loads_no_numba():
     code = "import sys, sweep.plots, sweep.dataset; print('numba' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_orbit_diagram_plots_each_runs_events_by_attractor(one_d, two_d, tmp_path, capsys):
+    """plot_orbit_diagram: every finite event maximum of every run along the axis,
+    coloured by attractor, λ1 below; with ``ax`` only the orbit panel there; along a
+    chosen axis of a 2-D result; a result without events or a wrong axis is refused.
+    The CLI draws it with ``plot --orbit``."""
+    from matplotlib.figure import Figure
+
+    from sweep.plots import plot_orbit_diagram
+
+    fig = plot_orbit_diagram(one_d)
+    orbit, lam = fig.axes
+    drawn = sum(len(c.get_offsets()) for c in orbit.collections)
+    assert drawn == np.isfinite(one_d["event_lnv_peak"].values).sum()
+    assert lam.get_ylabel().startswith("largest Lyapunov exponent")
+    ax = Figure().subplots()
+    assert plot_orbit_diagram(two_d, axis=two_d.regime.dims[1], ax=ax) is ax.figure
+    assert ax.get_xlabel() == axis_label(two_d[two_d.regime.dims[1]])
+    with pytest.raises(ValueError, match="no sweep axis 'nope'"):
+        plot_orbit_diagram(one_d, axis="nope")
+    with pytest.raises(ValueError, match="no event maxima"):
+        plot_orbit_diagram(one_d.drop_vars(["event_lnv_peak", "event_interval"]))
+    path = write_netcdf(one_d, tmp_path / "q.nc")
+    assert main(["plot", str(path), "--orbit"]) == 0
+    assert_png(tmp_path / "q_orbit.png")
+    capsys.readouterr()
+    assert main(["plot", str(path), "--orbit", "--var", "period"]) == 2
+    assert "give --var or --orbit" in capsys.readouterr().err
