@@ -10,6 +10,9 @@ Prints and writes ``results/bench.json``:
   arithmetic written as plainly as possible;
 * throughput per block-step of chains and rings of 2 and 32 blocks (the issue's
   target: 32 blocks within 2x of 2 blocks per block-step);
+* the cost of classifying beyond the simple cycle: runs that settle as before, with
+  and without the Lyapunov tangent and event bookkeeping, and a step that carries the
+  tangent against a plain step (DOPRI5, RODAS4);
 * ``configs/twoblock.yaml`` wall time on 1 and 2 threads (JIT cache warm) and
   the 2-thread speed-up; JIT compile time measured separately, in a fresh
   process with the cache off and on.
@@ -467,6 +470,45 @@ def bench_scipy_hard(n_points, t_end):
             "speedup_per_core": seconds / engine_s}  # fmt: skip
 
 
+def bench_attractors(n_points, t_end):
+    """What the classification beyond the simple cycle costs, per step (one block, the
+    paper's start; two inertial blocks for RODAS4).
+
+    ``settling``: runs that settle by t_end (K/Kc 0.5-0.95 and 1.05-1.5), the default
+    classification (λ1 for runs unsettled at t_end, 32 events kept) against
+    ``lyapunov: never, events: 0``: the same runs and steps, so any difference is the
+    bookkeeping. ``tangent/<method>``: K/Kc 0.8-1.2, early exit off, λ1 over every
+    whole run (``always``) against ``never``: the cost of a step that carries the
+    tangent.
+    """
+    half = max(1, n_points // 2)
+    settling = np.concatenate([np.linspace(0.5, 0.95, half), np.linspace(1.05, 1.5, half)])
+    grid = np.linspace(0.8 * KC_W, 1.2 * KC_W, n_points)
+    out = {"grid_points": n_points, "t_end_D0_over_V": t_end}
+
+    def per_step(config):
+        results, seconds = engine_run(config, repeats=3, passes=2)
+        return 1e9 * seconds / results[:, layout.R_N_STEPS].sum()
+
+    lean = {"lyapunov": "never", "events": 0}
+    base = one_block_config(settling * KC_W, t_end)
+    ns_lean = per_step(with_changes(base, {"classification": lean}))
+    ns_default = per_step(base)
+    out["settling"] = {"ns_per_step_lean": ns_lean, "ns_per_step_default": ns_default,
+                       "default_over_lean": ns_default / ns_lean}  # fmt: skip
+    inertial = one_block_config(
+        np.linspace(0.004, 0.006, max(2, n_points // 4)), t_end, model="inertial", blocks=2,
+        extra={"m_W": 1.0, "V": 1.0, "D0": 0.8}, method="rosenbrock", early=False,
+    )  # fmt: skip
+    for method, config in (("dopri5", one_block_config(grid, t_end, early=False)),
+                           ("rosenbrock", inertial)):  # fmt: skip
+        plain = per_step(with_changes(config, {"classification": {"lyapunov": "never"}}))
+        tangent = per_step(with_changes(config, {"classification": {"lyapunov": "always"}}))
+        out[f"tangent/{method}"] = {"ns_per_step": plain, "ns_per_step_with_tangent": tangent,
+                                    "tangent_over_plain": tangent / plain}  # fmt: skip
+    return out
+
+
 def bench_threads_large(n_points, t_end):
     """2-thread speed-up on a one-block sweep of ``n_points`` (K/Kc 0.5-1.5)."""
     config = one_block_config(np.linspace(0.5 * KC_W, 1.5 * KC_W, n_points), t_end)
@@ -554,14 +596,17 @@ def bench_dask(config_path, workers=2):
 #: the smallest that still runs every code path (``smoke``, for the test suite).
 SIZES = {
     "full": {"scipy": (41, 2000), "single_purpose": (401, 2000), "scipy_hard": (101, 2000),
+             "attractors": (201, 2000),
              "threads_large": (10_000, 2000), "throughput": (16, 500), "rk4": 2_000_000,
              "block_scaling": (8, 500),
              "configs": ("oneblock", "twoblock"), "dask": "twoblock", "compile": "twoblock"},
     "quick": {"scipy": (6, 300), "single_purpose": (21, 300), "scipy_hard": (5, 2000),
+              "attractors": (21, 300),
               "threads_large": (200, 2000), "throughput": (2, 50), "rk4": 10_000,
               "block_scaling": (2, 50),
               "configs": ("quick", "quick"), "dask": "quick", "compile": "quick"},
     "smoke": {"scipy": (3, 100), "single_purpose": (3, 100), "scipy_hard": (2, 100),
+              "attractors": (3, 100),
               "threads_large": (4, 100), "throughput": (1, 10), "rk4": 1_000,
               "block_scaling": (1, 10),
               "configs": ("quick",), "dask": "quick", "compile": "quick"},
@@ -594,6 +639,19 @@ def main(argv=None):
         f"K/Kc 0.8-1.2, {h['grid_points']} runs: engine with early exit "
         f"{h['speedup_per_core']:.0f}x faster per core than a SciPy LSODA loop"
     )
+    figures["attractors"] = a = bench_attractors(*size["attractors"])
+    s = a["settling"]
+    print(
+        f"classification beyond the simple cycle, runs that settle: {s['ns_per_step_default']:.0f}"
+        f" ns per step vs {s['ns_per_step_lean']:.0f} without lambda1 or events "
+        f"({s['default_over_lean']:.3f}x)"
+    )
+    for method in ("dopri5", "rosenbrock"):
+        v = a[f"tangent/{method}"]
+        print(
+            f"a {method} step carrying the tangent: {v['ns_per_step_with_tangent']:.0f} ns vs "
+            f"{v['ns_per_step']:.0f} ns ({v['tangent_over_plain']:.2f}x)"
+        )
     figures["threads_large"] = tl = bench_threads_large(*size["threads_large"])
     print(
         f"{tl['grid_points']}-point one-block sweep: {tl['seconds_1_thread']:.2f} s on 1 "
@@ -672,6 +730,17 @@ def _print_targets(f):
             f"{f['threads_large']['speedup_2_threads']:.2f}x",
         ),
         ("cold JIT compile (default config)", "< 10 s", f"{f['compile']['compile_seconds']:.1f} s"),
+        (
+            "settling runs: default classification vs none beyond the simple cycle",
+            "<= 1.03x per step",
+            f"{f['attractors']['settling']['default_over_lean']:.3f}x",
+        ),
+        (
+            "a step carrying the tangent (dopri5 / rosenbrock)",
+            "<= 2.5x a plain step",
+            f"{f['attractors']['tangent/dopri5']['tangent_over_plain']:.2f}x / "
+            f"{f['attractors']['tangent/rosenbrock']['tangent_over_plain']:.2f}x",
+        ),
         (
             "two-block default config, 2 threads, JIT warm",
             "< 10 s",
