@@ -163,7 +163,16 @@ def build_dataset(grid, results, y_final, command="run"):
     """
     config = grid.config
     data_vars = data_variables(config, derived_fields(grid, results, y_final))
-    return xr.Dataset(data_vars, coords=parameter_coords(config), attrs=provenance(config, command))
+    ds = xr.Dataset(data_vars, coords=parameter_coords(config), attrs=provenance(config, command))
+    return without_coordinate_fill(ds)
+
+
+def without_coordinate_fill(ds):
+    """``ds`` with no ``_FillValue`` on its coordinates when written (CF: coordinates
+    hold no missing values), so a plain ``ds.to_netcdf`` writes a CF-clean file too."""
+    for name in ds.coords:
+        ds[name].encoding["_FillValue"] = None
+    return ds
 
 
 def data_variables(config, fields, shape=None):

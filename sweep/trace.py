@@ -21,7 +21,13 @@ import xarray as xr
 
 from . import physics
 from .config import ConfigError, with_changes
-from .dataset import derived_fields, parameter_attrs, parameter_coords, provenance
+from .dataset import (
+    derived_fields,
+    parameter_attrs,
+    parameter_coords,
+    provenance,
+    without_coordinate_fill,
+)
 from .dispatch import integrate_grid
 from .errors import InputError
 from .grid import build_grid
@@ -161,11 +167,8 @@ def compute_trace(config, points=4000):
     coords.update(parameter_coords(config))
     for axis in config.axes:  # each pinned to one value: a scalar coordinate
         coords[axis.name] = ((), axis.values[0], parameter_attrs(axis.name))
-    return xr.Dataset(
-        data_vars,
-        coords=coords,
-        attrs=trace_attributes(grid, result, y_final),
-    )
+    ds = xr.Dataset(data_vars, coords=coords, attrs=trace_attributes(grid, result, y_final))
+    return without_coordinate_fill(ds)
 
 
 def trace_attributes(grid, result, y_final):

@@ -269,6 +269,27 @@ def test_result_and_trace_files_pass_the_cf_checker(result, tmp_path):
         assert set(failed) == allowed, failed
 
 
+def test_plain_to_netcdf_of_a_run_passes_the_cf_checker(tmp_path):
+    """What users type: ``sweep.run(...).to_netcdf(path)`` without write_netcdf's
+    encoding writes no _FillValue on coordinates, so the file passes every CF check
+    (and so does a trace's, but for its elapsed-time axis)."""
+    import sweep
+    from sweep.trace import compute_trace, pin_config
+
+    config = make_config(TWO_BLOCKS)
+    ds = sweep.run(config, progress=False)
+    trace = compute_trace(pin_config(config, {a.name: a.values[0] for a in config.axes}, 50.0))
+    for data, allowed in ((ds, set()), (trace, TRACE_CF_EXCEPTIONS)):
+        path = tmp_path / f"{data.attrs['title'].split()[-2]}.nc"
+        data.to_netcdf(path)
+        failed = {
+            check["name"]
+            for check in cf_report(path, tmp_path)["all_priorities"]
+            if check["value"][0] < check["value"][1]
+        }
+        assert failed == allowed
+
+
 def test_cf_attributes(result, tmp_path):
     """What the checker cannot judge: the conventions named, the seed paper cited, no
     misused ``institution``, counts 32-bit and coordinates without _FillValue in the file."""
