@@ -185,7 +185,7 @@ def critical_crossings(x, ratio):
 MEASURES = ("lnv_amplitude", "growth_rate")
 
 
-def plot_result(ds, caption=""):
+def plot_result(ds, caption="", ax=None):
     """Phase diagram of a sweep result; returns the Figure.
 
     Two or more sweep axes: regimes as a categorical map over the first two
@@ -193,15 +193,27 @@ def plot_result(ds, caption=""):
     measures against it, points coloured by regime, with the linear growth
     rate. The analytic critical stiffness (where K/Kc = 1) is drawn over every
     panel. Further axes are taken at their first value (named in the title).
-    ``caption``: an extra title line.
+    ``caption``: an extra title line. With ``ax`` (a matplotlib Axes), only the
+    regime panel is drawn there (one axis: the first measure coloured by regime),
+    with no figure title, and its Figure is returned.
     """
     ds, fixed_axes = _squeeze(ds, keep=2)
+    if ds["regime"].ndim not in (1, 2):
+        raise ValueError("a phase diagram needs a sweep axis with more than one value")
+    if ax is not None:
+        if ds["regime"].ndim == 2:
+            counts = _regime_map(ax, ds)
+            _grid_axes(ax, ds)
+            ax.set_ylabel(axis_label(ds[ds["regime"].dims[1]]))
+            present = [name for name in REGIMES if counts.get(name)]
+            regime_legend(ax, present, counts, fontsize=8)
+        else:
+            _measure_line(ax, ds, MEASURES[0])
+        return ax.figure
     if ds["regime"].ndim == 2:
         fig = _phase_map(ds)
-    elif ds["regime"].ndim == 1:
-        fig = _phase_line(ds)
     else:
-        raise ValueError("a phase diagram needs a sweep axis with more than one value")
+        fig = _phase_line(ds)
     note = "; ".join(filter(None, [fixed_axes and f"at {fixed_axes}", initial_text(ds)]))
     _suptitle(fig, [f"{ds.attrs.get('sweep_name', '')}: {describe(ds)}", note, caption])
     return fig

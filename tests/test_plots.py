@@ -149,6 +149,24 @@ def test_phase_diagram_of_a_2d_sweep(two_d, tmp_path):
     assert_png(saved(plot_result(two_d), tmp_path / "two_d.png"))
 
 
+def test_phase_diagram_draws_into_a_given_axes(one_d, two_d):
+    """plot_result(ds, ax=ax), as a user lays out a figure: only the regime panel, on
+    that axes (2-D: the regime map with its legend counting every run; 1-D: the first
+    measure coloured by regime), and no other axes added."""
+    from matplotlib.figure import Figure
+
+    fig = Figure()
+    left, right = fig.subplots(1, 2)
+    assert plot_result(two_d, ax=left) is fig
+    assert len(fig.axes) == 2 and not right.has_data()
+    assert left.get_xlabel() == axis_label(two_d[two_d.regime.dims[0]])
+    assert left.get_ylabel() == axis_label(two_d[two_d.regime.dims[1]])
+    counts = [int(t.get_text().split("(")[1].rstrip(")")) for t in left.get_legend().get_texts()]
+    assert sum(counts) == two_d.regime.size
+    assert plot_result(one_d, ax=right) is fig
+    assert sum(len(c.get_offsets()) for c in right.collections) == one_d.regime.size
+
+
 def test_bifurcation_curves_one_per_model_and_damping(one_d, quasi_dynamic):
     labels = [label for label, _ in bifurcation_curves(one_d)]
     assert labels == ["quasi-static"]
