@@ -87,6 +87,31 @@ def test_a_text_number_from_safe_load_gets_a_hint():
         sweep.parse_config(raw)
 
 
+@pytest.mark.parametrize("name", sweep.examples.names())
+def test_every_shipped_config_reads_the_same_through_yaml_safe_load(name):
+    """What the Python API section shows: ``sweep.run(yaml.safe_load(open(path)))``.
+    PyYAML's safe_load (YAML 1.1) reads 1.0e6 as text, so the shipped configs write
+    1.0e+6: the mapping gives the same config as the file."""
+    import dataclasses
+
+    import yaml
+
+    path = sweep.examples.path(name)
+    from_file = sweep.load_config(path)
+    with open(path) as f:
+        from_mapping = sweep.parse_config(yaml.safe_load(f))
+    same = {"source": from_file.source, "text": from_file.text}
+    assert dataclasses.replace(from_mapping, **same) == from_file
+
+
+def test_a_mapping_from_yaml_safe_load_runs():
+    import yaml
+
+    with open(QUICK) as f:
+        ds = sweep.run(yaml.safe_load(f), progress=False)
+    assert ds.regime.size == 9 and int((ds.regime == 3).sum()) == 0
+
+
 def test_run_rejects_bad_threads():
     """A bad argument is the user's to fix (InputError, exit 2) but not a config problem."""
     with pytest.raises(sweep.InputError, match="threads must be an integer") as err:
