@@ -119,54 +119,14 @@ def event_maxima(blocks, y0, t_end, t_from=0.0, call=RUN_CALL):
     return t[keep], y[keep, 0], sol.y[:, -1]
 
 
-def lyapunov(blocks, y0, t_transient, t_end, renorm=100.0, call=RUN_CALL):
-    """λ1 (per D0_ref/V) of the run from ``y0`` by Benettin's method: the variational
-    equations δ' = J(y) δ integrated with the state in one implicit system (its
-    Jacobian [[J, 0], [∂(J δ)/∂y, J]], the lower left by central differences), δ
-    renormalised to length 1 every ``renorm`` D0_ref/V (LSODA stalls once |δ| is
-    large), the log growth counted from ``t_transient`` to ``t_end``. Returns
-    ``(λ1, log growth per interval)``."""
-    n = y0.size
-
-    def fun(t, z):
-        y, d = z[:n], z[n:]
-        return np.concatenate([blocks.rhs(t, y), blocks.jacobian(t, y) @ d])
-
-    def jac(t, z):
-        y, d = z[:n], z[n:]
-        h = 1e-7 * np.maximum(1.0, np.abs(y))
-        cross = np.empty((n, n))
-        for k in range(n):
-            e = np.zeros(n)
-            e[k] = h[k]
-            cross[:, k] = (blocks.jacobian(t, y + e) - blocks.jacobian(t, y - e)) @ d / (2 * h[k])
-        j = blocks.jacobian(t, y)
-        return np.block([[j, np.zeros((n, n))], [cross, j]])
-
-    implicit = call.get("method") in ("LSODA", "Radau", "BDF")
-    d = 1.0 + np.arange(n) / n
-    z = np.concatenate([y0, d / np.linalg.norm(d)])
-    t, logs = 0.0, []
-    while t < t_end - 1e-9:
-        step = min(renorm, t_end - t)
-        sol = solve_ivp(fun, (t, t + step), z, **call, **({"jac": jac} if implicit else {}))
-        assert sol.status == 0, sol.message
-        z = sol.y[:, -1]
-        t += step
-        norm = float(np.linalg.norm(z[n:]))
-        z[n:] /= norm
-        if t > t_transient + 1e-9:
-            logs.append(math.log(norm))
-    logs = np.array(logs)
-    return logs.sum() / (t_end - t_transient), logs
-
-
 def lyapunov_fit(blocks, y0, t_end, dt=0.05, renorm=50.0, call=RUN_CALL):
     """λ1 (per D0_ref/V) over one run from ``y0`` to ``t_end`` as the engine defines its
     estimate with ``lyapunov: always``: the least-squares slope of S(t), the log growth
     of a tangent started at t = 0 along (1, 1 + 1/n, …) normalised, over t_end/8 …
     t_end (the first eighth a transient). S is sampled every ``dt`` from the
-    variational equations (:func:`lyapunov`'s system, δ renormalised every ``renorm``)."""
+    variational equations δ' = J(y) δ integrated with the state in one system (for
+    implicit methods with its Jacobian [[J, 0], [∂(J δ)/∂y, J]], the lower left by
+    central differences), δ renormalised to length 1 every ``renorm``."""
     n = y0.size
 
     def fun(t, z):

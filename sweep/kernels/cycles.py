@@ -622,6 +622,14 @@ def close_cycle(
 
 
 @jit
+def verdict_held(cs, cycles):
+    """Whether the last cycle's verdict has held for ``cycles`` whole cycles of its
+    events: a cycle of n events needs n × ``cycles`` consecutive agreeing events, so
+    each of its residue classes is confirmed by as many new terms."""
+    return cs[C_VERDICT] >= 0 and cs[C_N_AGREE] >= cycles * cs[C_EVENTS]
+
+
+@jit
 def new_cycle_state(y, nb):
     """Scalar cycle state (``C_*`` entries) at the start of a run from ``y``."""
     cs = np.full(N_CYCLE_STATE, np.nan)

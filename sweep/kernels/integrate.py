@@ -21,7 +21,6 @@ from .cycles import (
     C_LAST_ORDER,
     C_LAST_PHASE,
     C_LNV_MAX_RUN,
-    C_N_AGREE,
     C_N_CYCLES,
     C_N_PEAKS,
     C_PEAK_VALUE,
@@ -53,6 +52,7 @@ from .cycles import (
     span_ptp,
     start_cycle,
     update_cycle,
+    verdict_held,
 )
 from .equations import rhs
 from .layout import (
@@ -283,7 +283,7 @@ def final_regime(
     if regime < 0:
         if t < tau_stop:  # step budget exhausted
             return UNDECIDED, UNRESOLVED
-        if cs[C_VERDICT] >= 0 and cs[C_N_AGREE] >= cs[C_EVENTS]:
+        if verdict_held(cs, 1):
             regime = int(cs[C_VERDICT])
         elif max_abs(y) < steady_amp and lin_growth < 0.0:
             regime = STEADY
@@ -503,7 +503,7 @@ def integrate_system(
     while t < tau_max:
         if t >= tau_stop:
             tau_stop = tau_max
-            if cs[C_VERDICT] >= 0:
+            if verdict_held(cs, 1):  # a verdict that held over one whole cycle of events
                 regime = int(cs[C_VERDICT])
                 break
             if lyap == LYAP_UNSETTLED and tau_max > t:
@@ -606,10 +606,7 @@ def integrate_system(
             # the new cycle starts at this peak
             start_cycle(y, p, nb, A, B, win, cs)
             win[W_LMAX, 0] = max(win[W_LMAX, 0], cs[C_PEAK_VALUE])
-            # a cycle of n events must hold for n_confirm whole cycles: each of its
-            # residue classes gets n_confirm new terms (one event gives only one)
-            settled = cs[C_VERDICT] >= 0 and cs[C_N_AGREE] >= n_confirm * cs[C_EVENTS]
-            if early_exit and settled and t >= t_settle:
+            if early_exit and verdict_held(cs, n_confirm) and t >= t_settle:
                 regime = int(cs[C_VERDICT])
                 break
 
