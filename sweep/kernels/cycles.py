@@ -42,7 +42,7 @@ HISTORY = TERMS * MAX_CYCLE_EVENTS
 STEADY_TERMS = 16
 #: Cycles of several events are looked for only while the simple cycle's convergence
 #: exceeds this many times ``accuracy`` (close to a simple cycle, it settles first;
-#: the search costs a few hundred ns per event, test_cycles.py bench).
+#: what it costs runs that settle is measured by make bench: "settling").
 SEARCH_FACTOR = 100.0
 
 
