@@ -59,14 +59,16 @@ def run(config, *, threads=None, client=None, progress=True):
 
 
 def compile_kernels(config):
-    """Compile the kernel that ``config`` (as for :func:`run`) uses, or load it from
-    numba's on-disk cache, in this process. Run it once before job-array tasks or
-    workers on other nodes start, so that they only read the cache. Returns None."""
+    """Compile the kernels that ``config`` (as for :func:`run`) may use, or load them
+    from numba's on-disk cache, in this process: its variant's, and the one with the
+    tangent for λ1 where unsettled runs ask for it (``classification.lyapunov``). Run
+    it once before job-array tasks or workers on other nodes start, so that they
+    only read the cache. Returns None."""
     from .dispatch import load_kernel
     from .grid import build_grid
 
     grid = build_grid(load_config(config))
-    load_kernel(grid.params, grid.settings)
+    load_kernel(grid.params, grid.settings, every=True)
 
 
 def _check_threads(source, threads):

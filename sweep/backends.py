@@ -171,9 +171,9 @@ class DaskTasks:
         return worker_threads(self.client)
 
     def compile(self, params, settings):
-        """Compile the serial kernel here, before any task, so only this process writes
-        numba's cache (numba#4807); workers on the same machine then load it."""
-        load_kernel(params, settings)
+        """Compile the serial kernels here, before any task, so only this process writes
+        numba's cache (numba#4807); workers on the same machine then load them."""
+        load_kernel(params, settings, every=True)
 
     def run(self, params, y0, settings, ranges, stop=None):
         """Integrate ``ranges`` as Dask tasks; yield each in completion order."""

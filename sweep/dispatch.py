@@ -16,15 +16,32 @@ from .kernels import layout
 log = logging.getLogger(__name__)
 
 
-def grid_kernel(params, settings):
-    """The serial grid kernel (``kernels.integrate.grid_kernel``) of the variant that the kernels'
-    arrays describe: model, state law, method and coupling from ``settings``, and
-    whether blocks differ from the width of ``params``."""
+_BUILD = threading.Lock()
+
+
+def grid_kernel(params, settings, tangent=None):
+    """The serial grid kernel (``kernels.integrate.grid_kernel``) of the variant that the
+    kernels' arrays describe: model, state law, method and coupling from ``settings``,
+    whether blocks differ from the width of ``params``, and whether it carries the
+    tangent for λ1 (``tangent``; default: where every run asks for λ1 from its start,
+    ``lyapunov: always``)."""
     from .kernels.integrate import grid_kernel as build  # numba: on first use
 
+    if tangent is None:
+        tangent = int(settings[layout.S_LYAPUNOV]) == layout.LYAP_ALWAYS
     codes = (layout.S_MODEL, layout.S_LAW, layout.S_METHOD, layout.S_COUPLING)
     heterogeneous = params.shape[1] > layout.N_PARAMS
-    return build(*(int(settings[c]) for c in codes), heterogeneous)
+    with _BUILD:  # one dispatcher per variant, also when threads ask at once
+        return build(*(int(settings[c]) for c in codes), heterogeneous, bool(tangent))
+
+
+def may_need_tangent(settings):
+    """Whether a run with ``settings`` may hand runs to the kernel with the tangent: λ1
+    of runs unsettled at t_end (``lyapunov: unsettled``) with early exit on."""
+    return (
+        int(settings[layout.S_LYAPUNOV]) == layout.LYAP_UNSETTLED
+        and settings[layout.S_EARLY_EXIT] > 0.5
+    )
 
 
 def integrate_grid(params, y0, settings, results, y_final, rec_dt=0.0, rec_t=None, rec_y=None):
@@ -32,31 +49,58 @@ def integrate_grid(params, y0, settings, results, y_final, rec_dt=0.0, rec_t=Non
 
     ``results``/``y_final`` are filled in place. A trace passes one row and
     recording buffers ``rec_t`` (m,) and ``rec_y`` (m, n_vars) for the state every
-    ``rec_dt`` (D0/V); see ``kernels.integrate.integrate_system``.
+    ``rec_dt`` (D0/V); see ``kernels.integrate.integrate_system``. Runs still
+    unsettled at t_end that ask for λ1 there are redone by the kernel that carries
+    the tangent, compiled the first time one needs it: a config whose runs all
+    settle never compiles it.
     """
     if rec_t is None:
         rec_t, rec_y = np.empty(0), np.empty((0, y0.shape[1]))
-    grid_kernel(params, settings)(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y)
+    args = (settings, results, y_final, rec_dt, rec_t, rec_y)
+    kernel = grid_kernel(params, settings)
+    kernel(params, y0, *args)
+    redo = np.flatnonzero(results[:, layout.R_REGIME] == layout.TANGENT_NEEDED)
+    if redo.size:
+        with_tangent = ready_kernel(params, settings, tangent=True)
+        sub_results, sub_final = results[redo], y_final[redo]
+        with_tangent(params[redo], y0[redo], settings, sub_results, sub_final, *args[3:])
+        results[redo] = sub_results
+        y_final[redo] = sub_final
 
 
-def load_kernel(params, settings):
-    """Compile (or load from numba's cache) the grid kernel of this run's variant, in
-    this process: before any chunk runs, on Dask workers, or to warm the cache before
-    job arrays.
-
-    It is compiled by a call on zero systems, not with ``kernel.compile(signature)``:
-    numba files the two under different cache keys, and a process that had only
-    called the kernel would leave Dask workers nothing to load (they then compile,
-    and write the cache at once: numba#4807). Says "compiling kernels (first run
-    only)" when this takes longer than a second (a cold cache; loading a warm one
-    takes about a second). Only the variant the run uses is compiled.
-    """
+def ready_kernel(params, settings, tangent=None):
+    """:func:`grid_kernel`, compiled (or loaded from numba's cache) by a call on zero
+    systems, not with ``kernel.compile(signature)``: numba files the two under
+    different cache keys, and a process that had only called the kernel would leave
+    Dask workers nothing to load (they then compile, and write the cache at once:
+    numba#4807). Says "compiling kernels (first run only)" when this takes longer
+    than a second (a cold cache; loading a warm one takes about a second)."""
+    kernel = grid_kernel(params, settings, tangent)
     notice = threading.Timer(1.0, log.info, ("compiling kernels (first run only) ...",))
     notice.start()
     try:
-        integrate_grid(
-            np.empty((0, params.shape[1])), np.empty((0, 2)), np.ascontiguousarray(settings),
-            np.empty((0, layout.result_width(settings))), np.empty((0, 2)),
-        )  # fmt: skip
+        with _COMPILE:
+            kernel(
+                np.empty((0, params.shape[1])), np.empty((0, 2)), np.ascontiguousarray(settings),
+                np.empty((0, layout.result_width(settings))), np.empty((0, 2)), 0.0,
+                np.empty(0), np.empty((0, 2)),
+            )  # fmt: skip
     finally:
         notice.cancel()
+    return kernel
+
+
+_COMPILE = threading.Lock()
+
+
+def load_kernel(params, settings, every=False):
+    """Compile (or load from numba's cache) the grid kernel of this run's variant, in
+    this process, before any chunk runs, on Dask workers, or to warm the cache
+    before job arrays. ``every``: also the kernel with the tangent where runs may
+    need it (:func:`may_need_tangent`), so that processes which share a cache (Dask
+    workers, job-array tasks) only read it; on threads in one process it is
+    compiled when a run first needs it. Only the variants the run uses are compiled.
+    """
+    ready_kernel(params, settings)
+    if every and may_need_tangent(settings):
+        ready_kernel(params, settings, tangent=True)

@@ -40,7 +40,7 @@ ENTRY_POINTS = {"integrate_system", "step_rk4", "step_dopri5", "step_rosenbrock"
 #: Model, law, method, coupling codes and unequal blocks of one variant (quasi-static,
 #: aging, DOPRI5, chain, equal blocks).
 ROOT = Path(__file__).resolve().parents[1]
-VARIANT = (layout.QUASI_STATIC, layout.AGING, layout.DOPRI5, layout.CHAIN, False)
+VARIANT = (layout.QUASI_STATIC, layout.AGING, layout.DOPRI5, layout.CHAIN, False, False)
 NO_JIT = pytest.mark.skipif(numba.config.DISABLE_JIT, reason="NUMBA_DISABLE_JIT=1: no dispatchers")
 
 
@@ -95,7 +95,7 @@ report = {name: type(obj._cache).__name__
           for module in (equations, steppers, cycles, integrate)
           for name, obj in vars(module).items()
           if getattr(obj, "__module__", None) == module.__name__ and name != "grid_kernel"}
-report["grid_kernel()"] = type(integrate.grid_kernel(0, 0, 0, 0, False)._cache).__name__
+report["grid_kernel()"] = type(integrate.grid_kernel(0, 0, 0, 0, False, False)._cache).__name__
 print(json.dumps(report))
 """
 

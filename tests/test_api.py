@@ -175,17 +175,37 @@ def test_license_and_citation_are_shipped():
     assert [a["family-names"] for a in paper["authors"]] == ["Szkutnik", "Kułakowski"]
 
 
-def test_compile_kernels_compiles_only_the_configs_variant():
+def test_compile_kernels_compiles_only_the_configs_variants():
     """``sweep.compile_kernels(config)`` (warming numba's cache before job arrays)
-    compiles the grid kernel of that config's variant in a fresh process, and builds
-    no other variant."""
+    compiles, in a fresh process, the grid kernel of that config's variant and, where
+    runs unsettled at t_end ask for λ1 (the default), the same variant with the
+    tangent, and builds no other variant; with ``lyapunov: never`` only the first."""
     code = (
-        "import sweep; from sweep import dispatch; from sweep.kernels import integrate\n"
+        "import sys, sweep; from sweep import dispatch; from sweep.kernels import integrate\n"
         "from sweep.grid import build_grid\n"
-        "sweep.compile_kernels('quick')\n"
-        "g = build_grid(sweep.load_config('quick'))\n"
+        "config = sweep.with_changes('quick', {'classification': {'lyapunov': sys.argv[1]}})\n"
+        "sweep.compile_kernels(config)\n"
+        "g = build_grid(config)\n"
         "print(integrate.grid_kernel.cache_info().currsize,"
-        " len(dispatch.grid_kernel(g.params, g.settings).signatures))"
+        " *(len(dispatch.grid_kernel(g.params, g.settings, t).signatures) for t in (0, 1)))"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.split() == ["1", "1"]
+    for mode, expected in (("unsettled", "2 1 1"), ("never", "1 1 0")):
+        run = [sys.executable, "-c", code, mode]
+        out = subprocess.run(run, capture_output=True, text=True, check=True, timeout=600)
+        assert out.stdout.split() == expected.split(), mode
+
+
+def test_a_sweep_whose_runs_all_settle_never_compiles_the_tangent():
+    """The tangent for λ1 is compiled only when a run needs it: a sweep whose runs all
+    settle by t_end builds one kernel (issue 24: nothing compiled that the config does
+    not use)."""
+    code = (
+        "import sweep; from sweep.kernels import integrate\n"
+        "ds = sweep.run(sweep.with_changes('quick', {'sweep': {'K_W': [0.03, 0.07]}}),"
+        " progress=False)\n"
+        "print(integrate.grid_kernel.cache_info().currsize, *ds['regime'].values.ravel())"
+    )
+    run = [sys.executable, "-c", code]
+    out = subprocess.run(run, capture_output=True, text=True, check=True, timeout=600)
+    count, *regimes = out.stdout.split()
+    assert count == "1" and len(regimes) == 2

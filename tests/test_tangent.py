@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from conftest import KC_W, PAPER_A, PAPER_B, kc_w, make_config, run_grid
 
+from sweep import dispatch
 from sweep.grid import build_grid
 from sweep.kernels import equations, layout, steppers, tangent
 from sweep.runner import compute
@@ -158,6 +159,41 @@ def test_carrying_the_tangent_changes_no_trajectory():
     always = runs["always", False][0]
     assert np.isfinite(always[0, layout.R_LYAPUNOV])  # steady: λ1 over the whole run
     assert always[1, layout.R_REGIME] == layout.RUNAWAY and np.isnan(always[1, lam]).all()
+
+
+def test_runs_that_need_the_tangent_are_redone_by_its_kernel_number_for_number():
+    """The kernel without the tangent hands exactly the runs unsettled at t_end to the
+    kernel with it (``TANGENT_NEEDED``), and what ``integrate_grid`` returns is, bit
+    for bit, what the kernel with the tangent computes for every run from the start.
+    Asked for λ1 over whole runs, the kernel without it steps no run."""
+    ks = [1.1 * KC_W, 0.9 * KC_W, 1.0 * KC_W, 1.0002 * KC_W]
+    t_end = 20.0  # runaway, cycle and slow decay all unsettled by then
+    config = make_config({"sweep": {"K_W": ks}, "integrator": {"t_end": t_end}})
+    g = build_grid(config)
+
+    def call(kernel, settings):
+        results = np.full((len(ks), layout.result_width(settings)), -7.0)
+        y_final = np.empty_like(g.y0)
+        kernel(g.params, g.y0, settings, results, y_final, 0.0, np.empty(0), np.empty((0, 0)))
+        return results, y_final
+
+    plain, _ = call(dispatch.grid_kernel(g.params, g.settings, tangent=False), g.settings)
+    handed = plain[:, layout.R_REGIME] == layout.TANGENT_NEEDED
+    direct = call(dispatch.grid_kernel(g.params, g.settings, tangent=True), g.settings)
+    went_on = direct[0][:, layout.R_TAU_FINAL] > t_end
+    assert went_on.sum() >= 3 and handed[went_on].all()
+    np.testing.assert_array_equal(plain[~handed], direct[0][~handed])
+    split = run_grid(config)
+    np.testing.assert_array_equal(split[0], direct[0])
+    np.testing.assert_array_equal(split[1], direct[1])
+    assert split[0][3, layout.R_REGIME] == layout.UNDECIDED
+    assert np.isfinite(split[0][3, layout.R_LYAPUNOV])
+
+    always = g.settings.copy()
+    always[layout.S_LYAPUNOV] = layout.LYAP_ALWAYS
+    results, _ = call(dispatch.grid_kernel(g.params, g.settings, tangent=False), always)
+    assert (results[:, layout.R_REGIME] == layout.TANGENT_NEEDED).all()
+    assert (results[:, layout.R_N_STEPS] == 0).all()
 
 
 def test_lyapunov_estimate_needs_two_blocks_after_the_transient():

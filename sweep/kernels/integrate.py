@@ -112,6 +112,7 @@ from .layout import (
     S_STEADY_AMP,
     STEADY,
     STICK_SLIP,
+    TANGENT_NEEDED,
     UNBOUNDED,
     UNDECIDED,
     UNRESOLVED,
@@ -449,20 +450,24 @@ def read_settings(settings):
 
 @jit_inline
 def integrate_system(
-    p, y0, settings, result, y_final, rec_dt, rec_t, rec_y, model, law, method, coupling, het
-):
+    p, y0, settings, result, y_final, rec_dt, rec_t, rec_y, model, law, method, coupling, het,
+    tangent,
+):  # fmt: skip
     """Integrate one system (parameters ``p``: ``P_*``) from ``y0``; its statistics go
     to ``result`` (``R_*``), its final state to ``y_final``. Traces: the state every
     ``rec_dt`` (D0/V, interpolated) and at the end goes to ``rec_t``/``rec_y`` while
     they have room (sweeps pass empty buffers); the count is ``result[R_N_RECORDED]``.
 
-    ``model``, ``law``, ``method``, ``coupling`` and ``het`` (per-block columns in
-    ``p``) are the kernel's variant: constants of :func:`grid_kernel`, whose inlined
-    copy of this function keeps only that variant's branches.
+    ``model``, ``law``, ``method``, ``coupling``, ``het`` (per-block columns in
+    ``p``) and ``tangent`` are the kernel's variant: constants of :func:`grid_kernel`,
+    whose inlined copy of this function keeps only that variant's branches.
 
     The tangent for λ1 (``tangent.py``) is carried from ``tau_end`` on by runs not
     settled by then (``LYAP_UNSETTLED``), or over the whole run (``LYAP_ALWAYS``,
-    which then settles no run before ``tau_end``).
+    which then settles no run before ``tau_end``). A kernel compiled without it
+    (``tangent`` False) stops such a run where the tangent would start and marks it
+    ``TANGENT_NEEDED`` for the kernel with it to redo from the start: a run's steps do
+    not depend on the tangent, so the redone run is the same run, number for number.
     """
     (
         nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit, slip_lnv,
@@ -483,9 +488,14 @@ def integrate_system(
     ev = np.empty(nb)
     k_ros, mat, perm = rosenbrock_scratch(method, n)
     win, past, past_cs, hist, limits, section, cs, slipped = cycle_arrays(y, p, nb, A, B)
-    delta, work, stages, ros_k, ros_mat, ros_perm, ly = tangent_arrays(method, n)
+    delta, work, stages, ros_k, ros_mat, ros_perm, ly = tangent_arrays(method, n if tangent else 0)
+    needs_tangent = False
     if lyap == LYAP_ALWAYS:
-        lyapunov_start(ly, delta, 0.0, tau_end / LYAP_BLOCKS)
+        if tangent:
+            lyapunov_start(ly, delta, 0.0, tau_end / LYAP_BLOCKS)
+        else:
+            needs_tangent = True
+            tau_max = 0.0  # no step: the kernel with the tangent runs it
     # no run is settled before tau_end while λ1 is measured over whole runs
     t_settle = tau_end if lyap == LYAP_ALWAYS else 0.0
 
@@ -507,6 +517,9 @@ def integrate_system(
                 regime = int(cs[C_VERDICT])
                 break
             if lyap == LYAP_UNSETTLED and tau_max > t:
+                if not tangent:
+                    needs_tangent = True
+                    break
                 lyapunov_start(ly, delta, t, (tau_max - t) / LYAP_BLOCKS)
         if n_steps + n_rejected >= max_steps:
             break
@@ -546,12 +559,13 @@ def integrate_system(
                 t += h
             break
 
-        if ly[L_ON] > 0.0:
-            growth = tangent_step(
-                y, ynew, h, delta, work, stages, ros_k, ros_mat, ros_perm, p, nb, ev, rtol, atol,
-                model, law, method, coupling, het,
-            )  # fmt: skip
-            lyapunov_add(ly, t + h, h, growth)
+        if tangent:
+            if ly[L_ON] > 0.0:
+                growth = tangent_step(
+                    y, ynew, h, delta, work, stages, ros_k, ros_mat, ros_perm, p, nb, ev, rtol,
+                    atol, model, law, method, coupling, het,
+                )  # fmt: skip
+                lyapunov_add(ly, t + h, h, growth)
 
         new_peak, theta_peak = update_cycle(
             method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, p, nb, A, B, win, cs, slipped,
@@ -628,14 +642,19 @@ def integrate_system(
         result, regime, attractor, t, n_steps, n_rejected, tau_runaway, nb, win, past, past_cs,
         hist, cs, lam, lam_err, n_events,
     )  # fmt: skip
-    y_final[:] = y
+    for j in range(n):
+        y_final[j] = y[j]
     result[R_N_RECORDED] = record_end(t, y, rec_t, rec_y, n_rec)
+    if needs_tangent:
+        result[R_REGIME] = TANGENT_NEEDED
 
 
 @functools.cache
-def grid_kernel(model, law, method, coupling, het):
+def grid_kernel(model, law, method, coupling, het, tangent):
     """The serial grid kernel of one variant: model, state law, method and coupling
-    codes (int) and whether blocks differ (``het``, bool).
+    codes (int), whether blocks differ (``het``, bool) and whether it carries the
+    tangent for λ1 (``tangent``, bool; without it, runs that need λ1 come back
+    ``TANGENT_NEEDED``, see :func:`integrate_system`).
 
     Built and compiled on first use, one per variant: the codes are constants of
     the closure, so once the helpers are inlined numba prunes the other variants'
@@ -659,7 +678,7 @@ def grid_kernel(model, law, method, coupling, het):
         for s in range(params.shape[0]):
             integrate_system(
                 params[s], y0[s], settings, results[s], y_final[s], rec_dt, rec_t, rec_y,
-                model, law, method, coupling, het,
+                model, law, method, coupling, het, tangent,
             )  # fmt: skip
 
     return jit_kernel(integrate_grid)

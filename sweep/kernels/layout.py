@@ -106,3 +106,8 @@ def result_width(settings):
 # Outcomes of a step's runaway test besides the index of the block that crossed
 # the cap (runaway_index).
 NO_RUNAWAY, NOT_FINITE = -1, -2
+
+# R_REGIME of a run that a kernel without the tangent stopped at tau_end, unsettled,
+# with λ1 asked for there (LYAP_UNSETTLED): the kernel with the tangent redoes it
+# (dispatch.integrate_grid).
+TANGENT_NEEDED = -1
