@@ -5,6 +5,8 @@ Prints and writes ``results/bench.json``:
 * the engine versus a plain ``scipy.integrate.solve_ivp`` loop (LSODA and DOP853)
   over the same one-block grid to the same end time, with the classification
   agreement outside a ±1 % band around Kc;
+* the engine versus a single-purpose numba DOPRI5 loop and CyRK's C++ DOP853 and
+  RK45 called from numba (the ``bench`` extra) on K/Kc 0.8-1.2;
 * kernel throughput (integration steps per second per core) for one and two
   blocks and every model, and the fixed-step RK4 kernel beside the same
   arithmetic written as plainly as possible;
@@ -417,10 +419,47 @@ def _plain_dopri5_source():
     return plain_dopri5
 
 
+def _cyrk_loop():
+    """A loop over one-block runs through CyRK's C++ solver (``nbsolve2_ivp``), called
+    from numba as a user who ``pip install cyrk`` would write it, or None when CyRK
+    is not installed (``pip install -e '.[bench]'``; ``make bench`` installs it).
+    Returns ``(run_all, diffeq_address)``; ``run_all`` fills accepted steps per run."""
+    try:
+        from CyRK import nb_diffeq_addr, nbsolve2_ivp
+    except ImportError:
+        return None
+    import numba
+
+    def diffeq(dy, t, y, args):  # ln v/V and psi of one quasi-static aging block
+        e = math.exp(y[0])
+        dpsi = math.exp(-y[1]) - e
+        dy[0] = (args[2] * (1.0 - e) - args[1] * dpsi) / args[0]
+        dy[1] = dpsi
+
+    @numba.njit
+    def run_all(address, kappas, A, B, psi0, t_end, rtol, atol, method, steps):
+        y0 = np.array([0.0, psi0])
+        for i in range(kappas.size):
+            args = np.array([A, B, kappas[i]])
+            out = nbsolve2_ivp(
+                address, (0.0, t_end), y0, method=method, args=args, rtol=rtol, atol=atol
+            )
+            steps[i] = out.steps_taken
+            out.free()
+
+    return run_all, nb_diffeq_addr(diffeq)
+
+
+#: CyRK's methods the engine is compared with (its fastest here, and its DOPRI5).
+CYRK_METHODS = ("DOP853", "RK45")
+
+
 def bench_single_purpose(n_points, t_end):
-    """The engine (early exit off and on) against a single-purpose DOPRI5 loop on the
-    hard grid K/Kc = 0.8-1.2 (1 thread): systems/s, accepted steps per run, ns per
-    (accepted or rejected) step."""
+    """The engine (early exit off and on) against a single-purpose DOPRI5 loop and, where
+    CyRK is installed, CyRK's DOP853 and RK45 (``CYRK_METHODS``) on the hard grid
+    K/Kc = 0.8-1.2 (1 thread, rtol 1e-8, atol 1e-10, the paper's start): systems/s,
+    accepted steps per run, ns per (accepted or rejected) step. CyRK has no event
+    to stop at the velocity cap: its runaway runs end where its step size fails."""
     import numba
 
     plain = numba.njit(nogil=True)(_plain_dopri5_source())
@@ -445,6 +484,21 @@ def bench_single_purpose(n_points, t_end):
             "ns_per_step": 1e9 * plain_s / steps.sum(),
         },
     }
+    peers = {}
+    cyrk = _cyrk_loop()
+    if cyrk is not None:
+        run_all, address = cyrk
+        kappas = k_values * PAPER["D0"]
+        for method in CYRK_METHODS:
+            run_all(address, kappas[:1], A, B, psi0, 1.0, 1e-8, 1e-10, method, steps[:1])
+            seconds = _best_of(3, lambda m=method: run_all(
+                address, kappas, A, B, psi0, t_end, 1e-8, 1e-10, m, steps))  # fmt: skip
+            peers[method] = seconds
+            out[f"cyrk_{method}"] = {
+                "systems_per_second": n_points / seconds,
+                "steps_per_run": float(steps.mean()),
+                "ns_per_step": 1e9 * seconds / steps.sum(),
+            }
     for label, early in (("engine_early_exit_off", False), ("engine_early_exit_on", True)):
         results, seconds = engine_run(one_block_config(k_values, t_end, early=early), repeats=3)
         tried = results[:, layout.R_N_STEPS].sum() + results[:, layout.R_N_REJECTED].sum()
@@ -453,6 +507,7 @@ def bench_single_purpose(n_points, t_end):
             "steps_per_run": float(results[:, layout.R_N_STEPS].mean()),
             "ns_per_step": 1e9 * seconds / tried,
             "vs_plain": plain_s / seconds,
+            **{f"vs_cyrk_{m}": peer / seconds for m, peer in peers.items()},
         }
     return out
 
@@ -694,9 +749,15 @@ def main(argv=None):
 
 
 def _print_single_purpose(sp):
-    for label in ("plain", "engine_early_exit_off", "engine_early_exit_on"):
+    peers = [f"cyrk_{m}" for m in CYRK_METHODS if f"cyrk_{m}" in sp]
+    if not peers:
+        print("CyRK not installed: no CyRK lines (pip install -e '.[bench]')")
+    for label in ("plain", *peers, "engine_early_exit_off", "engine_early_exit_on"):
         v = sp[label]
         ratio = f", {v['vs_plain']:.2f}x the plain loop" if "vs_plain" in v else ""
+        for m in CYRK_METHODS:
+            if f"vs_cyrk_{m}" in v:
+                ratio += f", {v[f'vs_cyrk_{m}']:.2f}x CyRK {m}"
         print(
             f"K/Kc 0.8-1.2, {sp['grid_points']} runs to {sp['t_end_D0_over_V']:g} D0/V, "
             f"{label}: {v['systems_per_second']:.0f} systems/s, {v['steps_per_run']:.0f} "
@@ -718,6 +779,15 @@ def _print_targets(f):
             "engine, early exit off, vs single-purpose loop",
             ">= 1.0x",
             f"{sp['engine_early_exit_off']['vs_plain']:.2f}x",
+        ),
+        *(
+            (
+                f"engine, early exit {state}, vs CyRK DOP853",
+                target,
+                f"{sp[f'engine_early_exit_{state}']['vs_cyrk_DOP853']:.2f}x",
+            )
+            for state, target in (("on", ">= 3x"), ("off", ">= 1.2x"))
+            if "vs_cyrk_DOP853" in sp["engine_early_exit_on"]
         ),
         (
             "engine with early exit vs LSODA, K/Kc 0.8-1.2",

@@ -79,4 +79,11 @@ def test_every_benchmark_runs_at_smoke_size(tmp_path):
     # K = Kc: neither decays nor runs away; 1000 steps of dt, one more when rounding
     # leaves a sliver before the end time
     assert figures["rk4"]["steps"] in (1000, 1001)
+    # the per-system peers (the bench extra, which the Makefile installs): CyRK's DOP853 takes
+    # fewer, larger steps than the DOPRI5 loops on the same runs
+    sp = figures["single_purpose"]
+    for method in ("DOP853", "RK45"):
+        assert sp[f"cyrk_{method}"]["systems_per_second"] > 0.0
+        assert sp["engine_early_exit_on"][f"vs_cyrk_{method}"] > 0.0
+    assert sp["cyrk_DOP853"]["steps_per_run"] < 0.5 * sp["cyrk_RK45"]["steps_per_run"]
     assert "wrote" in run.stdout
