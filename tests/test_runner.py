@@ -22,11 +22,11 @@ from conftest import QUICK, assert_same_file, interrupted_part_writer, reference
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sweep import runner, store
+from sweep import backends, runner, store
 from sweep.backends import LocalThreads, Resources
 from sweep.cli import main
 from sweep.config import load_config, parse_config
-from sweep.dispatch import load_kernel
+from sweep.dispatch import integrate_grid, load_kernel
 from sweep.grid import build_grid
 
 #: Slow enough per run to kill a sweep part-way: fixed-step RK4 with 1e6 steps per run
@@ -211,35 +211,44 @@ def test_a_second_ctrl_c_stops_at_once(quick, tmp_path, monkeypatch, signals, sa
 
 
 @pytest.mark.slow
-def test_signals_during_a_kernel_are_seen_when_it_returns():
-    """The README's caveat: compiled code cannot be interrupted. Two SIGINTs sent 0.2 s
-    and 0.3 s into a chunk that computes for about 2 s (8 slow runs on one thread)
-    reach the Python handler once, when the kernel has returned (CPython runs handlers
-    between bytecodes and keeps one pending flag per signal)."""
+def test_signals_during_a_kernel_are_seen_when_it_returns(monkeypatch):
+    """The README's caveat: compiled code cannot be interrupted. Two SIGINTs sent while
+    a chunk of 8 slow runs computes on one thread (its first run done, its last not)
+    reach the Python handler once, when the kernel has returned with all 8 runs done
+    (CPython runs handlers between bytecodes and keeps one pending flag per signal)."""
     g = build_grid(parse_config(SLOW))
-    seen = []
-    previous = signal.signal(signal.SIGINT, lambda *_: seen.append(time.perf_counter()))
+    load_kernel(g.params, g.settings)
+    finals = []  # the kernel's y_final, NaN until each run writes its final state
+
+    def kernel(params, y0, settings, results, y_final):
+        y_final[:] = np.nan
+        finals.append(y_final)
+        integrate_grid(params, y0, settings, results, y_final)
+
+    def runs_done():
+        return int(np.isfinite(finals[0]).all(axis=1).sum()) if finals else 0
+
+    sent, handled = [], []  # runs done just after each signal was sent / when handled
 
     def send_two():
-        for delay in (0.2, 0.1):
-            time.sleep(delay)
+        while runs_done() == 0:
+            time.sleep(0.001)
+        for _ in range(2):
             os.kill(os.getpid(), signal.SIGINT)
+            sent.append(runs_done())
 
+    monkeypatch.setattr(backends, "integrate_grid", kernel)
+    previous = signal.signal(signal.SIGINT, lambda *_: handled.append(runs_done()))
     try:
-        load_kernel(g.params, g.settings)
         sender = threading.Thread(target=send_two)
-        start = time.perf_counter()
         sender.start()
         (chunk,) = LocalThreads(threads=1).run(g.params, g.y0, g.settings, [(0, 8)])
-        returned = time.perf_counter()
         sender.join()
-        time.sleep(0.05)  # a pending signal would be handled here
     finally:
         signal.signal(signal.SIGINT, previous)
-    # both were sent by 0.3 s, while the kernel ran (it took > 0.5 s); the one handler
-    # call came later, when the kernel returned
-    assert returned - start > 0.5
-    assert len(seen) == 1 and seen[0] - start > 0.5
+    assert len(sent) == 2 and max(sent) < 8, f"the kernel ended before the signals: {sent}"
+    assert handled == [8]
+    assert np.isfinite(chunk[3]).all()
 
 
 @pytest.mark.slow
