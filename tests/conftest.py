@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import xarray as xr
 import yaml
+from hypothesis import settings
 from scipy.integrate import solve_ivp
 
 from sweep import grid, runner
@@ -22,6 +23,12 @@ from sweep.dataset import write_netcdf
 from sweep.dispatch import integrate_grid
 from sweep.kernels import layout
 from sweep.physics import log_form_rhs
+
+# Hypothesis tests have no per-example deadline (its default is 200 ms): an example may
+# be the first call of a numba kernel variant, which compiles it (about 30 s cold), and
+# the test machines share their cores. What they test is a property, not a speed.
+settings.register_profile("rsf-sweep", deadline=None)
+settings.load_profile("rsf-sweep")
 
 #: The seed paper's friction coefficients (physics brief, section 1).
 PAPER_A, PAPER_B = 0.03, 0.08

@@ -150,7 +150,7 @@ def test_results_do_not_depend_on_threads_or_chunks(mixed_reference, threads, ch
     assert same(ds, mixed_reference)
 
 
-@settings(max_examples=10, deadline=None)
+@settings(max_examples=10)  # each example a whole sweep (no deadline: conftest.py)
 @given(chunk_size=st.integers(1, 30), threads=st.sampled_from([1, 2]))
 def test_results_do_not_depend_on_chunking_property(mixed_reference, chunk_size, threads):
     ds = runner.compute(
