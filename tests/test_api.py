@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import QUICK, ROOT, without_provenance
+from conftest import QUICK, ROOT, SUBPROCESS_TIMEOUT, without_provenance
 
 import sweep
 from sweep import examples, runner
@@ -34,7 +34,13 @@ def test_import_loads_neither_numba_nor_matplotlib_nor_xarray():
         "import sys, sweep; "
         "print([m for m in ('numba', 'matplotlib', 'xarray') if m in sys.modules])"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=SUBPROCESS_TIMEOUT,
+    )
     assert out.stdout.strip() == "[]"
 
 
@@ -187,5 +193,11 @@ def test_compile_kernels_compiles_only_the_configs_variant():
         "print(integrate.grid_kernel.cache_info().currsize,"
         " len(dispatch.grid_kernel(g.params, g.settings).signatures))"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=SUBPROCESS_TIMEOUT,
+    )
     assert out.stdout.split() == ["1", "1"]

@@ -28,6 +28,7 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 import pytest
+from conftest import SUBPROCESS_TIMEOUT
 
 from bit_identity_cases import compute_all, flatten
 
@@ -86,7 +87,7 @@ def reference_run(tmp_path_factory):
     yield tree, proc
     if proc.poll() is None:
         proc.kill()
-        proc.wait(timeout=60)
+        proc.wait(timeout=SUBPROCESS_TIMEOUT)
 
 
 @pytest.fixture(scope="module")

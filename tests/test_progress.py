@@ -7,6 +7,7 @@ import json
 import os
 import pty
 import re
+import select
 import struct
 import subprocess
 import sys
@@ -16,6 +17,7 @@ from types import SimpleNamespace
 
 import nbformat
 import pytest
+from conftest import SUBPROCESS_TIMEOUT
 from nbclient import NotebookClient
 
 from sweep import progress as progress_module
@@ -25,9 +27,6 @@ from sweep.progress import Progress
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "configs" / "quick.yaml"
-#: Seconds a sweep of configs/quick.yaml in a new process may take, a first (cold)
-#: compile of its kernel included: a hang fails the test instead of blocking it.
-RUN_TIMEOUT = 600
 #: The MIME type of a Jupyter widget's view in a notebook's outputs.
 WIDGET_VIEW = "application/vnd.jupyter.widget-view+json"
 
@@ -126,6 +125,8 @@ def test_cli_shows_a_bar_on_a_terminal(tmp_path):
     os.close(follower)
     output = b""
     while True:
+        ready, _, _ = select.select([leader], [], [], SUBPROCESS_TIMEOUT)
+        assert ready, f"the sweep printed nothing for {SUBPROCESS_TIMEOUT} s"
         try:
             chunk = os.read(leader, 4096)
         except OSError:  # EIO: the sweep closed the terminal
@@ -134,7 +135,7 @@ def test_cli_shows_a_bar_on_a_terminal(tmp_path):
             break
         output += chunk
     os.close(leader)
-    assert proc.wait(timeout=RUN_TIMEOUT) == 0
+    assert proc.wait(timeout=SUBPROCESS_TIMEOUT) == 0
     text = output.decode(errors="replace")
     assert "\r" in text  # the bar redraws itself in place
     assert re.search(r"quick: 100%.*\| 9/9 \[\d\d:\d\d<\d\d:\d\d, +[\d.]+run/s\]", text), text
@@ -144,12 +145,12 @@ def test_cli_shows_a_bar_on_a_terminal(tmp_path):
 def test_cli_writes_plain_lines_to_a_pipe_or_a_log_file(tmp_path, to):
     if to == "pipe":
         proc = run_quick(tmp_path, stderr=subprocess.PIPE)
-        _, err = proc.communicate(timeout=RUN_TIMEOUT)
+        _, err = proc.communicate(timeout=SUBPROCESS_TIMEOUT)
         text = err.decode()
     else:
         with open(tmp_path / "sweep.log", "wb") as log:
             proc = run_quick(tmp_path, stderr=log)
-            proc.wait(timeout=RUN_TIMEOUT)
+            proc.wait(timeout=SUBPROCESS_TIMEOUT)
         text = (tmp_path / "sweep.log").read_text()
     assert proc.returncode == 0, text
     assert "\r" not in text
@@ -167,7 +168,7 @@ def run_notebook(tmp_path, monkeypatch, *cells):
                                                   "display_name": "rsf-sweep test"}))  # fmt: skip
     monkeypatch.setenv("JUPYTER_PATH", str(tmp_path / "jupyter"))
     nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(c) for c in cells])
-    NotebookClient(nb, kernel_name="rsf-sweep-test", timeout=RUN_TIMEOUT,
+    NotebookClient(nb, kernel_name="rsf-sweep-test", timeout=SUBPROCESS_TIMEOUT,
                    resources={"metadata": {"path": str(tmp_path)}}).execute()  # fmt: skip
     return [out for cell in nb.cells for out in cell.outputs]
 

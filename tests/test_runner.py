@@ -18,7 +18,13 @@ import time
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import QUICK, assert_same_file, interrupted_part_writer, reference_file
+from conftest import (
+    QUICK,
+    SUBPROCESS_TIMEOUT,
+    assert_same_file,
+    interrupted_part_writer,
+    reference_file,
+)
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -64,7 +70,7 @@ def sweep_cli(*args, cwd, **popen):
     )
 
 
-def wait_for_parts(parts_dir, proc, count=1, timeout=60.0):
+def wait_for_parts(parts_dir, proc, count=1, timeout=SUBPROCESS_TIMEOUT):
     """Poll until ``parts_dir`` holds ``count`` finished parts (fail if ``proc`` ends first)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -259,7 +265,7 @@ def test_signal_keeps_parts_and_says_how_to_resume(slow_config, tmp_path, signum
     proc = sweep_cli(*args, cwd=tmp_path)
     wait_for_parts(store.parts_dir_for(out), proc)
     proc.send_signal(signum)
-    _, err = proc.communicate(timeout=60)
+    _, err = proc.communicate(timeout=SUBPROCESS_TIMEOUT)
     assert proc.returncode == 128 + signum
     assert f"interrupted by {signal.Signals(signum).name}" in err
     assert f"{' '.join(map(str, args))} --resume" in err  # the command to continue
@@ -278,13 +284,13 @@ def test_sigkill_then_resume_recomputes_only_unfinished_chunks(slow_config, tmp_
     parts_dir = store.parts_dir_for(out)
     wait_for_parts(parts_dir, proc)
     proc.kill()
-    proc.communicate(timeout=60)
+    proc.communicate(timeout=SUBPROCESS_TIMEOUT)
     assert proc.returncode == -signal.SIGKILL
     kept = sorted(parts_dir.glob("*.npz"))
     assert 1 <= len(kept) < 8  # killed part-way
 
     proc = sweep_cli(*args, "--resume", cwd=tmp_path)
-    _, err = proc.communicate(timeout=120)
+    _, err = proc.communicate(timeout=SUBPROCESS_TIMEOUT)
     assert proc.returncode == 0, err
     k = len(kept)
     assert f"reusing {k} runs from {k} parts" in err
@@ -324,7 +330,8 @@ def test_kill_during_a_part_write_then_resume_leaves_no_trace(
     folder = store.parts_dir_for(out)
     args = ["run", QUICK, "--out", out, "--chunk-size", "3", "--threads", "1", "--quiet"]
     proc = subprocess.run([sys.executable, "-c", KILLED_WRITING_THIRD_PART, *map(str, args)],
-                          cwd=tmp_path, capture_output=True, text=True, timeout=120)  # fmt: skip
+                          cwd=tmp_path, capture_output=True, text=True,
+                          timeout=SUBPROCESS_TIMEOUT)  # fmt: skip
     assert proc.returncode == -signal.SIGKILL, proc.stderr
     finished = sorted(folder.glob("*.npz"))
     rows = [(part.start, part.stop) for part in map(store.read_part, finished)]
@@ -339,7 +346,7 @@ def test_kill_during_a_part_write_then_resume_leaves_no_trace(
         assert list(folder.iterdir()) == [live]
     finally:
         shard.kill()
-        shard.wait(timeout=60)
+        shard.wait(timeout=SUBPROCESS_TIMEOUT)
     store.remove_parts(folder)  # as the next finished sweep or merge would
     assert not folder.exists()
 

@@ -14,7 +14,7 @@ import time
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import PROVENANCE_ATTRS, QUICK, reference_file, write_config
+from conftest import PROVENANCE_ATTRS, QUICK, SUBPROCESS_TIMEOUT, reference_file, write_config
 from hypothesis import given
 from hypothesis import strategies as st
 from test_nblock import nblock
@@ -166,17 +166,17 @@ def test_sigkill_then_resume_recomputes_only_unfinished_chunks(tmp_path):
     out = tmp_path / "slow.zarr"
     args = ["run", slow_config, "--out", out, "--chunk-size", "1", "--threads", "1"]
     proc = sweep_cli(*args, cwd=tmp_path)
-    deadline = time.monotonic() + 120
+    deadline = time.monotonic() + SUBPROCESS_TIMEOUT
     while not any(f.name.isdigit() for f in (out / "regime" / "c").glob("*")):  # not *.partial
         assert proc.poll() is None and time.monotonic() < deadline, "no chunk was stored"
         time.sleep(0.01)
     proc.kill()
-    proc.communicate(timeout=60)
+    proc.communicate(timeout=SUBPROCESS_TIMEOUT)
     with xr.open_zarr(out) as ds:
         kept = int((ds["regime"] >= 0).sum())
     assert 1 <= kept < 8
     proc = sweep_cli(*args, "--resume", cwd=tmp_path)
-    _, err = proc.communicate(timeout=120)
+    _, err = proc.communicate(timeout=SUBPROCESS_TIMEOUT)
     assert proc.returncode == 0, err
     assert f"{kept} of 8 runs are stored" in err
     assert f"computing {8 - kept} runs in {8 - kept} chunks" in err
