@@ -23,6 +23,7 @@ from conftest import (
     SUBPROCESS_TIMEOUT,
     assert_same_file,
     interrupted_part_writer,
+    read_line,
     reference_file,
 )
 from hypothesis import given
@@ -35,9 +36,10 @@ from sweep.config import load_config, parse_config
 from sweep.dispatch import integrate_grid, load_kernel
 from sweep.grid import build_grid
 
-#: Slow enough per run to kill a sweep part-way: fixed-step RK4 with 1e6 steps per run
-#: (about 0.2 s each on one thread), runs kept going to t_end (early_exit false, and a
-#: steady threshold the slowly decaying oscillation just above Kc/W never reaches).
+#: 8 slow runs, for a kernel call long enough to signal during it: fixed-step RK4 with
+#: 1e6 steps per run (about 0.2 s each on one thread), runs kept going to t_end
+#: (early_exit false, and a steady threshold the slowly decaying oscillation just above
+#: Kc/W never reaches).
 SLOW = """\
 name: slow
 blocks: 1
@@ -70,15 +72,35 @@ def sweep_cli(*args, cwd, **popen):
     )
 
 
-def wait_for_parts(parts_dir, proc, count=1, timeout=SUBPROCESS_TIMEOUT):
-    """Poll until ``parts_dir`` holds ``count`` finished parts (fail if ``proc`` ends first)."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if len(list(parts_dir.glob("*.npz"))) >= count:
-            return
-        assert proc.poll() is None, "the sweep ended before it could be interrupted"
-        time.sleep(0.01)
-    pytest.fail(f"no part appeared in {parts_dir} within {timeout} s")
+#: ``python -c HELD_SWEEP ARGS`` is ``python -m sweep ARGS`` that prints "saved" after
+#: saving each chunk (a part or Zarr chunk) and then waits for a line on its stdin: a
+#: test signals or kills it at a known point, whatever the kernel's speed.
+HELD_SWEEP = r"""
+import sys
+from sweep import cli, runner
+
+def held(save):
+    def save_then_wait(self, a, b):
+        save(self, a, b)
+        print("saved", flush=True)
+        sys.stdin.readline()
+    return save_then_wait
+
+runner._PartStore.save = held(runner._PartStore.save)
+runner._ZarrStore.save = held(runner._ZarrStore.save)
+sys.exit(cli.main(sys.argv[1:]))
+"""
+
+
+def held_sweep(*args, cwd):
+    """Start :data:`HELD_SWEEP` with ``ARGS`` in ``cwd``; return it once it has saved its
+    first chunk and waits (send a line to its stdin to let it go on)."""
+    proc = subprocess.Popen([sys.executable, "-c", HELD_SWEEP, *map(str, args)], cwd=cwd,
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)  # fmt: skip
+    while (line := read_line(proc)) != "saved\n":
+        assert line, f"the sweep ended before it saved a chunk: {proc.communicate()[1]}"
+    return proc
 
 
 # --- plan: chunks, shards, rows still missing -----------------------------------
@@ -262,17 +284,14 @@ def test_signals_during_a_kernel_are_seen_when_it_returns(monkeypatch):
 def test_signal_keeps_parts_and_says_how_to_resume(slow_config, tmp_path, signum):
     out = tmp_path / "slow.nc"
     args = ["run", slow_config, "--out", out, "--chunk-size", "1", "--threads", "1", "--quiet"]
-    proc = sweep_cli(*args, cwd=tmp_path)
-    wait_for_parts(store.parts_dir_for(out), proc)
+    proc = held_sweep(*args, cwd=tmp_path)  # its first part saved, the sweep waits
     proc.send_signal(signum)
-    _, err = proc.communicate(timeout=SUBPROCESS_TIMEOUT)
-    assert proc.returncode == 128 + signum
+    _, err = proc.communicate("go on\n", timeout=SUBPROCESS_TIMEOUT)
+    assert proc.returncode == 128 + signum, err
     assert f"interrupted by {signal.Signals(signum).name}" in err
     assert f"{' '.join(map(str, args))} --resume" in err  # the command to continue
-    saved = sorted(store.parts_dir_for(out).glob("*.npz"))
-    assert 1 <= len(saved) < 8
-    for path in saved:
-        store.read_part(path)  # complete and valid: raises PartError otherwise
+    (saved,) = store.parts_dir_for(out).glob("*.npz")  # it stopped after that part
+    store.read_part(saved)  # complete and valid: raises PartError otherwise
     assert not out.exists()
 
 
@@ -280,21 +299,18 @@ def test_signal_keeps_parts_and_says_how_to_resume(slow_config, tmp_path, signum
 def test_sigkill_then_resume_recomputes_only_unfinished_chunks(slow_config, tmp_path):
     out = tmp_path / "slow.nc"
     args = ["run", slow_config, "--out", out, "--chunk-size", "1", "--threads", "1"]
-    proc = sweep_cli(*args, cwd=tmp_path)
+    proc = held_sweep(*args, cwd=tmp_path)  # its first part saved, the sweep waits
     parts_dir = store.parts_dir_for(out)
-    wait_for_parts(parts_dir, proc)
     proc.kill()
     proc.communicate(timeout=SUBPROCESS_TIMEOUT)
     assert proc.returncode == -signal.SIGKILL
-    kept = sorted(parts_dir.glob("*.npz"))
-    assert 1 <= len(kept) < 8  # killed part-way
+    assert len(list(parts_dir.glob("*.npz"))) == 1  # killed part-way
 
     proc = sweep_cli(*args, "--resume", cwd=tmp_path)
     _, err = proc.communicate(timeout=SUBPROCESS_TIMEOUT)
     assert proc.returncode == 0, err
-    k = len(kept)
-    assert f"reusing {k} runs from {k} parts" in err
-    assert f"computing {8 - k} runs in {8 - k} chunks" in err
+    assert "reusing 1 runs from 1 parts" in err
+    assert "computing 7 runs in 7 chunks" in err
     assert_same_file(out, reference_file(load_config(slow_config), tmp_path / "reference.nc"))
     assert not parts_dir.exists()
 
