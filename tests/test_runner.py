@@ -257,22 +257,26 @@ def test_signals_during_a_kernel_are_seen_when_it_returns(monkeypatch):
         return int(np.isfinite(finals[0]).all(axis=1).sum()) if finals else 0
 
     sent, handled = [], []  # runs done just after each signal was sent / when handled
+    over, lock = threading.Event(), threading.Lock()  # no signal once the test is over
 
     def send_two():
-        while runs_done() == 0:
+        while runs_done() == 0 and not over.is_set():
             time.sleep(0.001)
-        for _ in range(2):
-            os.kill(os.getpid(), signal.SIGINT)
-            sent.append(runs_done())
+        with lock:
+            for _ in range(0 if over.is_set() else 2):
+                os.kill(os.getpid(), signal.SIGINT)
+                sent.append(runs_done())
 
     monkeypatch.setattr(backends, "integrate_grid", kernel)
     previous = signal.signal(signal.SIGINT, lambda *_: handled.append(runs_done()))
+    sender = threading.Thread(target=send_two)
     try:
-        sender = threading.Thread(target=send_two)
         sender.start()
         (chunk,) = LocalThreads(threads=1).run(g.params, g.y0, g.settings, [(0, 8)])
-        sender.join()
     finally:
+        with lock:
+            over.set()
+        sender.join(timeout=SUBPROCESS_TIMEOUT)
         signal.signal(signal.SIGINT, previous)
     assert len(sent) == 2 and max(sent) < 8, f"the kernel ended before the signals: {sent}"
     assert handled == [8]
