@@ -399,7 +399,7 @@ def test_layout_names_every_module():
     listed = set(re.findall(r"sweep/(\w+\.py)", layout))
     present = {p.name for p in (ROOT / "sweep").glob("*.py")}
     assert listed == present
-    kernels = set(re.findall(r"^      (\w+\.py) ", layout, re.M))
+    kernels = set(re.findall(r"^  (\w+\.py) ", layout, re.M))
     assert kernels == {p.name for p in (ROOT / "sweep" / "kernels").glob("*.py")} - {"__init__.py"}
 
 
