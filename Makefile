@@ -39,7 +39,7 @@ figures: $(STAMP)
 # The documentation site, offline, warnings as errors: docs/_build/html/index.html.
 # The gallery's examples run during the build (seconds once the kernels are cached).
 docs: $(STAMP)
-	$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
+	$(PY) -m sphinx -E -W --keep-going -q -b html docs docs/_build/html
 	@echo "open docs/_build/html/index.html"
 
 lint: $(STAMP)

@@ -24,6 +24,7 @@ extensions = [
     "sphinx.ext.napoleon",
     "sphinx.ext.mathjax",
     "sphinx_gallery.gen_gallery",
+    "sweep_reference",
 ]
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}

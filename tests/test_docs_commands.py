@@ -39,7 +39,8 @@ BIN = Path(sys.executable).parent
 #: the ``{…}`` ones are Sphinx directives.
 RUN = {"sh", "python"}
 CHECKED = {"yaml"}
-NOT_RUN = {"text", "{eval-rst}", "{toctree}", "{include}"}
+NOT_RUN = {"text", "{eval-rst}", "{toctree}", "{include}", "{confkey}", "{outvar}"}
+NOT_RUN |= {"{sweep-config-keys}", "{sweep-output-variables}"}
 TIMEOUT = 600
 
 
