@@ -15,7 +15,7 @@ def scrape_figures(block, block_vars, gallery_conf, **kwargs):
     for value in list(block_vars["example_globals"].values()):
         if isinstance(value, Figure) and not getattr(value, "_sweep_scraped", False):
             path = next(block_vars["image_path_iterator"])
-            value.savefig(path, dpi=90)
+            value.savefig(path, dpi=90, bbox_inches="tight")
             value._sweep_scraped = True
             paths.append(path)
     rst = figure_rst(paths, gallery_conf["src_dir"]) if paths else ""
