@@ -6,14 +6,14 @@ STAMP  := $(VENV)/.installed
 CONFIG ?= configs/twoblock.yaml
 THREADS ?=
 
-.PHONY: sweep test test-nojit bench figures lint clean venv bit-identity-reference
+.PHONY: sweep test test-nojit bench figures lint clean venv docs bit-identity-reference
 
 venv: $(STAMP)
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test,zarr,bench]'
+	$(PY) -m pip install --quiet -e '.[test,zarr,bench,docs]'
 	touch $(STAMP)
 
 sweep: $(STAMP)
@@ -36,9 +36,15 @@ bench: $(STAMP)
 figures: $(STAMP)
 	$(PY) -m sweep figures --dpi 100
 
+# The documentation site, offline, warnings as errors: docs/_build/html/index.html.
+# The gallery's examples run during the build (seconds once the kernels are cached).
+docs: $(STAMP)
+	$(PY) -m sphinx -E -W --keep-going -q -b html docs docs/_build/html
+	@echo "open docs/_build/html/index.html"
+
 lint: $(STAMP)
-	$(PY) -m ruff check sweep tests benchmarks
-	$(PY) -m ruff format --check sweep tests benchmarks
+	$(PY) -m ruff check sweep tests benchmarks examples docs/conf.py docs/_ext
+	$(PY) -m ruff format --check sweep tests benchmarks examples docs/conf.py docs/_ext
 
 # The bit-identity guard's reference (tests/test_bit_identity.py): git archive of
 # COMMIT's sweep/ and tests/bit_identity_cases.py, and REFERENCE_COMMIT set to COMMIT.
@@ -52,4 +58,4 @@ bit-identity-reference:
 	@ls -l $(REFERENCE_ARCHIVE)
 
 clean:
-	rm -rf $(VENV) .pytest_cache .ruff_cache build *.egg-info
+	rm -rf $(VENV) .pytest_cache .ruff_cache build *.egg-info docs/_build docs/auto_examples docs/generated

@@ -62,7 +62,7 @@ def audit_result(result, sample=20, near_kc=0.01, t_end=None, seed=0, threads=No
         Number of grid points drawn at random (all of them if the grid is
         smaller).
     near_kc : float
-        Every point with |K/Kc − 1| ≤ ``near_kc`` is audited too (1).
+        Every point with ``|K/Kc − 1| ≤ near_kc`` is audited too (1).
     t_end : float, optional
         End time of the audit runs, in the config's ``t_unit``. Default: 10 ×
         the file's end time.

@@ -47,10 +47,9 @@ class Resources:
 
 #: Systems per batch a thread takes as it comes free: small, so that the costly runs
 #: near Kc, which sit next to each other in the grid, are shared out, yet large
-#: against the ~10 µs a kernel call costs in Python. 2-thread speed-up on a 10⁴-point
-#: one-block sweep (benchmarks/bench.py), when every chunk still ended with a barrier:
-#: batches of 4: 1.65-1.67x; 8: 1.86x; 16: 1.78-1.84x; 64: 1.40x (1.92-1.96x with 8
-#: and no barrier). Small chunks get smaller batches, at least four per thread.
+#: against the ~10 µs a kernel call costs in Python. 8 gave the best 2-thread speed-up
+#: of the sizes measured (docs/changelog.md, "Threads"). Small chunks get smaller
+#: batches, at least four per thread.
 BATCH = 8
 
 

@@ -160,9 +160,8 @@ class Integrator:
     # Largest step of the adaptive methods (.inf: no cap). The cap keeps about ten
     # steps per linear period (4.87 D0/V for the paper's A, B): without it, once an
     # oscillation has decayed to round-off the steps outgrow the period and the
-    # interpolant's round-off wiggles count as extrema (235 instead of 85 maxima per
-    # run, 1.4x the time per step on K/Kc 0.8-1.2 to 2000 D0/V without early exit).
-    # With early exit (the default) it costs nothing: 1950 vs 1947 steps per run.
+    # interpolant's round-off wiggles count as extrema. With early exit (the default)
+    # it costs almost nothing (measurements: docs/changelog.md, "max_step").
     max_step: float = setting(0.5, "largest step of the adaptive methods (.inf: no cap)",
                               "(0, inf)", "D0/V")  # fmt: skip
     t_end: float = setting(3000.0, "end time", "(0, inf)", "t_unit")
@@ -394,7 +393,10 @@ def load_config(config):
         (``sweep.examples.names()``, e.g. ``"quick"``); a mapping as the YAML would
         read (its ``source`` is ``"<mapping>"``); or a Config, returned as it is.
 
-    Raises :class:`ConfigError` listing every problem.
+    Raises
+    ------
+    ConfigError
+        Listing every problem.
     """
     if isinstance(config, Config):
         return config

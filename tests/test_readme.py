@@ -1,12 +1,17 @@
-"""The numbers the README states, read from README.md and recomputed.
+"""The numbers the documentation states, read from its pages and recomputed.
 
-Each test reads a number from the README's text with a regular expression and
-recomputes it: with the engine the way ``make figures`` or the named config does,
-and, where an independent reference is cheap, with SciPy. A number must agree to
-its last printed digit, so a change in the code that moves it fails here until the
-README is updated (and a README edit that no longer matches fails too). The limit
-cycle numbers of "What happens below Kc" are checked in ``test_models.py``,
-beside the runs that produce them.
+The guide, physics and large-sweeps pages (``docs/**/*.md``; they were the README's
+sections) state numbers; each test reads one from the page text with a regular
+expression and recomputes it: with the engine the way ``make figures`` or the named
+config does, and, where an independent reference is cheap, with SciPy or a closed
+form. A number must agree to its last printed digit, so a change in the code that
+moves it fails here until the page is updated (and an edit that no longer matches
+fails too). The limit cycle numbers of "What happens below Kc" are checked in
+``test_models.py``, beside the runs that produce them.
+
+Tests marked ``drift`` compare with numbers that only this engine produced (there is
+no independent reference in the test): they catch a change, not an error. The others
+check against SciPy, a closed form or the config itself.
 """
 
 import dataclasses
@@ -24,7 +29,6 @@ from conftest import (
     ROOT,
     assert_as_printed,
     config_dict,
-    readme_numbers,
     scipy_runaway_time,
 )
 from nblock_reference import Chain, start_state, window_amplitudes
@@ -40,6 +44,31 @@ from sweep.trace import compute_trace, pin_config
 from sweep.variables import REGIMES
 
 PAPER = load_config(ROOT / "configs" / "paper.yaml")
+DOCS = ROOT / "docs"
+#: Folders of docs/ that Sphinx generates (not sources).
+GENERATED = {"_build", "auto_examples", "generated"}
+
+
+def doc_pages():
+    """The documentation's Markdown sources (docs/**/*.md, without docs/README.md)."""
+    pages = sorted(DOCS.rglob("*.md"))
+    return [p for p in pages if not GENERATED & set(p.relative_to(DOCS).parts)
+            and p != DOCS / "README.md"]  # fmt: skip
+
+
+def doc_numbers(pattern):
+    """The numbers the documentation states where ``pattern`` (a regex whose groups
+    capture them) matches, as the printed strings; whitespace counts as one space.
+    Fails unless the pattern matches exactly once over all pages."""
+    found = []
+    for page in doc_pages():
+        text = " ".join(page.read_text().split())
+        found += [(page.name, match) for match in re.findall(pattern, text)]
+    assert len(found) == 1, f"docs: {pattern!r} matched {len(found)} times: {found}"
+    match = found[0][1]
+    return match if isinstance(match, tuple) else (match,)
+
+
 #: The paper's "stick-slip" stiffness (µm⁻¹), K/Kc = 0.92; D0/V = 10 s.
 K_W = 0.046
 T_UNIT = 10.0
@@ -54,16 +83,17 @@ def paper_trace(t_end=None, **changes):
 def test_fig1_runaway_time():
     """ "passing 10⁶ V at t = 970.5 s": the figure's trace and SciPy DOP853 (rtol 1e-10,
     conftest.scipy_runaway_time) on the log form from Φ/Φss = 1.01."""
-    (printed,) = readme_numbers(r"passing 10⁶ V at t = ([\d.]+) s")
+    (printed,) = doc_numbers(r"passing 10⁶ V at t = ([\d.]+) s")
     assert_as_printed(paper_trace().attrs["t_runaway"], printed)
     tau = scipy_runaway_time(K_W / (PAPER_B - PAPER_A), 0.0, math.log(1.01))
     assert_as_printed(tau * T_UNIT, printed)
 
 
-def test_fig1_damped_cycle_and_critical_stiffnesses():
-    """The damped row of Fig. 1 (η/W = 0.01 s/µm): its period and velocity range, and
-    the closed-form Kc/W = (B − A − η̂)/D0 for η̂ = 0.001 and 0.01."""
-    period, v_low, v_high = readme_numbers(
+@pytest.mark.drift
+def test_fig1_damped_cycle_drift():
+    """Drift check: the damped row of Fig. 1 (η/W = 0.01 s/µm), its period and
+    velocity range as the engine's trace gives them."""
+    period, v_low, v_high = doc_numbers(
         r"stick-slip cycle \(period ([\d.]+) s, v between about ([\d.]+) and ([\d.]+) µm/s\)"
     )
     trace = paper_trace(model="quasi-dynamic", eta_W=figures.ETA_W)
@@ -71,21 +101,28 @@ def test_fig1_damped_cycle_and_critical_stiffnesses():
     assert_as_printed(trace.attrs["period"], period)
     assert_as_printed(float(trace["velocity"].min()), v_low)
     assert_as_printed(float(trace["velocity"].max()), v_high)
-    (kc_small,) = readme_numbers(r"Kc/W = \(B − A − η̂\)/D0 = ([\d.]+) µm⁻¹\)")
-    (kc_large,) = readme_numbers(r"η̂ = 0.01 would move Kc/W to ([\d.]+) µm⁻¹")
+
+
+def test_fig1_critical_stiffnesses():
+    """The closed-form Kc/W = (B − A − η̂)/D0 for η̂ = 0.001 and 0.01."""
+    (kc_small,) = doc_numbers(r"Kc/W = \(B − A − η̂\)/D0 = ([\d.]+) µm⁻¹\)")
+    (kc_large,) = doc_numbers(r"η̂ = 0.01 would move Kc/W to ([\d.]+) µm⁻¹")
     assert_as_printed(PAPER_B - PAPER_A - 0.001, kc_small)
     assert_as_printed(PAPER_B - PAPER_A - 0.01, kc_large)
 
 
-def test_fig2_out_of_phase_runaway_and_synchronisation():
-    """Fig. 2's out-of-phase quasi-static run (k2/W = 0.05 µm⁻¹, Φ/Φss = 1.01 and 0.99):
-    runaway time from the figure's trace and from SciPy DOP853 (rtol 1e-10) on the
-    two-block log form; the blocks agree to rounding error from "about 300 s" on."""
-    (printed,) = readme_numbers(r"the quasi-static run runs away at t = ([\d.]+) s")
-    (sync,) = readme_numbers(r"synchronise to rounding error within about ([\d.]+) s")
-    phi = figures.OUT_OF_PHASE
+def fig2_trace():
+    """Fig. 2's out-of-phase quasi-static run (k2/W = 0.05 µm⁻¹, Φ/Φss = 1.01 and 0.99)
+    as ``make figures`` traces it, and its end time (s)."""
     t_end = figures.TWO_BLOCK_SPAN * PAPER.integrator.t_end
-    trace = paper_trace(t_end, k2_W=figures.K2_W, phi=phi)
+    return paper_trace(t_end, k2_W=figures.K2_W, phi=figures.OUT_OF_PHASE), t_end
+
+
+def test_fig2_out_of_phase_runaway():
+    """Fig. 2's out-of-phase quasi-static run: runaway time from the figure's trace and
+    from SciPy DOP853 (rtol 1e-10) on the two-block log form."""
+    (printed,) = doc_numbers(r"the quasi-static run runs away at t = ([\d.]+) s")
+    trace, t_end = fig2_trace()
     assert_as_printed(trace.attrs["t_runaway"], printed)
 
     def cap(t, y, *args):
@@ -93,11 +130,20 @@ def test_fig2_out_of_phase_runaway_and_synchronisation():
 
     cap.terminal = True
     kappa2 = figures.K2_W  # κ = k D0/W with D0 = 1 µm
+    phi = figures.OUT_OF_PHASE
     reference = solve_ivp(
         log_form_rhs, (0.0, t_end / T_UNIT), [0.0, 0.0, *np.log(phi)], method="DOP853",
         rtol=1e-10, atol=1e-12, events=cap, args=(PAPER_A, PAPER_B, K_W, kappa2, 2),
     )  # fmt: skip
     assert_as_printed(reference.t_events[0][0] * T_UNIT, printed)
+
+
+@pytest.mark.drift
+def test_fig2_synchronisation_drift():
+    """Drift check: in the engine's trace of Fig. 2's out-of-phase run the blocks agree
+    to rounding error from "about 300 s" on, and not at half that time."""
+    (sync,) = doc_numbers(r"synchronise to rounding error within about ([\d.]+) s")
+    trace, _ = fig2_trace()
     # rounding error of ℓ: a few ulps of |ℓ| ≤ ln 1e6 ≈ 14, i.e. ≲ 1e-14; at half the
     # stated time the blocks must still differ by more, or "about" would be wrong
     t = trace["time"].values
@@ -114,12 +160,11 @@ def config_at(path, **values):
     return parse_config(raw, f"{path} at {values}")
 
 
-def test_slip_law_events_are_smaller():
-    """ "v_max/V 12.3 vs 15.4 at K/Kc ≈ 0.48, η̂ = 0.01": the grid point of
+@pytest.mark.drift
+def test_slip_law_events_are_smaller_drift():
+    """Drift check: "v_max/V 12.3 vs 15.4 at K/Kc ≈ 0.48, η̂ = 0.01": the grid point of
     configs/slip_law.yaml and configs/quasidynamic.yaml nearest to that K/Kc."""
-    slip, aging, ratio = readme_numbers(
-        r"v_max/V ([\d.]+) vs ([\d.]+) at K/Kc ≈ ([\d.]+), η̂ = 0.01\)"
-    )
+    slip, aging, ratio = doc_numbers(r"v_max/V ([\d.]+) vs ([\d.]+) at K/Kc ≈ ([\d.]+), η̂ = 0.01\)")
     eta_w = 0.1  # η̂ = η V/W = 0.01 with V = 0.1 µm/s
     kc_w = (PAPER_B - PAPER_A - 0.01) / 1.0
     k_axis = np.array(load_config(ROOT / "configs" / "slip_law.yaml").axes[0].values)
@@ -136,9 +181,9 @@ def test_config_sizes_and_inertial_kc_range():
     """Run counts of the regularised configs, and the inertial Kc/W range from the
     closed form Kc/W = ((B − A)/D0)(1 + M̂/A) over the config's m/W axis."""
     for name in ("quasidynamic", "inertial"):
-        (runs,) = readme_numbers(rf"`configs/{name}.yaml`: [^`]*?(\d+) runs")
+        (runs,) = doc_numbers(rf"`configs/{name}.yaml`: [^`]*?(\d+) runs")
         assert math.prod(load_config(ROOT / "configs" / f"{name}.yaml").shape) == int(runs)
-    low, high = readme_numbers(r"Kc ∝ 1 \+ M̂/A from ([\d.]+) to ([\d.]+) µm⁻¹")
+    low, high = doc_numbers(r"Kc ∝ 1 \+ M̂/A from ([\d.]+) to ([\d.]+) µm⁻¹")
     m_w = np.array(load_config(ROOT / "configs" / "inertial.yaml").axes[1].values)
     mass_hat = m_w * 0.1**2 / 1.0  # M̂ = m V²/(W D0)
     kc_w = (PAPER_B - PAPER_A) * (1 + mass_hat / PAPER_A)
@@ -161,14 +206,15 @@ sys.exit(status)
 
 
 @pytest.mark.slow
-def test_memory_of_a_million_point_sweep(tmp_path):
-    """ "a one-block sweep of 10⁶ grid points peaks at about 1.0 GB": the peak resident
-    memory of ``python -m sweep run`` on configs/quick.yaml with 10⁶ K/W values, its
-    kernel compiled and cached by a 9-point run first (the compiler's own memory is
-    the README's separate figure). The runs are cut short (t_end = 1 D0/V): memory
-    holds the result arrays, not the history of a run. Within 15 %: the allocator and
-    library versions move it."""
-    (gb,) = readme_numbers(r"a one-block sweep of 10⁶ grid points peaks at about ([\d.]+) GB")
+@pytest.mark.drift
+def test_memory_of_a_million_point_sweep_drift(tmp_path):
+    """Drift check (a measurement of this engine): "a one-block sweep of 10⁶ grid
+    points peaks at about … GB": the peak resident memory of ``python -m sweep run``
+    on configs/quick.yaml with 10⁶ K/W values, its kernel compiled and cached by a
+    9-point run first (the compiler's own memory is the performance page's separate
+    figure). The runs are cut short (t_end = 1 D0/V): memory holds the result arrays,
+    not the history of a run. Within 15 %: the allocator and library versions move it."""
+    (gb,) = doc_numbers(r"a one-block sweep of 10⁶ grid points peaks at about ([\d.]+) GB")
     config = tmp_path / "million.yaml"
     short = QUICK.read_text().replace("t_end: 2000.0", "t_end: 1.0")
     config.write_text(short)
@@ -186,9 +232,9 @@ def test_memory_of_a_million_point_sweep(tmp_path):
 
 
 def setting_comments(section):
-    """``{key: comment}`` of the README's annotated config under ``section:`` (a key's
-    comment and the comment lines that continue it)."""
-    lines = (ROOT / "README.md").read_text().splitlines()
+    """``{key: comment}`` of the config reference's annotated config under ``section:``
+    (a key's comment and the comment lines that continue it)."""
+    lines = (DOCS / "guide" / "configs.md").read_text().splitlines()
     start = lines.index(f"{section}:")
     comments, key = {}, None
     for line in lines[start + 1 :]:
@@ -212,7 +258,7 @@ def test_config_reference_states_each_setting_as_declared(section, cls):
     comments = setting_comments(section)
     for field in dataclasses.fields(cls):
         spec = field.metadata["setting"]
-        assert field.name in comments, f"README config lacks {section}.{field.name}"
+        assert field.name in comments, f"docs/guide/configs.md lacks {section}.{field.name}"
         comment = comments[field.name]
         if isinstance(spec.allowed, str):
             assert spec.allowed in comment, f"{section}.{field.name}: no {spec.allowed}"
@@ -230,7 +276,7 @@ def test_unequal_chain_critical_stiffness():
     """ "Kc/W = 0.0470 µm⁻¹ (identical blocks with their mean D0: 0.0484 µm⁻¹)": the
     engine's critical_K_W of the D0 = 1.0/1.3/0.8 µm chain, the independent reference's
     bisection, and (B − A)/⟨D0⟩."""
-    kc, kc_mean = readme_numbers(
+    kc, kc_mean = doc_numbers(
         r"k2/W = 0.02 µm⁻¹ have Kc/W = ([\d.]+) µm⁻¹ \(identical blocks with their mean D0: "
         r"([\d.]+) µm⁻¹\)"
     )
@@ -251,13 +297,15 @@ def sweep_chain(d0, k_w, **sections):
     return run(cfg, progress=False)
 
 
-def test_unequal_chain_cycle_at_0_97_kc():
-    """ "ln(v/V) between −1.810 and 1.692 (max |ln Φ/Φss| 1.22), period 53.2 s,
-    sync_order 0.959; … run away (at 2586 s in phase …)": the engine at 0.97 of the
-    chain's critical_K_W, and the identical blocks with the mean D0 at 0.97 of theirs;
-    max |ln Φ/Φss| (not an engine output) from the SciPy reference (DOP853 rtol 1e-10,
-    τ 300–400)."""
-    low, high, psi, period, order, t_run = readme_numbers(
+@pytest.mark.drift
+def test_unequal_chain_cycle_at_0_97_kc_drift():
+    """Drift check, but for max |ln Φ/Φss| (SciPy; the engine's cycle is checked against
+    SciPy in test_nblock_findings.py): "ln(v/V) between −1.810 and 1.692 (max
+    |ln Φ/Φss| 1.22), period 53.2 s, sync_order 0.959; … run away (at 2586 s in phase
+    …)": the engine at 0.97 of the chain's critical_K_W, and the identical blocks with
+    the mean D0 at 0.97 of theirs; max |ln Φ/Φss| (not an engine output) from the SciPy
+    reference (DOP853 rtol 1e-10, τ 300–400)."""
+    low, high, psi, period, order, t_run = doc_numbers(
         r"a cycle with ln\(v/V\) between −([\d.]+) and ([\d.]+) \(max \|ln Φ/Φss\| ([\d.]+)\), "
         r"period ([\d.]+) s, `sync_order` ([\d.]+); identical blocks with the mean D0 at 0.97 "
         r"of their Kc run away \(at (\d+) s in phase"
@@ -279,10 +327,11 @@ def test_unequal_chain_cycle_at_0_97_kc():
     assert_as_printed(float(same.t_runaway), t_run)
 
 
-def test_two_weakly_coupled_blocks_sync_order():
-    """ "(`sync_order` 0.919, one block per slip)": the engine on the anti-phase start of
-    test_classification (K/Kc = 0.99, k2/W = 0.001 µm⁻¹, t_end 8000 D0/V)."""
-    (order,) = readme_numbers(r"out-of-phase cycle \(`sync_order` ([\d.]+), one block per slip\)")
+@pytest.mark.drift
+def test_two_weakly_coupled_blocks_sync_order_drift():
+    """Drift check: "(`sync_order` 0.919, one block per slip)": the engine on the
+    anti-phase start of test_classification (K/Kc = 0.99, k2/W = 0.001 µm⁻¹, t_end 8000 D0/V)."""
+    (order,) = doc_numbers(r"out-of-phase cycle \(`sync_order` ([\d.]+), one block per slip\)")
     cfg = config_dict(
         {"blocks": 2, "coupling": "chain", "parameters": {"k2_W": 0.001},
          "sweep": {"K_W": [0.99 * (PAPER_B - PAPER_A)]}, "initial": ANTI,
@@ -295,12 +344,15 @@ def test_two_weakly_coupled_blocks_sync_order():
 
 
 @pytest.mark.slow
-def test_critical_stiffness_against_n_and_coupling():
-    """ "within 1.2 % of the mean-D0 value … from 0.946 to 1.082 times it": the left panel's
-    numbers (``figures.critical_ratios`` of configs/heterogeneous.yaml, as make figures)."""
-    (all_pct,) = readme_numbers(r"all-to-all coupling it stays within ([\d.]+) % of the mean-D0")
-    low, high = readme_numbers(r"along a chain it ranges from ([\d.]+) to ([\d.]+) times it")
-    sizes, n_low, n_high = readme_numbers(
+@pytest.mark.drift
+def test_critical_stiffness_against_n_and_coupling_drift():
+    """Drift check (the engine's linear stability; test_nblock_reference.py checks it
+    against an independent Jacobian): "within 1.2 % of the mean-D0 value … from 0.946 to
+    1.082 times it": the left panel's numbers (``figures.critical_ratios`` of
+    configs/heterogeneous.yaml, as make figures)."""
+    (all_pct,) = doc_numbers(r"all-to-all coupling it stays within ([\d.]+) % of the mean-D0")
+    low, high = doc_numbers(r"along a chain it ranges from ([\d.]+) to ([\d.]+) times it")
+    sizes, n_low, n_high = doc_numbers(
         r"D0 spread by (\d+) %, k2/W = 0.02 µm⁻¹, ten seeds.*?every N from (\d+) to (\d+);"
     )
     ratios = figures.critical_ratios(load_config(ROOT / "configs" / "heterogeneous.yaml"))
@@ -314,17 +366,19 @@ def test_critical_stiffness_against_n_and_coupling():
 
 
 @pytest.mark.slow
-def test_nblock_configs_counts():
-    """Run and regime counts of configs/heterogeneous.yaml and configs/nblock.yaml as the
-    README states them (the figure's middle and right panels)."""
-    n_het, n_nb = readme_numbers(
+@pytest.mark.drift
+def test_nblock_configs_counts_drift():
+    """Drift check (run counts excepted): run and regime counts of
+    configs/heterogeneous.yaml and configs/nblock.yaml as the physics page states them
+    (the figure's middle and right panels)."""
+    n_het, n_nb = doc_numbers(
         r"K/W × k2/W, (\d+) runs\) and `configs/heterogeneous.yaml` .*?K/W × spread, (\d+) runs\)"
     )[::-1]
-    cells, mixed, stick, away, undecided = readme_numbers(
+    cells, mixed, stick, away, undecided = doc_numbers(
         r"of the (\d+) grid points of `configs/heterogeneous.yaml`, the four starts disagree at "
         r"(\d+) .*?; (\d+) runs stick-slip, (\d+) run away, (\d+) stay undecided"
     )
-    (nb_undecided,) = readme_numbers(r"(\d+) of its \d+ runs stay undecided at `max_t_end`")
+    (nb_undecided,) = doc_numbers(r"(\d+) of its \d+ runs stay undecided at `max_t_end`")
     het = compute(load_config(ROOT / "configs" / "heterogeneous.yaml"), show_progress=False)
     nb = compute(load_config(ROOT / "configs" / "nblock.yaml"), show_progress=False)
     assert (het.regime.size, nb.regime.size) == (int(n_het), int(n_nb))
@@ -337,13 +391,42 @@ def test_nblock_configs_counts():
 
 
 def test_layout_names_every_module():
-    """The README's Layout section lists every module of ``sweep/``, and no module that
-    is gone."""
-    text = (ROOT / "README.md").read_text()
+    """The Layout section of docs/internals.md lists every module of ``sweep/``, and no
+    module that is gone."""
+    text = (DOCS / "internals.md").read_text()
     layout = text[text.index("## Layout") :]
     layout = layout[: layout.index("\n## ", 1)] if "\n## " in layout[1:] else layout
     listed = set(re.findall(r"sweep/(\w+\.py)", layout))
     present = {p.name for p in (ROOT / "sweep").glob("*.py")}
     assert listed == present
-    kernels = set(re.findall(r"^      (\w+\.py) ", layout, re.M))
+    kernels = set(re.findall(r"^  (\w+\.py) ", layout, re.M))
     assert kernels == {p.name for p in (ROOT / "sweep" / "kernels").glob("*.py")} - {"__init__.py"}
+
+
+# --- the README as the landing page ------------------------------------------------------
+
+
+def test_readme_is_a_landing_page():
+    """README.md stays short (≤ 250 lines) and points to the documentation."""
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) <= 250
+    assert "make docs" in text and "docs/_build/html/index.html" in text
+
+
+#: Sentences with numbers that tests/test_models.py reads from README.md (through
+#: conftest.readme_numbers); the models page states them too.
+SHARED_WITH_MODELS_PAGE = [
+    r"η̂ = ηV/W = 0.04: [\d.]+ / [\d.]+ / [\d.]+ at K/Kc = 0.999 / 0.99 / 0.98",
+    r"With η̂ = 0.01, v_max/V = [\d.]+ / [\d.]+ / [\d.]+ at K/Kc = 0.5 / 0.9 / 0.99",
+]
+
+
+@pytest.mark.parametrize("pattern", SHARED_WITH_MODELS_PAGE)
+def test_readme_and_models_page_state_the_same_numbers(pattern):
+    """The limit-cycle numbers test_models.py checks in the README are the ones the
+    models page states, so the page cannot drift from the tested README."""
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    page = " ".join((DOCS / "guide" / "models.md").read_text().split())
+    (in_readme,) = re.findall(pattern, readme)
+    (in_page,) = re.findall(pattern, page)
+    assert in_readme == in_page

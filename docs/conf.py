@@ -1,0 +1,67 @@
+"""Sphinx configuration of the rsf-sweep documentation (``make docs``)."""
+
+import os
+import sys
+from pathlib import Path
+
+DOCS = Path(__file__).resolve().parent
+ROOT = DOCS.parent
+sys.path.insert(0, str(DOCS / "_ext"))
+sys.path.insert(0, str(ROOT))
+
+import sweep  # noqa: E402
+
+project = "rsf-sweep"
+author = "rsf-sweep authors"
+copyright = "rsf-sweep authors, MIT licence"
+release = sweep.__version__
+version = release
+
+extensions = [
+    "myst_parser",
+    "sphinx.ext.autodoc",
+    "sphinx.ext.autosummary",
+    "sphinx.ext.napoleon",
+    "sphinx.ext.mathjax",
+    "sphinx_gallery.gen_gallery",
+    "sweep_reference",
+]
+
+source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
+exclude_patterns = ["_build", "README.md", "auto_examples/*.ipynb", "**/*.codeobj.json"]
+myst_heading_anchors = 3
+myst_enable_extensions = ["colon_fence"]
+
+# The API reference: one page per public name of sweep/__init__.py (sweep.__all__)
+autosummary_generate = True
+autodoc_default_options = {"members": True, "show-inheritance": False}
+autodoc_typehints = "none"
+autodoc_member_order = "bysource"
+napoleon_numpy_docstring = True
+napoleon_google_docstring = False
+
+# The gallery: examples/plot_*.py run at build time; their figures are captured by
+# docs/_ext/sweep_scraper.py (the package draws without pyplot, so matplotlib's own
+# scraper would see nothing)
+sphinx_gallery_conf = {
+    "examples_dirs": str(ROOT / "examples"),
+    "gallery_dirs": "auto_examples",
+    "filename_pattern": r"/plot_",
+    "ignore_pattern": r"gallery\.py|sync_notebooks\.py|__init__\.py",
+    # the notebooks' first cell, as in examples/sync_notebooks.py (the committed ones)
+    "first_notebook_cell": "%matplotlib inline",
+    # a Figure as a cell's last line draws it in a notebook; here the scraper does
+    "capture_repr": (),
+    "image_scrapers": ("sweep_scraper",),
+    "download_all_examples": False,
+    "remove_config_comments": True,
+    "show_memory": False,
+    "plot_gallery": "True",
+    "within_subsection_order": "FileNameSortKey",
+}
+
+# Offline: no intersphinx, no remote images
+html_theme = "furo"
+html_title = f"rsf-sweep {release}"
+html_static_path = []
+os.environ.setdefault("SWEEP_DOCS_BUILD", "1")
