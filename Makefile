@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 CONFIG ?= configs/twoblock.yaml
 THREADS ?=
 
-.PHONY: sweep test test-nojit bench figures lint clean venv
+.PHONY: sweep test test-nojit bench figures lint clean venv bit-identity-reference
 
 venv: $(STAMP)
 
@@ -39,6 +39,17 @@ figures: $(STAMP)
 lint: $(STAMP)
 	$(PY) -m ruff check sweep tests benchmarks
 	$(PY) -m ruff format --check sweep tests benchmarks
+
+# The bit-identity guard's reference (tests/test_bit_identity.py): git archive of
+# COMMIT's sweep/ and tests/bit_identity_cases.py, and REFERENCE_COMMIT set to COMMIT.
+REFERENCE_ARCHIVE := tests/data/bit_identity_reference.tar.gz
+bit-identity-reference:
+	@test -n "$(COMMIT)" || { echo "usage: make bit-identity-reference COMMIT=<commit>" >&2; exit 2; }
+	commit=$$(git rev-parse --verify "$(COMMIT)^{commit}") && \
+	git archive --format=tar.gz -o $(REFERENCE_ARCHIVE) $$commit sweep tests/bit_identity_cases.py && \
+	$(PYTHON) -c 'import re, sys; p = "tests/test_bit_identity.py"; s = open(p).read(); \
+	open(p, "w").write(re.sub(r"REFERENCE_COMMIT = \"\w+\"", f"REFERENCE_COMMIT = \"{sys.argv[1]}\"", s))' $$commit
+	@ls -l $(REFERENCE_ARCHIVE)
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache build *.egg-info

@@ -24,7 +24,8 @@ def run(config, *, threads=None, client=None, progress=True):
         cluster (e.g. a ``LocalCluster``), or on the scheduler at this address
         (``"tcp://host:8786"``). A given Client is left open.
     progress : bool
-        Show a progress bar.
+        Show progress: a widget bar in a notebook (with ipywidgets), a bar on a
+        terminal, plain lines in pipes and logs.
 
     Returns
     -------

@@ -205,7 +205,7 @@ def initial_state(config, n_systems):
 
 
 def ensemble_offsets(config):
-    """Random offsets (members, 2 blocks) of (ln v/V, ln Φ/Φss), uniform in ±amplitude,
+    """Random offsets (members, 2 × blocks) of (ln v/V, ln Φ/Φss), uniform in ±amplitude,
     drawn once from ``initial.seed``: the same starts at every grid point."""
     ini = config.initial
     rng = np.random.default_rng(ini.seed)

@@ -204,7 +204,8 @@ def log_form_rhs(t, y, A, B, kappa1, kappa2=0.0, n_blocks=1, law="aging", eta_ha
     State ``y = (ℓ_1 … ℓ_N, ψ_1 … ψ_N)``, time in D0/V; an open chain with κ2 on
     each coupling spring; ``eta_hat`` > 0 adds radiation damping (quasi-dynamic).
     Written independently of ``sweep.kernels``: the reference the tests integrate with
-    SciPy, and the right-hand side of the SciPy loops in ``benchmarks/bench.py``.
+    SciPy, and what the scalar right-hand side of the SciPy loops in
+    ``benchmarks/bench.py`` is checked against (``tests/test_bench.py``).
     """
     lnv, psi = y[:n_blocks], y[n_blocks:]
     v = np.exp(lnv)

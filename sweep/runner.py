@@ -96,8 +96,8 @@ def default_chunk_size(n_systems, n_threads=1, dask_threads=0):
     """Systems per chunk when none is given.
 
     On local threads: at least 16 systems per thread (runs differ in length by
-    orders of magnitude; threads share a chunk's systems out in batches), small
-    enough for about 100 chunks. On Dask (``dask_threads`` > 0, the cluster's
+    orders of magnitude; threads share a chunk's systems out in batches), and at
+    most about 100 chunks. On Dask (``dask_threads`` > 0, the cluster's
     total threads): at least 4 tasks per thread and about 100 in all.
     """
     if dask_threads:
@@ -198,7 +198,7 @@ def run_sweep(config, out=None, *, resources=None, chunk_size=None, resume=False
         ``<out without .nc>.parts/``. A ``.zarr`` path is a Zarr store filled
         chunk by chunk (its chunks are the runner's; ``shard`` is refused).
     resources : backends.Resources, optional
-        Where the chunks run: numba ``threads`` (default: all cores), or Dask (a
+        Where the chunks run: ``threads`` on this machine (default: all cores), or Dask (a
         ``scheduler`` address or ``dask_local`` worker processes).
     chunk_size : int, optional
         Systems per chunk (default: :func:`default_chunk_size`; with ``shard``,
@@ -209,7 +209,8 @@ def run_sweep(config, out=None, *, resources=None, chunk_size=None, resume=False
         Compute only chunks ``k`` with ``k % n_shards == i`` and keep them as
         parts (no NetCDF); combine with ``merge_parts`` or a later full run.
     show_progress : bool
-        Show a progress bar.
+        Show progress (:class:`~sweep.progress.Progress`: a bar in a notebook or on a
+        terminal, plain lines in pipes and logs).
     stop : StopRequest, optional
         Checked between chunks; when set, raise :class:`~sweep.errors.Interrupted`.
 

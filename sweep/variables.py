@@ -5,10 +5,10 @@ the README's reference table is checked against it. ``per_block``: the
 variable has a trailing ``block`` dimension; ``min_blocks``: written only for
 sweeps of at least that many blocks; ``models``: written only for these
 models (empty: every model); ``feature``: written only for sweeps with that
-feature (``Config.features``: ``nblock``, ``heterogeneous``, ``ensemble``);
-``per_member``: one value per run (with an ensemble, a ``member`` dimension),
-else one per grid point; ``per_regime``: a trailing ``regime`` dimension;
-``per_event``: a trailing ``event`` dimension (the last events of each run).
+feature (``Config.features``: ``nblock``, ``heterogeneous``, ``ensemble``,
+``events``); ``per_member``: one value per run (with an ensemble, a ``member``
+dimension), else one per grid point; ``per_regime``: a trailing ``regime_name``
+dimension; ``per_event``: a trailing ``event`` dimension (the last events of each run).
 """
 
 from dataclasses import dataclass

@@ -9,8 +9,8 @@ reads it at any time during the run.
 
 Its arrays are chunked so that each Zarr chunk holds a contiguous range of
 points of the flattened (C-ordered) grid: chunk shape ``(1, …, 1, c, n_{k+1},
-…)`` over the sweep axes, trailing dimensions (member, block, regime_name)
-whole. Those points' runs (every ensemble member of each: regime_fraction is
+…)`` over the sweep axes, trailing dimensions (member, block, regime_name,
+event) whole. Those points' runs (every ensemble member of each: regime_fraction is
 counted per chunk) are the runner's chunks, so every finished chunk fills whole
 Zarr chunks (no chunk is written twice or by two writers). Each Zarr chunk file
 is written atomically (zarr's local store renames a temporary file), and
@@ -127,7 +127,7 @@ class ZarrResult:
         """Write the full-size store (fill values only) beside ``path``, then rename it.
 
         ``chunks``: the chunk shape over the grid points; trailing dimensions (member,
-        block, regime_name) are whole in every chunk.
+        block, regime_name, event) are whole in every chunk.
         """
         config = self.grid.config
         one_point = {name: np.full(shape, PENDING, dtype)

@@ -5,6 +5,7 @@ independent SciPy reference written from the physics brief (not from the kernels
 import copy
 import math
 import re
+import select
 import signal
 import subprocess
 import sys
@@ -14,6 +15,7 @@ import numpy as np
 import pytest
 import xarray as xr
 import yaml
+from hypothesis import settings
 from scipy.integrate import solve_ivp
 
 from sweep import grid, runner
@@ -22,6 +24,17 @@ from sweep.dataset import write_netcdf
 from sweep.dispatch import integrate_grid
 from sweep.kernels import layout
 from sweep.physics import log_form_rhs
+
+# Hypothesis tests have no per-example deadline (its default is 200 ms): an example may
+# be the first call of a numba kernel variant, which compiles it (about 30 s cold), and
+# the test machines share their cores. What they test is a property, not a speed.
+settings.register_profile("rsf-sweep", deadline=None)
+settings.load_profile("rsf-sweep")
+
+#: Seconds any wait on another process (a subprocess, a Dask cluster, a Jupyter kernel)
+#: may take: generous (cold numba compiles on two busy cores), and finite, so that a hang
+#: fails the test instead of blocking the run for ever.
+SUBPROCESS_TIMEOUT = 600
 
 #: The seed paper's friction coefficients (physics brief, section 1).
 PAPER_A, PAPER_B = 0.03, 0.08
@@ -233,6 +246,13 @@ store.write_part(directory, config, store.config_hash(config), 0, 2, 9, np.zeros
 """
 
 
+def read_line(proc, timeout=SUBPROCESS_TIMEOUT):
+    """The next line ``proc`` prints on its stdout (a text pipe); fails after ``timeout`` s."""
+    ready, _, _ = select.select([proc.stdout], [], [], timeout)
+    assert ready, f"pid {proc.pid} printed nothing within {timeout} s"
+    return proc.stdout.readline()
+
+
 def interrupted_part_writer(directory, mode):
     """Run :data:`PART_WRITER` on ``directory`` until it is inside the write.
 
@@ -243,10 +263,10 @@ def interrupted_part_writer(directory, mode):
         [sys.executable, "-c", PART_WRITER, mode, str(directory), str(QUICK)],
         stdout=subprocess.PIPE, text=True,
     )  # fmt: skip
-    assert proc.stdout.readline() == "writing\n"
+    assert read_line(proc) == "writing\n"
     if mode == "stuck":
         return proc
-    assert proc.wait(timeout=60) == -signal.SIGKILL
+    assert proc.wait(timeout=SUBPROCESS_TIMEOUT) == -signal.SIGKILL
     return proc
 
 
@@ -288,11 +308,11 @@ def lock_holder(tmp_path):
     def start(out, mode="exclusive"):
         proc = subprocess.Popen([sys.executable, "-c", LOCK_HOLDER, str(out), mode],
                                 stdout=subprocess.PIPE, text=True)  # fmt: skip
-        assert proc.stdout.readline().strip() == "locked"
+        assert read_line(proc).strip() == "locked"
         procs.append(proc)
         return proc
 
     yield start
     for proc in procs:
         proc.kill()
-        proc.wait()
+        proc.wait(timeout=SUBPROCESS_TIMEOUT)

@@ -11,6 +11,7 @@ from pathlib import Path
 import numba
 import numpy as np
 import pytest
+from conftest import SUBPROCESS_TIMEOUT
 
 from sweep import accelerate
 from sweep.kernels import cycles, equations, integrate, layout, steppers
@@ -110,7 +111,11 @@ def test_cache_switch(value, cache):
     if value is not None:
         env["SWEEP_NUMBA_CACHE"] = value
     proc = subprocess.run(
-        [sys.executable, "-c", CACHE_PROBE], capture_output=True, text=True, env=env, timeout=120
+        [sys.executable, "-c", CACHE_PROBE],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=SUBPROCESS_TIMEOUT,
     )
     assert proc.returncode == 0, proc.stderr
     report = json.loads(proc.stdout)
@@ -177,7 +182,7 @@ def test_editing_an_inlined_helper_invalidates_the_cached_kernel(tmp_path):
     def run():
         code = f"CONFIG = {str(ROOT / 'configs' / 'quick.yaml')!r}\n{CACHED_RUN}"
         proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                              env=env, cwd=tmp_path, timeout=600)  # fmt: skip
+                              env=env, cwd=tmp_path, timeout=SUBPROCESS_TIMEOUT)  # fmt: skip
         assert proc.returncode == 0, proc.stderr
         return json.loads(proc.stdout.splitlines()[-1])
 

@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import QUICK, ROOT, without_provenance
+from conftest import QUICK, ROOT, SUBPROCESS_TIMEOUT, without_provenance
 
 import sweep
 from sweep import examples, runner
@@ -34,7 +34,13 @@ def test_import_loads_neither_numba_nor_matplotlib_nor_xarray():
         "import sys, sweep; "
         "print([m for m in ('numba', 'matplotlib', 'xarray') if m in sys.modules])"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=SUBPROCESS_TIMEOUT,
+    )
     assert out.stdout.strip() == "[]"
 
 
@@ -191,7 +197,9 @@ def test_compile_kernels_compiles_only_the_configs_variants():
     )
     for mode, expected in (("unsettled", "2 1 1"), ("never", "1 1 0")):
         run = [sys.executable, "-c", code, mode]
-        out = subprocess.run(run, capture_output=True, text=True, check=True, timeout=600)
+        out = subprocess.run(
+            run, capture_output=True, text=True, check=True, timeout=SUBPROCESS_TIMEOUT
+        )
         assert out.stdout.split() == expected.split(), mode
 
 
@@ -206,6 +214,8 @@ def test_a_sweep_whose_runs_all_settle_never_compiles_the_tangent():
         "print(integrate.grid_kernel.cache_info().currsize, *ds['regime'].values.ravel())"
     )
     run = [sys.executable, "-c", code]
-    out = subprocess.run(run, capture_output=True, text=True, check=True, timeout=600)
+    out = subprocess.run(
+        run, capture_output=True, text=True, check=True, timeout=SUBPROCESS_TIMEOUT
+    )
     count, *regimes = out.stdout.split()
     assert count == "1" and len(regimes) == 2

@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import make_config
+from conftest import SUBPROCESS_TIMEOUT, make_config
 
 from sweep import cli, runner
 from sweep.audit import audit_config, audit_points, audit_result
@@ -82,7 +82,7 @@ def test_planted_disagreement_is_found(planted):
     """``python -m sweep audit r.nc`` in a fresh folder: exit 1, the table, the point."""
     proc = subprocess.run(
         [sys.executable, "-m", "sweep", "audit", "r.nc"],
-        cwd=planted, capture_output=True, text=True, timeout=300,
+        cwd=planted, capture_output=True, text=True, timeout=SUBPROCESS_TIMEOUT,
     )  # fmt: skip
     assert proc.returncode == 1, proc.stderr
     lines = proc.stdout.splitlines()

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import SUBPROCESS_TIMEOUT
 
 from sweep.physics import log_form_rhs
 
@@ -60,7 +61,7 @@ def test_every_benchmark_runs_at_smoke_size(tmp_path):
         cwd=tmp_path,  # the script finds configs/ from its own location
         capture_output=True,
         text=True,
-        timeout=600,
+        timeout=SUBPROCESS_TIMEOUT,
     )
     assert run.returncode == 0, run.stderr[-3000:]
     figures = json.loads(out.read_text())

@@ -5,11 +5,18 @@ its ``exp`` and LAPACK kernels by CPU (AVX-512 or AVX2), and a one-ulp differenc
 a start value grows in the chaotic two-block runs. A stored file of numbers written
 on one machine therefore fails on another for reasons that have nothing to do with
 a refactoring. So the reference is computed here, on this machine, by the code of
-:data:`REFERENCE_COMMIT` (``git archive`` of its ``sweep/`` and its
-``tests/bit_identity_cases.py``), and compared with the code as it is now.
+:data:`REFERENCE_COMMIT`, and compared with the code as it is now.
 
-Move :data:`REFERENCE_COMMIT` only in a commit that says which numbers changed and
-why (a changed method, controller or classifier), never to make the test pass.
+That code is kept in the repository, not looked up in its history (which a shallow
+clone or an unpacked release lacks): :data:`REFERENCE_ARCHIVE` is ``git archive`` of
+the commit's ``sweep/`` and ``tests/bit_identity_cases.py`` (about 80 kB), and git
+writes the commit's id into its header. To move the reference, which rewrites the
+archive and :data:`REFERENCE_COMMIT`::
+
+    make bit-identity-reference COMMIT=<commit>
+
+Move it only in a commit that says which numbers changed and why (a changed method,
+controller or classifier), never to make the test pass.
 """
 
 import io
@@ -17,38 +24,60 @@ import os
 import subprocess
 import sys
 import tarfile
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 import numpy as np
 import pytest
+from conftest import SUBPROCESS_TIMEOUT
 
 from bit_identity_cases import compute_all, flatten
 
 #: The code every number is compared with: the layout before issues 12 and 15.
 REFERENCE_COMMIT = "759d878b932fa928c93cc2fc632af2ddc4ca7772"
+#: That commit's ``sweep/`` and ``tests/bit_identity_cases.py`` (``git archive``).
+REFERENCE_ARCHIVE = Path(__file__).parent / "data" / "bit_identity_reference.tar.gz"
+#: Seconds the reference commit's code may take for the cases (about 100 s cold on two
+#: busy cores): a hung process fails the test instead of blocking it.
+REFERENCE_TIMEOUT = 1800
 
-REPO = Path(__file__).resolve().parents[1]
+
+def extract(archive, tree):
+    """Extract the tar file ``archive`` into the folder ``tree``, refusing any member
+    but a plain file or folder inside ``tree`` (``tarfile.TarError``).
+
+    The check is what tarfile's "data" filter does from Python 3.10.12 / 3.11.4 on; it
+    is done here on every Python the package allows, and the filter used where it exists.
+    """
+    with tarfile.open(archive) as tar:
+        members = tar.getmembers()
+        for member in members:
+            path = PurePosixPath(member.name)
+            if not (member.isfile() or member.isdir()) or path.is_absolute() or ".." in path.parts:
+                raise tarfile.TarError(f"{archive}: {member.name!r} is not a file in the tree")
+        safe = {"filter": "data"} if hasattr(tarfile, "data_filter") else {}
+        tar.extractall(tree, members=members, **safe)
+
+
+def archived_commit(archive):
+    """The commit ``git archive`` wrote into the header of ``archive`` (None if none)."""
+    with tarfile.open(archive) as tar:
+        return tar.pax_headers.get("comment")
+
+
+def test_the_archive_holds_the_reference_commit():
+    assert archived_commit(REFERENCE_ARCHIVE) == REFERENCE_COMMIT, (
+        f"{REFERENCE_ARCHIVE.name} is not the code of {REFERENCE_COMMIT}: "
+        "make bit-identity-reference COMMIT=<commit> writes both"
+    )
 
 
 @pytest.fixture(scope="module")
 def reference_run(tmp_path_factory):
-    """The reference commit's code (its ``sweep/`` and ``tests/bit_identity_cases.py``)
-    extracted to a temporary tree and started there in its own process, which
-    computes while this one computes :func:`computed` (two cores: half the wait)."""
-    if not (REPO / ".git").exists():
-        pytest.skip("not a git checkout: the reference commit's code is not at hand")
-    paths = ["sweep", "tests/bit_identity_cases.py"]
-    archive = subprocess.run(
-        ["git", "-C", str(REPO), "archive", REFERENCE_COMMIT, *paths], capture_output=True
-    )
-    if archive.returncode != 0:
-        pytest.skip(f"reference commit not in this clone: {archive.stderr.decode().strip()}")
+    """The reference commit's code extracted from :data:`REFERENCE_ARCHIVE` to a
+    temporary tree and started there in its own process, which computes while this one
+    computes :func:`computed` (two cores: half the wait)."""
     tree = tmp_path_factory.mktemp("reference_commit")
-    with tarfile.open(fileobj=io.BytesIO(archive.stdout)) as tar:
-        # the "data" filter (no absolute paths, links out of the tree or devices) exists
-        # from Python 3.10.12 / 3.11.4 on; git's own archive of this repository is trusted
-        safe = {"filter": "data"} if hasattr(tarfile, "data_filter") else {}
-        tar.extractall(tree, **safe)
+    extract(REFERENCE_ARCHIVE, tree)
     # The reference commit's script writes tests/data/bit_identity.npz beside itself.
     script = tree / "tests" / "bit_identity_cases.py"
     env = dict(os.environ, PYTHONPATH=str(tree))
@@ -58,7 +87,7 @@ def reference_run(tmp_path_factory):
     yield tree, proc
     if proc.poll() is None:
         proc.kill()
-        proc.wait()
+        proc.wait(timeout=SUBPROCESS_TIMEOUT)
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +101,7 @@ def computed(reference_run):
 def reference(reference_run, computed):
     """``{"case/var": array}`` computed by the reference commit's code, on this machine."""
     tree, proc = reference_run
-    assert proc.wait() == 0, (tree / "stderr.txt").read_text()
+    assert proc.wait(timeout=REFERENCE_TIMEOUT) == 0, (tree / "stderr.txt").read_text()
     with np.load(tree / "tests" / "data" / "bit_identity.npz") as ref:
         return {key: ref[key] for key in ref.files}
 
@@ -89,3 +118,55 @@ def test_numbers_are_bit_identical(reference, computed):
         if a.shape != computed[key].shape or a.tobytes() != computed[key].tobytes()
     ]
     assert not differ, f"changed bits in {differ}"
+
+
+# --- extraction on every Python the package allows ----------------------------------------
+
+
+@pytest.fixture(params=["data filter", "no filter"])
+def tar_python(request, monkeypatch):
+    """tarfile as on Python ≥ 3.10.12 / 3.11.4 (the "data" filter) or before (no filter:
+    ``extractall`` takes no ``filter`` argument); yields the filters passed to it."""
+    passed = []
+    extractall = tarfile.TarFile.extractall
+    if request.param == "no filter":
+        monkeypatch.delattr(tarfile, "data_filter", raising=False)
+
+        def old_extractall(self, path=".", members=None, *, numeric_owner=False):
+            passed.append(None)
+            return extractall(self, path, members, numeric_owner=numeric_owner)
+
+        monkeypatch.setattr(tarfile.TarFile, "extractall", old_extractall)
+    else:
+        if not hasattr(tarfile, "data_filter"):
+            pytest.skip("this Python's tarfile has no data filter")
+
+        def new_extractall(self, *args, filter=None, **kwargs):
+            passed.append(filter)
+            return extractall(self, *args, filter=filter, **kwargs)
+
+        monkeypatch.setattr(tarfile.TarFile, "extractall", new_extractall)
+    return request.param, passed
+
+
+def test_the_reference_extracts(tar_python, tmp_path):
+    kind, passed = tar_python
+    extract(REFERENCE_ARCHIVE, tmp_path)
+    assert passed == ["data" if kind == "data filter" else None]
+    assert (tmp_path / "tests" / "bit_identity_cases.py").is_file()
+    assert (tmp_path / "sweep" / "__init__.py").is_file()
+
+
+@pytest.mark.parametrize("name, kind", [("../outside.py", tarfile.REGTYPE),
+                                        ("/tmp/absolute.py", tarfile.REGTYPE),
+                                        ("sweep/link.py", tarfile.SYMTYPE)])  # fmt: skip
+def test_members_outside_the_tree_are_refused(tar_python, tmp_path, name, kind):
+    archive = tmp_path / "bad.tar.gz"
+    with tarfile.open(archive, "w:gz") as tar:
+        member = tarfile.TarInfo(name)
+        member.type = kind
+        member.linkname = "/etc/passwd" if kind == tarfile.SYMTYPE else ""
+        tar.addfile(member, None if kind == tarfile.SYMTYPE else io.BytesIO())
+    with pytest.raises(tarfile.TarError, match="is not a file in the tree"):
+        extract(archive, tmp_path / "tree")
+    assert not (tmp_path / "tree").exists()

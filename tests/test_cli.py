@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import KC_W, make_config, write_config
+from conftest import KC_W, SUBPROCESS_TIMEOUT, make_config, write_config
 
 from sweep import cli, runner
 from sweep.physics import PARAMETERS
@@ -44,8 +44,8 @@ print(json.dumps(out))
 
 def run(args, cwd, env=None, check=False):
     proc = subprocess.run(
-        [sys.executable, *args], cwd=cwd, capture_output=True, text=True, timeout=300,
-        env={**os.environ, **(env or {})},
+        [sys.executable, *args], cwd=cwd, capture_output=True, text=True,
+        timeout=SUBPROCESS_TIMEOUT, env={**os.environ, **(env or {})},
     )  # fmt: skip
     if check:
         assert proc.returncode == 0, proc.stderr

@@ -7,7 +7,7 @@ every variable and attribute of the files, all but the creation time and command
 
 import numpy as np
 import pytest
-from conftest import QUICK, assert_same_file
+from conftest import QUICK, SUBPROCESS_TIMEOUT, assert_same_file
 
 from sweep import accelerate, runner, store
 from sweep.backends import Resources
@@ -26,7 +26,7 @@ from sweep import distributed as sweep_distributed  # noqa: E402 (needs dask)
 def local_client():
     """A LocalCluster of 2 single-threaded worker processes, as ``--dask-local 2`` starts."""
     with sweep_distributed.connect(local_workers=2) as client:
-        client.wait_for_workers(2)
+        client.wait_for_workers(2, timeout=SUBPROCESS_TIMEOUT)
         yield client
 
 

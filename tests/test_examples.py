@@ -5,6 +5,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from conftest import SUBPROCESS_TIMEOUT
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -13,7 +15,7 @@ def test_gallery_runs_and_writes_its_figures(tmp_path):
     proc = subprocess.run(
         [sys.executable, "-W", "error::FutureWarning", str(ROOT / "examples" / "gallery.py"),
          str(out), "--quick"],
-        cwd=tmp_path, capture_output=True, text=True, timeout=600,
+        cwd=tmp_path, capture_output=True, text=True, timeout=SUBPROCESS_TIMEOUT,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     names = ["bifurcation.pdf", "oneblock.nc", "phase.png", "t_final.svg", "v_max.png"]

@@ -12,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import make_config
+from conftest import SUBPROCESS_TIMEOUT, make_config
 from test_dataset import failing_to_netcdf
 
 from sweep import cli, runner
@@ -212,7 +212,7 @@ def test_cli_end_to_end(short_file):
     before = short_file.read_bytes()
     proc = subprocess.run(
         [sys.executable, "-m", "sweep", "extend", "r.nc", "--t-end", "200", "--out", "longer.nc"],
-        cwd=short_file.parent, capture_output=True, text=True, timeout=300,
+        cwd=short_file.parent, capture_output=True, text=True, timeout=SUBPROCESS_TIMEOUT,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.splitlines()

@@ -150,7 +150,7 @@ def test_results_do_not_depend_on_threads_or_chunks(mixed_reference, threads, ch
     assert same(ds, mixed_reference)
 
 
-@settings(max_examples=10, deadline=None)
+@settings(max_examples=10)  # each example a whole sweep (no deadline: conftest.py)
 @given(chunk_size=st.integers(1, 30), threads=st.sampled_from([1, 2]))
 def test_results_do_not_depend_on_chunking_property(mixed_reference, chunk_size, threads):
     ds = runner.compute(
@@ -176,25 +176,38 @@ def test_local_threads_give_the_serial_kernels_numbers(threads):
         assert np.array_equal(yf, y_final[a:b], equal_nan=True)
 
 
+#: Seconds a held batch waits for the event that releases it: only a broken scheduler
+#: waits that long (the test then fails instead of hanging).
+HOLD_TIMEOUT = 60.0
+
+
 class RecordingKernel:
     """Stands in for ``integrate_grid`` in ``sweep.backends``: writes each row's index
-    into its results, sleeps ``slow`` s on the batch that starts at row 0, ``fail``
-    raises on the batch that starts at that row, and logs (first row, start, end)."""
+    into its results and logs ``("start" | "end", first row)`` of every batch in the
+    order they happen. ``hold(first)`` is called at the start of each batch (it may
+    wait); ``fail`` raises on the batch that starts at that row."""
 
-    def __init__(self, slow=0.0, fail=None):
-        self.slow, self.fail, self.log = slow, fail, []
+    def __init__(self, hold=None, fail=None):
+        self.hold, self.fail, self.log = hold, fail, []
         self.lock = threading.Lock()
 
     def __call__(self, params, y0, settings, results, y_final):
         first = int(params[0, 0])
-        start = time.perf_counter()
+        with self.lock:
+            self.log.append(("start", first))
         if first == self.fail:
             raise FloatingPointError("kernel failed")
-        time.sleep(self.slow if first == 0 else 0.001)
+        if self.hold is not None:
+            self.hold(first)
         results[:] = params[:, :1]
         y_final[:] = 0.0
         with self.lock:
-            self.log.append((first, start, time.perf_counter()))
+            self.log.append(("end", first))
+
+    def ended(self, rows):
+        """How many batches that start in ``rows`` have ended."""
+        with self.lock:
+            return sum(event == "end" and first in rows for event, first in self.log)
 
 
 def rows(n):
@@ -204,11 +217,21 @@ def rows(n):
     return params, np.zeros((n, 2)), np.zeros(layout.N_SETTINGS)
 
 
+def wait_for(condition):
+    """Wait until ``condition()`` holds; fail after :data:`HOLD_TIMEOUT` s."""
+    for _ in range(int(HOLD_TIMEOUT / 0.001)):
+        if condition():
+            return
+        time.sleep(0.001)
+    pytest.fail(f"waited {HOLD_TIMEOUT} s in vain")
+
+
 def test_threads_go_on_to_the_next_range_while_a_range_finishes(monkeypatch):
-    """No barrier at the end of a range: while one thread runs the slow first batch
-    of range 0, the other works through range 1; ranges still come back in order,
-    with every row's own results."""
-    kernel = RecordingKernel(slow=0.3)
+    """No barrier at the end of a range: the first batch of range 0 runs until the other
+    thread has done every batch of range 1 (8 batches of 4 rows); ranges still come
+    back in order, with every row's own results."""
+    kernel = RecordingKernel()
+    kernel.hold = lambda first: first == 0 and wait_for(lambda: kernel.ended(range(32, 64)) == 8)
     monkeypatch.setattr(backends, "integrate_grid", kernel)
     params, y0, settings = rows(64)
     ranges = [(0, 32), (32, 64)]
@@ -216,8 +239,7 @@ def test_threads_go_on_to_the_next_range_while_a_range_finishes(monkeypatch):
     assert [(a, b) for a, b, _, _ in chunks] == ranges
     for a, b, res, _ in chunks:
         np.testing.assert_array_equal(res[:, 0], np.arange(a, b))
-    slow_end = next(end for first, _, end in kernel.log if first == 0)
-    assert all(start < slow_end for first, start, _ in kernel.log if first >= 32)
+    assert kernel.log.index(("end", 0)) > kernel.log.index(("end", 60))
 
 
 def test_a_failing_batch_is_raised_by_the_generator(monkeypatch):
@@ -228,14 +250,30 @@ def test_a_failing_batch_is_raised_by_the_generator(monkeypatch):
 
 
 def test_closing_the_generator_abandons_the_batches_not_started(monkeypatch):
-    """A stop after the first range: the running batches finish, no later one starts."""
-    kernel = RecordingKernel(slow=0.2)
+    """A stop after the first range (8 batches of 1 row, then batches of 8): its first
+    batch is held until the other thread has done 3 batches of range 1, the batches
+    after those until the generator stops. The running batches finish, no later one
+    starts."""
+    kernel = RecordingKernel()
+
+    def stopping():  # the generator's own stop event, set when it is closed
+        return chunks.gi_frame.f_locals["abandon"].is_set()
+
+    def hold(first):
+        if first == 0:
+            wait_for(lambda: kernel.ended(range(8, 4000)) == 3)
+        elif first >= 32:
+            wait_for(stopping)
+
+    kernel.hold = hold
     monkeypatch.setattr(backends, "integrate_grid", kernel)
     params, y0, settings = rows(4000)
     chunks = LocalThreads(2).run(params, y0, settings, [(0, 8), (8, 4000)])
     a, b, _, _ = next(chunks)
     chunks.close()
-    done = len(kernel.log)
-    time.sleep(0.05)
     assert (a, b) == (0, 8)
-    assert len(kernel.log) == done < 4000 // 8
+    started = [first for event, first in kernel.log if event == "start"]
+    ended = [first for event, first in kernel.log if event == "end"]
+    assert sorted(started) == sorted(ended)  # none still running
+    # one thread held at row 32, the other at 40 unless it saw the stop first
+    assert set(started) - {40} == {*range(8), 8, 16, 24, 32}

@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import SUBPROCESS_TIMEOUT
 
 from sweep.cli import main
 from sweep.config import config_mapping, load_config, parse_config
@@ -359,7 +360,9 @@ print(type(fig).__name__, "matplotlib.pyplot" in sys.modules)
     import subprocess
     import sys
 
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=SUBPROCESS_TIMEOUT
+    )
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["Figure", "False"]
     assert (tmp_path / "p.svg").read_text().lstrip().startswith("<?xml")
@@ -402,7 +405,13 @@ def test_reading_and_plotting_results_loads_no_numba():
     import sys
 
     code = "import sys, sweep.plots, sweep.dataset; print('numba' in sys.modules)"
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=SUBPROCESS_TIMEOUT,
+    )
     assert out.stdout.strip() == "False"
 
 

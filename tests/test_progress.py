@@ -1,10 +1,13 @@
-"""Progress: a bar on a terminal, plain periodic lines in logs, nothing when quiet."""
+"""Progress: a widget bar in a notebook, a bar on a terminal, plain periodic lines in
+pipes and logs, nothing when quiet."""
 
 import fcntl
 import io
+import json
 import os
 import pty
 import re
+import select
 import struct
 import subprocess
 import sys
@@ -12,7 +15,10 @@ import termios
 from pathlib import Path
 from types import SimpleNamespace
 
+import nbformat
 import pytest
+from conftest import SUBPROCESS_TIMEOUT
+from nbclient import NotebookClient
 
 from sweep import progress as progress_module
 from sweep import runner
@@ -21,6 +27,8 @@ from sweep.progress import Progress
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "configs" / "quick.yaml"
+#: The MIME type of a Jupyter widget's view in a notebook's outputs.
+WIDGET_VIEW = "application/vnd.jupyter.widget-view+json"
 
 
 class Clock:
@@ -117,6 +125,8 @@ def test_cli_shows_a_bar_on_a_terminal(tmp_path):
     os.close(follower)
     output = b""
     while True:
+        ready, _, _ = select.select([leader], [], [], SUBPROCESS_TIMEOUT)
+        assert ready, f"the sweep printed nothing for {SUBPROCESS_TIMEOUT} s"
         try:
             chunk = os.read(leader, 4096)
         except OSError:  # EIO: the sweep closed the terminal
@@ -125,17 +135,68 @@ def test_cli_shows_a_bar_on_a_terminal(tmp_path):
             break
         output += chunk
     os.close(leader)
-    assert proc.wait(timeout=60) == 0
+    assert proc.wait(timeout=SUBPROCESS_TIMEOUT) == 0
     text = output.decode(errors="replace")
     assert "\r" in text  # the bar redraws itself in place
     assert re.search(r"quick: 100%.*\| 9/9 \[\d\d:\d\d<\d\d:\d\d, +[\d.]+run/s\]", text), text
 
 
-def test_cli_writes_plain_lines_to_a_pipe(tmp_path):
-    proc = run_quick(tmp_path, stderr=subprocess.PIPE)
-    _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 0
-    text = err.decode()
+@pytest.mark.parametrize("to", ["pipe", "log file"])
+def test_cli_writes_plain_lines_to_a_pipe_or_a_log_file(tmp_path, to):
+    if to == "pipe":
+        proc = run_quick(tmp_path, stderr=subprocess.PIPE)
+        _, err = proc.communicate(timeout=SUBPROCESS_TIMEOUT)
+        text = err.decode()
+    else:
+        with open(tmp_path / "sweep.log", "wb") as log:
+            proc = run_quick(tmp_path, stderr=log)
+            proc.wait(timeout=SUBPROCESS_TIMEOUT)
+        text = (tmp_path / "sweep.log").read_text()
+    assert proc.returncode == 0, text
     assert "\r" not in text
     assert re.search(r"^quick: 9/9 runs \(100%\), [\d.]+ runs/s, elapsed [\d.]+ s, ETA 0 s$",
                      text, re.M), text  # fmt: skip
+
+
+def run_notebook(tmp_path, monkeypatch, *cells):
+    """Execute a notebook of these code cells in a Jupyter kernel of this Python (a
+    kernel spec of its own, whatever kernels the machine has) → its outputs, in order."""
+    spec = tmp_path / "jupyter" / "kernels" / "rsf-sweep-test"
+    spec.mkdir(parents=True)
+    argv = [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"]
+    (spec / "kernel.json").write_text(json.dumps({"argv": argv, "language": "python",
+                                                  "display_name": "rsf-sweep test"}))  # fmt: skip
+    monkeypatch.setenv("JUPYTER_PATH", str(tmp_path / "jupyter"))
+    nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(c) for c in cells])
+    NotebookClient(nb, kernel_name="rsf-sweep-test", timeout=SUBPROCESS_TIMEOUT,
+                   resources={"metadata": {"path": str(tmp_path)}}).execute()  # fmt: skip
+    return [out for cell in nb.cells for out in cell.outputs]
+
+
+RUN_QUICK = f"import sweep\nds = sweep.run({str(QUICK)!r}, threads=1)\nint(ds.regime.size)"
+
+
+def stream_text(outputs):
+    return "".join(out.text for out in outputs if out.output_type == "stream")
+
+
+@pytest.mark.slow
+def test_a_notebook_shows_a_widget_bar(tmp_path, monkeypatch):
+    """``sweep.run`` in a Jupyter kernel: a tqdm.auto widget, no plain lines."""
+    outputs = run_notebook(tmp_path, monkeypatch, RUN_QUICK)
+    widgets = [out for out in outputs if WIDGET_VIEW in out.get("data", {})]
+    assert len(widgets) == 1, outputs
+    assert outputs[-1].data["text/plain"] == "9", outputs
+    assert "quick: 9/9 runs" not in stream_text(outputs), outputs
+
+
+@pytest.mark.slow
+def test_a_notebook_without_ipywidgets_shows_plain_lines(tmp_path, monkeypatch):
+    """The ``notebook`` extra missing: tqdm's hint to install ipywidgets, then the
+    plain lines of a log."""
+    no_ipywidgets = "import sys\nsys.modules['ipywidgets'] = None  # import fails"
+    outputs = run_notebook(tmp_path, monkeypatch, no_ipywidgets, RUN_QUICK)
+    assert not [out for out in outputs if WIDGET_VIEW in out.get("data", {})], outputs
+    text = stream_text(outputs)
+    assert "ipywidgets" in text and "\r" not in text, text
+    assert re.search(r"^quick: 9/9 runs \(100%\)", text, re.M), text

@@ -18,20 +18,28 @@ import time
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import QUICK, assert_same_file, interrupted_part_writer, reference_file
+from conftest import (
+    QUICK,
+    SUBPROCESS_TIMEOUT,
+    assert_same_file,
+    interrupted_part_writer,
+    read_line,
+    reference_file,
+)
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sweep import runner, store
+from sweep import backends, runner, store
 from sweep.backends import LocalThreads, Resources
 from sweep.cli import main
 from sweep.config import load_config, parse_config
-from sweep.dispatch import load_kernel
+from sweep.dispatch import integrate_grid, load_kernel
 from sweep.grid import build_grid
 
-#: Slow enough per run to kill a sweep part-way: fixed-step RK4 with 1e6 steps per run
-#: (about 0.2 s each on one thread), runs kept going to t_end (early_exit false, and a
-#: steady threshold the slowly decaying oscillation just above Kc/W never reaches).
+#: 8 slow runs, for a kernel call long enough to signal during it: fixed-step RK4 with
+#: 1e6 steps per run (about 0.2 s each on one thread), runs kept going to t_end
+#: (early_exit false, and a steady threshold the slowly decaying oscillation just above
+#: Kc/W never reaches).
 SLOW = """\
 name: slow
 blocks: 1
@@ -64,15 +72,35 @@ def sweep_cli(*args, cwd, **popen):
     )
 
 
-def wait_for_parts(parts_dir, proc, count=1, timeout=60.0):
-    """Poll until ``parts_dir`` holds ``count`` finished parts (fail if ``proc`` ends first)."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if len(list(parts_dir.glob("*.npz"))) >= count:
-            return
-        assert proc.poll() is None, "the sweep ended before it could be interrupted"
-        time.sleep(0.01)
-    pytest.fail(f"no part appeared in {parts_dir} within {timeout} s")
+#: ``python -c HELD_SWEEP ARGS`` is ``python -m sweep ARGS`` that prints "saved" after
+#: saving each chunk (a part or Zarr chunk) and then waits for a line on its stdin: a
+#: test signals or kills it at a known point, whatever the kernel's speed.
+HELD_SWEEP = r"""
+import sys
+from sweep import cli, runner
+
+def held(save):
+    def save_then_wait(self, a, b):
+        save(self, a, b)
+        print("saved", flush=True)
+        sys.stdin.readline()
+    return save_then_wait
+
+runner._PartStore.save = held(runner._PartStore.save)
+runner._ZarrStore.save = held(runner._ZarrStore.save)
+sys.exit(cli.main(sys.argv[1:]))
+"""
+
+
+def held_sweep(*args, cwd):
+    """Start :data:`HELD_SWEEP` with ``ARGS`` in ``cwd``; return it once it has saved its
+    first chunk and waits (send a line to its stdin to let it go on)."""
+    proc = subprocess.Popen([sys.executable, "-c", HELD_SWEEP, *map(str, args)], cwd=cwd,
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)  # fmt: skip
+    while (line := read_line(proc)) != "saved\n":
+        assert line, f"the sweep ended before it saved a chunk: {proc.communicate()[1]}"
+    return proc
 
 
 # --- plan: chunks, shards, rows still missing -----------------------------------
@@ -211,35 +239,48 @@ def test_a_second_ctrl_c_stops_at_once(quick, tmp_path, monkeypatch, signals, sa
 
 
 @pytest.mark.slow
-def test_signals_during_a_kernel_are_seen_when_it_returns():
-    """The README's caveat: compiled code cannot be interrupted. Two SIGINTs sent 0.2 s
-    and 0.3 s into a chunk that computes for about 2 s (8 slow runs on one thread)
-    reach the Python handler once, when the kernel has returned (CPython runs handlers
-    between bytecodes and keeps one pending flag per signal)."""
+def test_signals_during_a_kernel_are_seen_when_it_returns(monkeypatch):
+    """The README's caveat: compiled code cannot be interrupted. Two SIGINTs sent while
+    a chunk of 8 slow runs computes on one thread (its first run done, its last not)
+    reach the Python handler once, when the kernel has returned with all 8 runs done
+    (CPython runs handlers between bytecodes and keeps one pending flag per signal)."""
     g = build_grid(parse_config(SLOW))
-    seen = []
-    previous = signal.signal(signal.SIGINT, lambda *_: seen.append(time.perf_counter()))
+    load_kernel(g.params, g.settings)
+    finals = []  # the kernel's y_final, NaN until each run writes its final state
+
+    def kernel(params, y0, settings, results, y_final):
+        y_final[:] = np.nan
+        finals.append(y_final)
+        integrate_grid(params, y0, settings, results, y_final)
+
+    def runs_done():
+        return int(np.isfinite(finals[0]).all(axis=1).sum()) if finals else 0
+
+    sent, handled = [], []  # runs done just after each signal was sent / when handled
+    over, lock = threading.Event(), threading.Lock()  # no signal once the test is over
 
     def send_two():
-        for delay in (0.2, 0.1):
-            time.sleep(delay)
-            os.kill(os.getpid(), signal.SIGINT)
+        while runs_done() == 0 and not over.is_set():
+            time.sleep(0.001)
+        with lock:
+            for _ in range(0 if over.is_set() else 2):
+                os.kill(os.getpid(), signal.SIGINT)
+                sent.append(runs_done())
 
+    monkeypatch.setattr(backends, "integrate_grid", kernel)
+    previous = signal.signal(signal.SIGINT, lambda *_: handled.append(runs_done()))
+    sender = threading.Thread(target=send_two)
     try:
-        load_kernel(g.params, g.settings)
-        sender = threading.Thread(target=send_two)
-        start = time.perf_counter()
         sender.start()
         (chunk,) = LocalThreads(threads=1).run(g.params, g.y0, g.settings, [(0, 8)])
-        returned = time.perf_counter()
-        sender.join()
-        time.sleep(0.05)  # a pending signal would be handled here
     finally:
+        with lock:
+            over.set()
+        sender.join(timeout=SUBPROCESS_TIMEOUT)
         signal.signal(signal.SIGINT, previous)
-    # both were sent by 0.3 s, while the kernel ran (it took > 0.5 s); the one handler
-    # call came later, when the kernel returned
-    assert returned - start > 0.5
-    assert len(seen) == 1 and seen[0] - start > 0.5
+    assert len(sent) == 2 and max(sent) < 8, f"the kernel ended before the signals: {sent}"
+    assert handled == [8]
+    assert np.isfinite(chunk[3]).all()
 
 
 @pytest.mark.slow
@@ -247,17 +288,14 @@ def test_signals_during_a_kernel_are_seen_when_it_returns():
 def test_signal_keeps_parts_and_says_how_to_resume(slow_config, tmp_path, signum):
     out = tmp_path / "slow.nc"
     args = ["run", slow_config, "--out", out, "--chunk-size", "1", "--threads", "1", "--quiet"]
-    proc = sweep_cli(*args, cwd=tmp_path)
-    wait_for_parts(store.parts_dir_for(out), proc)
+    proc = held_sweep(*args, cwd=tmp_path)  # its first part saved, the sweep waits
     proc.send_signal(signum)
-    _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 128 + signum
+    _, err = proc.communicate("go on\n", timeout=SUBPROCESS_TIMEOUT)
+    assert proc.returncode == 128 + signum, err
     assert f"interrupted by {signal.Signals(signum).name}" in err
     assert f"{' '.join(map(str, args))} --resume" in err  # the command to continue
-    saved = sorted(store.parts_dir_for(out).glob("*.npz"))
-    assert 1 <= len(saved) < 8
-    for path in saved:
-        store.read_part(path)  # complete and valid: raises PartError otherwise
+    (saved,) = store.parts_dir_for(out).glob("*.npz")  # it stopped after that part
+    store.read_part(saved)  # complete and valid: raises PartError otherwise
     assert not out.exists()
 
 
@@ -265,21 +303,18 @@ def test_signal_keeps_parts_and_says_how_to_resume(slow_config, tmp_path, signum
 def test_sigkill_then_resume_recomputes_only_unfinished_chunks(slow_config, tmp_path):
     out = tmp_path / "slow.nc"
     args = ["run", slow_config, "--out", out, "--chunk-size", "1", "--threads", "1"]
-    proc = sweep_cli(*args, cwd=tmp_path)
+    proc = held_sweep(*args, cwd=tmp_path)  # its first part saved, the sweep waits
     parts_dir = store.parts_dir_for(out)
-    wait_for_parts(parts_dir, proc)
     proc.kill()
-    proc.communicate(timeout=60)
+    proc.communicate(timeout=SUBPROCESS_TIMEOUT)
     assert proc.returncode == -signal.SIGKILL
-    kept = sorted(parts_dir.glob("*.npz"))
-    assert 1 <= len(kept) < 8  # killed part-way
+    assert len(list(parts_dir.glob("*.npz"))) == 1  # killed part-way
 
     proc = sweep_cli(*args, "--resume", cwd=tmp_path)
-    _, err = proc.communicate(timeout=120)
+    _, err = proc.communicate(timeout=SUBPROCESS_TIMEOUT)
     assert proc.returncode == 0, err
-    k = len(kept)
-    assert f"reusing {k} runs from {k} parts" in err
-    assert f"computing {8 - k} runs in {8 - k} chunks" in err
+    assert "reusing 1 runs from 1 parts" in err
+    assert "computing 7 runs in 7 chunks" in err
     assert_same_file(out, reference_file(load_config(slow_config), tmp_path / "reference.nc"))
     assert not parts_dir.exists()
 
@@ -315,7 +350,8 @@ def test_kill_during_a_part_write_then_resume_leaves_no_trace(
     folder = store.parts_dir_for(out)
     args = ["run", QUICK, "--out", out, "--chunk-size", "3", "--threads", "1", "--quiet"]
     proc = subprocess.run([sys.executable, "-c", KILLED_WRITING_THIRD_PART, *map(str, args)],
-                          cwd=tmp_path, capture_output=True, text=True, timeout=120)  # fmt: skip
+                          cwd=tmp_path, capture_output=True, text=True,
+                          timeout=SUBPROCESS_TIMEOUT)  # fmt: skip
     assert proc.returncode == -signal.SIGKILL, proc.stderr
     finished = sorted(folder.glob("*.npz"))
     rows = [(part.start, part.stop) for part in map(store.read_part, finished)]
@@ -330,7 +366,7 @@ def test_kill_during_a_part_write_then_resume_leaves_no_trace(
         assert list(folder.iterdir()) == [live]
     finally:
         shard.kill()
-        shard.wait(timeout=60)
+        shard.wait(timeout=SUBPROCESS_TIMEOUT)
     store.remove_parts(folder)  # as the next finished sweep or merge would
     assert not folder.exists()
 

@@ -8,6 +8,7 @@ import xarray as xr
 from conftest import (
     QUICK,
     ROOT,
+    SUBPROCESS_TIMEOUT,
     assert_same_file,
     interrupted_part_writer,
     reference_file,
@@ -189,7 +190,7 @@ def test_temp_files_of_killed_writers_are_removed_live_ones_kept(quick, tmp_path
         assert not dead.exists() and not done.exists()
     finally:
         writer.kill()
-        writer.wait(timeout=60)
+        writer.wait(timeout=SUBPROCESS_TIMEOUT)
     (folder / "notes.txt").unlink()
     store.remove_parts(folder)  # the stuck writer is gone now: only elsewhere's file stays
     assert set(folder.iterdir()) == {elsewhere}
@@ -232,7 +233,7 @@ def test_concurrent_runs_on_one_output_refuse_naming_the_other(quick, tmp_path, 
     with pytest.raises(runner.RunError, match="s.nc is in use by another run"):
         runner.run_sweep(quick, out=shared, show_progress=False)
     other.kill()
-    other.wait()
+    other.wait(timeout=SUBPROCESS_TIMEOUT)
     assert runner.run_sweep(quick, out=shared, show_progress=False, resume=True).dataset is not None
 
 
@@ -252,7 +253,7 @@ def test_merge_refuses_parts_their_owner_is_still_writing(quick, tmp_path, lock_
     assert sorted(store.parts_dir_for(out).glob("*.npz")) == parts
     assert not (tmp_path / "y.nc").exists()
     holder.kill()
-    holder.wait()
+    holder.wait(timeout=SUBPROCESS_TIMEOUT)
     assert runner.merge_parts([store.parts_dir_for(out)], tmp_path / "y.nc") is not None
 
 

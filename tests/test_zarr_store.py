@@ -9,16 +9,15 @@ import errno
 import math
 import os
 import sys
-import time
 
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import PROVENANCE_ATTRS, QUICK, reference_file, write_config
+from conftest import PROVENANCE_ATTRS, QUICK, SUBPROCESS_TIMEOUT, reference_file, write_config
 from hypothesis import given
 from hypothesis import strategies as st
 from test_nblock import nblock
-from test_runner import SLOW, sweep_cli
+from test_runner import SLOW, held_sweep, sweep_cli
 
 from sweep import runner, zarr_store
 from sweep.backends import Resources
@@ -159,27 +158,22 @@ def test_plot_and_extend_read_a_complete_store(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_sigkill_then_resume_recomputes_only_unfinished_chunks(tmp_path):
-    """kill -9 of the CLI once some chunks are in the store; --resume computes the others
-    and the store equals the NetCDF result. ``SLOW``: 8 runs of about 0.2 s each."""
+    """kill -9 of the CLI once one chunk (of 8 runs, ``SLOW``) is in the store; --resume
+    computes the others and the store equals the NetCDF result."""
     slow_config = tmp_path / "slow.yaml"
     slow_config.write_text(SLOW)
     out = tmp_path / "slow.zarr"
     args = ["run", slow_config, "--out", out, "--chunk-size", "1", "--threads", "1"]
-    proc = sweep_cli(*args, cwd=tmp_path)
-    deadline = time.monotonic() + 120
-    while not any(f.name.isdigit() for f in (out / "regime" / "c").glob("*")):  # not *.partial
-        assert proc.poll() is None and time.monotonic() < deadline, "no chunk was stored"
-        time.sleep(0.01)
+    proc = held_sweep(*args, cwd=tmp_path)  # its first chunk stored, the sweep waits
     proc.kill()
-    proc.communicate(timeout=60)
+    proc.communicate(timeout=SUBPROCESS_TIMEOUT)
     with xr.open_zarr(out) as ds:
-        kept = int((ds["regime"] >= 0).sum())
-    assert 1 <= kept < 8
+        assert int((ds["regime"] >= 0).sum()) == 1
     proc = sweep_cli(*args, "--resume", cwd=tmp_path)
-    _, err = proc.communicate(timeout=120)
+    _, err = proc.communicate(timeout=SUBPROCESS_TIMEOUT)
     assert proc.returncode == 0, err
-    assert f"{kept} of 8 runs are stored" in err
-    assert f"computing {8 - kept} runs in {8 - kept} chunks" in err
+    assert "1 of 8 runs are stored" in err
+    assert "computing 7 runs in 7 chunks" in err
     assert_same_as_netcdf(out, reference_file(load_config(slow_config), tmp_path / "ref.nc"))
 
 
