@@ -452,6 +452,13 @@ def _cyrk_loop():
 
 #: CyRK's methods the engine is compared with (its fastest here, and its DOPRI5).
 CYRK_METHODS = ("DOP853", "RK45")
+#: The engine's runs of the single-purpose comparison: (label, early exit, method).
+ENGINE_RUNS = (
+    ("engine_early_exit_off", False, "dopri5"),
+    ("engine_early_exit_on", True, "dopri5"),
+    ("engine_dop853_early_exit_off", False, "dop853"),
+    ("engine_dop853_early_exit_on", True, "dop853"),
+)
 
 
 def bench_single_purpose(n_points, t_end):
@@ -499,8 +506,9 @@ def bench_single_purpose(n_points, t_end):
                 "steps_per_run": float(steps.mean()),
                 "ns_per_step": 1e9 * seconds / steps.sum(),
             }
-    for label, early in (("engine_early_exit_off", False), ("engine_early_exit_on", True)):
-        results, seconds = engine_run(one_block_config(k_values, t_end, early=early), repeats=3)
+    for label, early, method in ENGINE_RUNS:
+        config = one_block_config(k_values, t_end, early=early, method=method)
+        results, seconds = engine_run(config, repeats=3)
         tried = results[:, layout.R_N_STEPS].sum() + results[:, layout.R_N_REJECTED].sum()
         out[label] = {
             "systems_per_second": n_points / seconds,
@@ -752,7 +760,7 @@ def _print_single_purpose(sp):
     peers = [f"cyrk_{m}" for m in CYRK_METHODS if f"cyrk_{m}" in sp]
     if not peers:
         print("CyRK not installed: no CyRK lines (pip install -e '.[bench]')")
-    for label in ("plain", *peers, "engine_early_exit_off", "engine_early_exit_on"):
+    for label in ("plain", *peers, *(run[0] for run in ENGINE_RUNS)):
         v = sp[label]
         ratio = f", {v['vs_plain']:.2f}x the plain loop" if "vs_plain" in v else ""
         for m in CYRK_METHODS:
@@ -782,10 +790,11 @@ def _print_targets(f):
         ),
         *(
             (
-                f"engine, early exit {state}, vs CyRK DOP853",
+                f"engine ({method}), early exit {state}, vs CyRK DOP853",
                 target,
-                f"{sp[f'engine_early_exit_{state}']['vs_cyrk_DOP853']:.2f}x",
+                f"{sp[f'engine{tag}_early_exit_{state}']['vs_cyrk_DOP853']:.2f}x",
             )
+            for method, tag in (("dopri5", ""), ("dop853", "_dop853"))
             for state, target in (("on", ">= 3x"), ("off", ">= 1.2x"))
             if "vs_cyrk_DOP853" in sp["engine_early_exit_on"]
         ),

@@ -22,7 +22,7 @@ from .errors import ConfigError
 from .heterogeneity import DISTRIBUTIONS, PER_BLOCK, SPREAD_AXES, SPREAD_PREFIX, spread_pattern
 from .physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
 
-METHODS = ("dopri5", "rk4", "rosenbrock")
+METHODS = ("dopri5", "rk4", "rosenbrock", "dop853")
 #: Default integrator per model where it is not dopri5: the inertial model is stiff
 #: in stick phases (decay rate A e^(-ln v/V)/M̂ towards force balance). dopri5 is
 #: held to steps below its stability limit there (with M̂ = 1e-3 it spends 2e7

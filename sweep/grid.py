@@ -28,7 +28,12 @@ MODEL_CODES = {
 }
 LAW_CODES = {"aging": layout.AGING, "slip": layout.SLIP}
 COUPLING_CODES = {"chain": layout.CHAIN, "ring": layout.RING, "all": layout.ALL}
-METHOD_CODES = {"dopri5": layout.DOPRI5, "rk4": layout.RK4, "rosenbrock": layout.ROSENBROCK}
+METHOD_CODES = {
+    "dopri5": layout.DOPRI5,
+    "rk4": layout.RK4,
+    "rosenbrock": layout.ROSENBROCK,
+    "dop853": layout.DOP853,
+}
 LYAPUNOV_CODES = {
     "never": layout.LYAP_NEVER,
     "unsettled": layout.LYAP_UNSETTLED,

@@ -301,7 +301,7 @@ BAD_MODEL_CONFIGS = [
     (raw_config(law="ruina"), "state_law must be one of aging, slip; got 'ruina'"),
     (
         raw_config(integrator={"method": "radau"}),
-        "integrator.method must be one of dopri5, rk4, rosenbrock; got 'radau'",
+        "integrator.method must be one of dopri5, rk4, rosenbrock, dop853; got 'radau'",
     ),
     (
         raw_config("quasi-static", parameters={"eta_W": 0.1}),

@@ -242,19 +242,21 @@ def test_rk4_is_fourth_order(nonlinear_reference):
     assert np.all((ratios > 13) & (ratios < 19)), ratios  # 2⁴ = 16 ± 20 %
 
 
+@pytest.mark.parametrize("method", ["dopri5", "dop853"])
 @pytest.mark.parametrize("rtol", [1e-8, 1e-10])
-def test_dopri5_trace_matches_scipy(nonlinear_reference, rtol):
-    """ln v(t) recorded every 0.01 D0/V over 10 periods (τ ≤ 50) vs SciPy.
+def test_adaptive_trace_matches_scipy(nonlinear_reference, rtol, method):
+    """ln v(t) recorded every 0.01 D0/V over 10 periods (τ ≤ 50) vs SciPy, DOPRI5 and DOP853.
 
     Tolerance: a tolerance-controlled method's global error is ≈ C·rtol, and here C is
     large because ℓ' reaches ~500 in the slips: a timing error of ~5e-7 becomes ~2.5e-4
     in ℓ at rtol 1e-8. SciPy's own RK45 (the same Dormand–Prince pair) at rtol 1e-8,
     atol 1e-10 has the same 2.5e-4 error on this problem. So: max |Δℓ| ≤ 1e5·rtol
     (1e-3 at 1e-8, 1e-5 at 1e-10); away from the slips (|ℓ'| < 1) ≤ 1e4·rtol; and a
-    tolerance 100 times tighter must shrink the error at least 30 times
-    (checked by the rtol = 1e-10 case against 1e-8)."""
+    tolerance 100 times tighter must shrink the error at least 30 times, 15 times for
+    DOP853, whose blend of 5th- and 3rd-order error estimates is not proportional to
+    its 8th-order error (checked by the rtol = 1e-10 case against 1e-8)."""
     config = make_config(
-        NONLINEAR, integrator={"method": "dopri5", "rtol": rtol, "atol": rtol * 1e-2, "t_end": 50.0}
+        NONLINEAR, integrator={"method": method, "rtol": rtol, "atol": rtol * 1e-2, "t_end": 50.0}
     )
     result, rec_t, rec_y = run_recorded(config, rec_dt=0.01)
     assert result[layout.R_N_RECORDED] == 5001 and rec_t[-1] == 50.0
@@ -267,10 +269,11 @@ def test_dopri5_trace_matches_scipy(nonlinear_reference, rtol):
     assert error[slow].max() <= 1e4 * rtol
     if rtol == 1e-10:
         loose = make_config(
-            NONLINEAR, integrator={"method": "dopri5", "rtol": 1e-8, "atol": 1e-10, "t_end": 50.0}
+            NONLINEAR, integrator={"method": method, "rtol": 1e-8, "atol": 1e-10, "t_end": 50.0}
         )
         _, _, loose_y = run_recorded(loose, rec_dt=0.01)
-        assert np.abs(loose_y[:, 0] - ref[0]).max() >= 30 * error.max()
+        shrink = {"dopri5": 30, "dop853": 15}[method]  # measured: ~100 and 24
+        assert np.abs(loose_y[:, 0] - ref[0]).max() >= shrink * error.max()
 
 
 def test_dopri5_two_blocks_match_scipy():
@@ -358,13 +361,16 @@ def test_hermite_interpolant_is_exact_for_cubics():
         return 3 * t**2 - 1.2 * t + 0.05
 
     y0, y1, d0, d1 = cubic(0.2), cubic(0.2 + h), slope(0.2), slope(0.2 + h)
+    none = (0.0, 0.0, 0.0, 0.0)
     for theta in (0.0, 0.3, 0.5, 1.0):
-        value = steppers.dense_value(y0, y1, d0, d1, h, 0.0, theta)
+        value = steppers.dense_value(y0, y1, d0, d1, h, none, theta)
         assert value == pytest.approx(cubic(0.2 + theta * h), abs=1e-15)
-    theta = steppers.dense_extremum(y0, y1, d0, d1, h, 0.0)
+    theta = steppers.dense_extremum(y0, y1, d0, d1, h, none)
     assert 0.2 + theta * h == pytest.approx((0.6 + math.sqrt(0.21)) / 3, abs=1e-12)
     level = cubic(0.8)
-    theta = steppers.dense_crossing(cubic(0.6), cubic(0.9), slope(0.6), slope(0.9), 0.3, 0.0, level)
+    theta = steppers.dense_crossing(
+        cubic(0.6), cubic(0.9), slope(0.6), slope(0.9), 0.3, none, level
+    )
     assert 0.6 + theta * 0.3 == pytest.approx(0.8, abs=1e-12)
 
 
@@ -395,9 +401,9 @@ def test_dopri5_dense_output_is_fourth_order():
         ref = y0.copy()
         for _ in range(64):
             ref = step(ref, h / 128)[0]
-        r5 = steppers.dense_r5(layout.DOPRI5, j, h, f0, k3, k4, k5, k6, f1)
-        dense = steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, r5, 0.5)
-        hermite = steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, 0.0, 0.5)
+        r = steppers.dense_tail(layout.DOPRI5, j, h, f0, k3, k4, k5, k6, f1, np.empty((4, 0)))
+        dense = steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, 0.5)
+        hermite = steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, (0.0,) * 4, 0.5)
         return abs(dense - ref[j]), abs(hermite - ref[j])
 
     for j in (0, 1):
@@ -407,6 +413,74 @@ def test_dopri5_dense_output_is_fourth_order():
         assert d1 / d2 > 24
         assert 11 < c1 / c2 < 22
         assert d2 < 0.02 * c2
+
+
+def dop853_step(y, h, p):
+    """One step of the kernels' DOP853 from ``y`` (one quasi-static block): the new state,
+    its slope, the interpolant's coefficients r5 … r8 (4, 2) and the error norm."""
+    ev, f, ytmp, ynew, fnew = np.empty(1), np.empty(2), np.empty(2), np.empty(2), np.empty(2)
+    k, dense = np.empty((steppers.STAGE_ROWS_DOP853, 2)), np.empty((4, 2))
+    equations.rhs(y, p, *CODES, 1, ev, f)
+    err = steppers.step_dop853(y, f, h, p, *CODES, 1, ev, k, ytmp, ynew, fnew, 1e-8, 1e-10)
+    steppers.dense_dop853(y, f, h, p, *CODES, 1, ev, k, ytmp, fnew, dense)
+    return ynew, fnew, dense, err
+
+
+def one_block_params(kappa):
+    p = np.zeros(layout.N_PARAMS)
+    p[layout.P_A], p[layout.P_B], p[layout.P_KAPPA1] = A, B, kappa
+    return p
+
+
+def test_dop853_is_eighth_order(nonlinear_reference):
+    """Fixed steps of the DOP853 stepper over the first 8 D0/V of the nonlinear run (no
+    slip yet): global error ≈ 2⁸ = 256 times smaller per halving of the step (fitted
+    order 7.5–8.5; the errors span 1e-6 … 1e-11, above the reference's ~1e-12)."""
+    p = one_block_params(0.9 * KAPPA_C)
+    exact = nonlinear_reference.sol(8.0)
+    steps = np.array([1.0, 0.5, 0.25])
+    errors = []
+    for h in steps:
+        y = np.array([math.log(1.05), 0.0])
+        for _ in range(round(8.0 / h)):
+            y = dop853_step(y, h, p)[0]
+        errors.append(np.max(np.abs(y - exact)))
+    order = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert 7.5 <= order <= 8.5, errors
+
+
+def test_dop853_dense_output_is_seventh_order():
+    """DOP853's interpolant, from which extrema are read, at mid-step: local error
+    O(h⁸) (order 7), 2⁸ = 256 per halving asymptotically (> 150 asserted), and at the
+    step's ends the step's own values. Reference: the half step in 64 DOP853 substeps."""
+    p = one_block_params(0.9 * KAPPA_C)
+    y0 = np.array([0.3, -0.2])
+    f0 = np.empty(2)
+    equations.rhs(y0, p, *CODES, 1, np.empty(1), f0)
+
+    def mid_error(h, j):
+        y1, f1, dense, _ = dop853_step(y0, h, p)
+        ref = y0.copy()
+        for _ in range(64):
+            ref = dop853_step(ref, h / 128, p)[0]
+        r = tuple(dense[:, j])
+        ends = [steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, t) for t in (0.0, 1.0)]
+        assert ends == [y0[j], pytest.approx(y1[j], abs=1e-15)]
+        return abs(steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, 0.5) - ref[j])
+
+    for j in (0, 1):
+        assert mid_error(0.8, j) / mid_error(0.4, j) > 150
+
+
+def test_dense_slope_is_the_derivative_of_the_interpolant():
+    """The slope the extremum search bisects on is h d/dθ of the value, for the DOPRI5
+    form (r5 only) and DOP853's (r5 … r8): against a central difference."""
+    for r in ((0.3, 0.0, 0.0, 0.0), (0.3, -0.2, 0.15, 0.05)):
+        for theta in (0.1, 0.5, 0.9):
+            value = [steppers.dense_value(0.2, 0.5, 1.1, -0.4, 0.7, r, theta + s * 1e-6)
+                     for s in (-1, 1)]  # fmt: skip
+            slope = steppers.dense_slope(0.2, 0.5, 1.1, -0.4, 0.7, r, theta)
+            assert slope == pytest.approx((value[1] - value[0]) / 2e-6, rel=1e-7)
 
 
 @pytest.mark.parametrize("q", [0.9, -0.6, 0.3])

@@ -15,7 +15,8 @@ from sweep.variables import ATTRACTORS
 
 CODES = {"quasi-static": layout.QUASI_STATIC, "quasi-dynamic": layout.QUASI_DYNAMIC,
          "inertial": layout.INERTIAL}  # fmt: skip
-METHODS = {"dopri5": layout.DOPRI5, "rk4": layout.RK4, "rosenbrock": layout.ROSENBROCK}
+METHODS = {"dopri5": layout.DOPRI5, "rk4": layout.RK4, "rosenbrock": layout.ROSENBROCK,
+           "dop853": layout.DOP853}  # fmt: skip
 
 
 def take_step(method, y, h, p, model, nb):
@@ -26,6 +27,9 @@ def take_step(method, y, h, p, model, nb):
     equations.rhs(y, p, *codes, nb, ev, f)
     if method == layout.DOPRI5:
         steppers.step_dopri5(y, f, h, p, *codes, nb, ev, np.empty((5, n)), ytmp, ynew, fnew,
+                             1e-8, 1e-10)  # fmt: skip
+    elif method == layout.DOP853:
+        steppers.step_dop853(y, f, h, p, *codes, nb, ev, np.empty((15, n)), ytmp, ynew, fnew,
                              1e-8, 1e-10)  # fmt: skip
     elif method == layout.RK4:
         steppers.step_rk4(y, f, h, p, *codes, nb, ev, np.empty((5, n)), ytmp, ynew)
@@ -38,7 +42,7 @@ def take_step(method, y, h, p, model, nb):
 @pytest.mark.parametrize(
     "model, method",  # every method, every model (each pair compiles its own tangent step)
     [("quasi-static", "dopri5"), ("quasi-static", "rk4"), ("inertial", "dopri5"),
-     ("inertial", "rosenbrock")],
+     ("inertial", "rosenbrock"), ("quasi-dynamic", "dop853")],
 )  # fmt: skip
 def test_tangent_step_is_the_derivative_of_the_step_map(model, method):
     """``tangent_step`` carries δ by the derivative of the method's step map: against a

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..accelerate import jit, jit_inline
 from .layout import B_A, B_B, N_PARAMS, STEADY, STICK_SLIP
-from .steppers import dense_extremum, dense_r5, dense_value
+from .steppers import dense_extremum, dense_mix, dense_tail, dense_value
 
 # A decaying oscillation is called steady only once it is this small (peak-to-peak
 # ln v/V of every block), i.e. in the linear regime where decay is geometric: see
@@ -460,8 +460,9 @@ def start_cycle(y, p, nb, A, B, win, cs):
 
 @jit_inline
 def update_cycle(
-    method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, p, nb, A, B, win, cs, slipped, slip_lnv
-):
+    method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, p, nb, A, B, win, cs, slipped,
+    slip_lnv,
+):  # fmt: skip
     """Fold the step from ``t`` to ``t + h`` into the current cycle's statistics.
 
     Extremes of every block's ℓ and friction are located inside the step with
@@ -479,9 +480,9 @@ def update_cycle(
         rising = f[i] > 0.0
         falling_now = fnew[i] <= 0.0
         if rising == falling_now:  # slope changed sign: one extremum in the step
-            r5 = dense_r5(method, i, h, f, k3, k4, k5, k6, fnew)
-            theta = dense_extremum(y[i], ynew[i], f[i], fnew[i], h, r5)
-            val = dense_value(y[i], ynew[i], f[i], fnew[i], h, r5, theta)
+            r = dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense)
+            theta = dense_extremum(y[i], ynew[i], f[i], fnew[i], h, r)
+            val = dense_value(y[i], ynew[i], f[i], fnew[i], h, r, theta)
             win[W_LMAX, i] = max(win[W_LMAX, i], val)
             win[W_LMIN, i] = min(win[W_LMIN, i], val)
             lnv_max_run = max(lnv_max_run, val)
@@ -506,11 +507,12 @@ def update_cycle(
         dmu0 = a_i * f[i] + b_i * f[nb + i]
         dmu1 = a_i * fnew[i] + b_i * fnew[nb + i]
         if (dmu0 > 0.0) == (dmu1 <= 0.0):
-            r5_mu = a_i * dense_r5(method, i, h, f, k3, k4, k5, k6, fnew) + b_i * dense_r5(
-                method, nb + i, h, f, k3, k4, k5, k6, fnew
-            )
-            theta = dense_extremum(mu0, mu, dmu0, dmu1, h, r5_mu)
-            val = dense_value(mu0, mu, dmu0, dmu1, h, r5_mu, theta)
+            r_mu = dense_mix(
+                a_i, dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense),
+                b_i, dense_tail(method, nb + i, h, f, k3, k4, k5, k6, fnew, dense),
+            )  # fmt: skip
+            theta = dense_extremum(mu0, mu, dmu0, dmu1, h, r_mu)
+            val = dense_value(mu0, mu, dmu0, dmu1, h, r_mu, theta)
             win[W_MUMAX, i] = max(win[W_MUMAX, i], val)
             win[W_MUMIN, i] = min(win[W_MUMIN, i], val)
         win[W_MUMAX, i] = max(win[W_MUMAX, i], mu)
@@ -521,6 +523,28 @@ def update_cycle(
     cs[C_WIN_SYNC] = win_sync
     cs[C_SLIPPING] = slipping
     return new_peak, theta_peak
+
+
+@jit_inline
+def dense_needed(f, fnew, p, nb, A, B):
+    """Whether :func:`update_cycle` or the mean ℓ's extremes read the interpolant of the
+    step with slopes ``f`` → ``fnew``: a slope of some ℓ_i, friction μ_i or (several
+    blocks) of the mean ℓ changes sign in it (the same tests, term by term). DOP853
+    computes its interpolant only then (three more stages)."""
+    need = False
+    m0 = 0.0
+    m1 = 0.0
+    for i in range(nb):
+        a_i, b_i = block_friction(p, nb, i, A, B)
+        dmu0 = a_i * f[i] + b_i * f[nb + i]
+        dmu1 = a_i * fnew[i] + b_i * fnew[nb + i]
+        if (f[i] > 0.0) == (fnew[i] <= 0.0) or (dmu0 > 0.0) == (dmu1 <= 0.0):
+            need = True
+        m0 += f[i] / nb
+        m1 += fnew[i] / nb
+    if nb > 1 and (m0 > 0.0) == (m1 <= 0.0):
+        need = True
+    return need
 
 
 @jit
@@ -551,11 +575,11 @@ def kuramoto_order(t_peak_blocks, t_peak, period, nb):
 
 
 @jit
-def event_section(method, h, y, ynew, f, fnew, k3, k4, k5, k6, nb, theta, section):
+def event_section(method, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, nb, theta, section):
     """Every block's ℓ at the event at fraction ``theta`` of the step (dense output)."""
     for i in range(nb):
-        r5 = dense_r5(method, i, h, f, k3, k4, k5, k6, fnew)
-        section[i] = dense_value(y[i], ynew[i], f[i], fnew[i], h, r5, theta)
+        r = dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense)
+        section[i] = dense_value(y[i], ynew[i], f[i], fnew[i], h, r, theta)
 
 
 @jit

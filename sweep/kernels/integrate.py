@@ -45,6 +45,7 @@ from .cycles import (
     X_SYNC,
     close_cycle,
     cycle_arrays,
+    dense_needed,
     end_slip_event,
     event_section,
     history_value,
@@ -57,6 +58,7 @@ from .cycles import (
 from .equations import rhs
 from .layout import (
     CHAOTIC,
+    DOP853,
     DOPRI5,
     FIXED_POINT,
     LYAP_ALWAYS,
@@ -119,11 +121,13 @@ from .layout import (
 )
 from .steppers import (
     dense_crossing,
+    dense_dop853,
     dense_extremum,
-    dense_r5,
+    dense_tail,
     dense_value,
     next_step_size,
     rosenbrock_scratch,
+    step_dop853,
     step_dopri5,
     step_rk4,
     step_rosenbrock,
@@ -182,7 +186,7 @@ def runaway_index(ynew, fnew, nb, lnv_cap):
 
 
 @jit
-def record_step(method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, rec_dt, rec_t, rec_y, n_rec):
+def record_step(method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, rec_dt, rec_t, rec_y, n_rec):
     """Record the state at the multiples of ``rec_dt`` inside the step (dense output)
     while the buffers have room (the last slot is kept for the end). Returns the count."""
     rec_cap = rec_t.size
@@ -190,8 +194,8 @@ def record_step(method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, rec_dt, rec_t, r
         theta = (n_rec * rec_dt - t) / h
         rec_t[n_rec] = n_rec * rec_dt
         for j in range(y.size):
-            r5 = dense_r5(method, j, h, f, k3, k4, k5, k6, fnew)
-            rec_y[n_rec, j] = dense_value(y[j], ynew[j], f[j], fnew[j], h, r5, theta)
+            r = dense_tail(method, j, h, f, k3, k4, k5, k6, fnew, dense)
+            rec_y[n_rec, j] = dense_value(y[j], ynew[j], f[j], fnew[j], h, r, theta)
         n_rec += 1
     return n_rec
 
@@ -219,12 +223,12 @@ def record_end(t, y, rec_t, rec_y, n_rec):
 
 
 @jit
-def cap_crossing(method, i, t, h, y, ynew, f, fnew, k3, k4, k5, k6, nb, lnv_cap, win, cs):
+def cap_crossing(method, i, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, nb, lnv_cap, win, cs):
     """End a run whose block ``i`` crossed ``lnv_cap`` in the step from ``t`` to
     ``t + h``: keep the step (``y`` becomes ``ynew``, the extremes include it) and
     return the time of the crossing (D0/V, interpolated)."""
-    r5 = dense_r5(method, i, h, f, k3, k4, k5, k6, fnew)
-    theta = dense_crossing(y[i], ynew[i], f[i], fnew[i], h, r5, lnv_cap)
+    r = dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense)
+    theta = dense_crossing(y[i], ynew[i], f[i], fnew[i], h, r, lnv_cap)
     tau = t + (0.0 if y[i] > lnv_cap else theta) * h
     for j in range(nb):
         win[W_LMAX, j] = max(win[W_LMAX, j], ynew[j])
@@ -483,8 +487,8 @@ def integrate_system(
 
     n = y0.size
     y = y0.copy()
-    f, ynew, fnew, ytmp, k = step_scratch(n)
-    k3, k4, k5, k6 = k[1], k[2], k[3], k[4]  # the stages dense output needs
+    f, ynew, fnew, ytmp, k, dense = step_scratch(method, n)
+    k3, k4, k5, k6 = k[1], k[2], k[3], k[4]  # the stages DOPRI5's dense output needs
     ev = np.empty(nb)
     k_ros, mat, perm = rosenbrock_scratch(method, n)
     win, past, past_cs, hist, limits, section, cs, slipped = cycle_arrays(y, p, nb, A, B)
@@ -529,6 +533,10 @@ def integrate_system(
             err = step_dopri5(
                 y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew, fnew, rtol, atol
             )
+        elif method == DOP853:
+            err = step_dop853(
+                y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew, fnew, rtol, atol
+            )
         elif method == ROSENBROCK:
             err = step_rosenbrock(
                 y, f, h, p, model, law, coupling, het, nb, ev, k_ros, mat, perm, ytmp, ynew,
@@ -553,9 +561,14 @@ def integrate_system(
             regime = RUNAWAY
             tau_runaway = t + h
             if crossed >= 0:  # the step is kept: the run ends after it
+                if method == DOP853:
+                    dense_dop853(
+                        y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense
+                    )
                 tau_runaway = cap_crossing(
-                    method, crossed, t, h, y, ynew, f, fnew, k3, k4, k5, k6, nb, lnv_cap, win, cs
-                )
+                    method, crossed, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, nb, lnv_cap,
+                    win, cs,
+                )  # fmt: skip
                 t += h
             break
 
@@ -567,12 +580,17 @@ def integrate_system(
                 )  # fmt: skip
                 lyapunov_add(ly, t + h, h, growth)
 
+        if method == DOP853:  # its interpolant costs three stages: only where it is read
+            if n_rec > 0 or dense_needed(f, fnew, p, nb, A, B):
+                dense_dop853(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense)
         new_peak, theta_peak = update_cycle(
-            method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, p, nb, A, B, win, cs, slipped,
-            slip_lnv,
+            method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, p, nb, A, B, win, cs,
+            slipped, slip_lnv,
         )  # fmt: skip
         if new_peak and nb > 1:
-            event_section(method, h, y, ynew, f, fnew, k3, k4, k5, k6, nb, theta_peak, section)
+            event_section(
+                method, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, nb, theta_peak, section
+            )
         if cs[C_SLIPPING] > 0.0:
             cs[C_IN_EVENT] = 1.0
         elif cs[C_IN_EVENT] > 0.0:
@@ -590,17 +608,24 @@ def integrate_system(
                 dm1 += fnew[i] / nb
             if (dm0 > 0.0) == (dm1 <= 0.0):
                 r5 = 0.0
+                r6 = 0.0
+                r7 = 0.0
+                r8 = 0.0
                 for i in range(nb):
-                    r5 += dense_r5(method, i, h, f, k3, k4, k5, k6, fnew) / nb
-                theta = dense_extremum(m0, m1, dm0, dm1, h, r5)
-                val = dense_value(m0, m1, dm0, dm1, h, r5, theta)
+                    r = dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense)
+                    r5 += r[0] / nb
+                    r6 += r[1] / nb
+                    r7 += r[2] / nb
+                    r8 += r[3] / nb
+                theta = dense_extremum(m0, m1, dm0, dm1, h, (r5, r6, r7, r8))
+                val = dense_value(m0, m1, dm0, dm1, h, (r5, r6, r7, r8), theta)
                 cs[C_WIN_MBAR_MAX] = max(cs[C_WIN_MBAR_MAX], val)
                 cs[C_WIN_MBAR_MIN] = min(cs[C_WIN_MBAR_MIN], val)
             cs[C_WIN_MBAR_MAX] = max(cs[C_WIN_MBAR_MAX], m1)
             cs[C_WIN_MBAR_MIN] = min(cs[C_WIN_MBAR_MIN], m1)
         if n_rec > 0:
             n_rec = record_step(
-                method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, rec_dt, rec_t, rec_y, n_rec
+                method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, rec_dt, rec_t, rec_y, n_rec
             )
         t_new_peak = t + theta_peak * h
         t += h

@@ -12,7 +12,7 @@ m dv/dt per unit normal load). Time τ is in units of D0/V.
 # --- codes -------------------------------------------------------------------
 QUASI_STATIC, QUASI_DYNAMIC, INERTIAL = 0, 1, 2
 AGING, SLIP = 0, 1
-DOPRI5, RK4, ROSENBROCK = 0, 1, 2
+DOPRI5, RK4, ROSENBROCK, DOP853 = 0, 1, 2, 3
 STEADY, STICK_SLIP, RUNAWAY, UNDECIDED = 0, 1, 2, 3
 CHAIN, RING, ALL = 0, 1, 2  # coupling springs: neighbours of a chain, of a ring, every pair
 # what a run settled on (R_ATTRACTOR); names in sweep/variables.py
@@ -51,7 +51,7 @@ N_BLOCK_PARAMS = 4
 (
     S_MODEL,  # QUASI_STATIC | QUASI_DYNAMIC | INERTIAL
     S_LAW,  # AGING | SLIP
-    S_METHOD,  # DOPRI5 | RK4 | ROSENBROCK
+    S_METHOD,  # DOPRI5 | RK4 | ROSENBROCK | DOP853
     S_NBLOCKS,  # number of blocks
     S_RTOL,  # relative tolerance of the adaptive methods
     S_ATOL,  # absolute tolerance of the adaptive methods

@@ -1,7 +1,11 @@
-"""Steppers (RK4, DOPRI5, RODAS4) and the dense output that locates extrema inside a step.
+"""Steppers (RK4, DOPRI5, DOP853, RODAS4) and the dense output that locates extrema
+inside a step.
 
 Extrema are located inside a step with the interpolant of the step: DOPRI5's
-continuous extension of order 4, cubic Hermite for RK4 and RODAS4.
+continuous extension of order 4, DOP853's of order 7, cubic Hermite for RK4 and
+RODAS4. All are one nested polynomial in θ (:func:`dense_value`) whose first four
+coefficients come from the step's ends and slopes and the rest from its stages
+(:func:`dense_tail`).
 """
 
 import math
@@ -9,8 +13,9 @@ import math
 import numpy as np
 
 from ..accelerate import jit, jit_inline
+from . import tableau_dop853
 from .equations import jacobian, rhs
-from .layout import DOPRI5, RK4, ROSENBROCK
+from .layout import DOP853, DOPRI5, RK4, ROSENBROCK
 
 # Dormand–Prince 5(4) tableau (Hairer, Nørsett & Wanner, Table II.5.2).
 _A21 = 1 / 5
@@ -171,6 +176,79 @@ def step_dopri5(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew, fn
     return math.sqrt(err2 / n)
 
 
+# DOP853 (Hairer, Nørsett & Wanner I, section II.10; tableau_dop853.py).
+_A8 = tableau_dop853.A
+_B8 = tableau_dop853.B
+_E8_5 = tableau_dop853.E5
+_E8_3 = tableau_dop853.E3
+_D8 = tableau_dop853.D
+_S8 = tableau_dop853.N_STAGES  # 12: K_0 = f, K_1 … K_11, then K_12 = f(y_new)
+_S8_DENSE = tableau_dop853.N_STAGES_DENSE  # 16: … K_13 … K_15 for the interpolant
+
+
+@jit_inline
+def step_dop853(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew, fnew, rtol, atol):
+    """One DOP853 step (order 8); returns its error norm, DOP853's blend of the 5th- and
+    3rd-order estimates, ‖e5‖² / √(‖e5‖² + 0.01 ‖e3‖²), scaled as for DOPRI5.
+
+    ``f`` = rhs(y) on entry; the stages K_1 … K_11 go to rows 0-10 of ``k`` (15, n),
+    rows 12-14 are left for the dense output's (:func:`dense_dop853`); on return
+    ``ynew`` holds the 8th-order solution and ``fnew`` = rhs(ynew). The stages are a
+    loop around one call of the right-hand side (one inlined copy).
+    """
+    n = y.size
+    for s in range(1, _S8):
+        for j in range(n):
+            acc = _A8[s, 0] * f[j]
+            for r in range(1, s):
+                acc += _A8[s, r] * k[r - 1, j]
+            ytmp[j] = y[j] + h * acc
+        rhs(ytmp, p, model, law, coupling, het, nb, ev, k[s - 1])
+    for j in range(n):
+        acc = _B8[0] * f[j]
+        for r in range(1, _S8):
+            acc += _B8[r] * k[r - 1, j]
+        ynew[j] = y[j] + h * acc
+    rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
+    err5 = 0.0
+    err3 = 0.0
+    for j in range(n):
+        e5 = _E8_5[0] * f[j] + _E8_5[_S8] * fnew[j]
+        e3 = _E8_3[0] * f[j] + _E8_3[_S8] * fnew[j]
+        for r in range(1, _S8):
+            e5 += _E8_5[r] * k[r - 1, j]
+            e3 += _E8_3[r] * k[r - 1, j]
+        scale = atol + rtol * max(abs(y[j]), abs(ynew[j]))
+        err5 += (e5 / scale) ** 2
+        err3 += (e3 / scale) ** 2
+    if err5 == 0.0 and err3 == 0.0:
+        return 0.0
+    return abs(h) * err5 / math.sqrt((err5 + 0.01 * err3) * n)
+
+
+@jit
+def dense_dop853(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense):
+    """DOP853's interpolant of the step just taken (order 7): its three extra stages
+    K_13 … K_15 into rows 12-14 of ``k``, then rows 3-6 of the interpolant's
+    coefficients, h Σ D K, into rows 0-3 of ``dense`` (4, n) (:func:`dense_tail`)."""
+    n = y.size
+    for s in range(_S8 + 1, _S8_DENSE):
+        for j in range(n):
+            acc = _A8[s, 0] * f[j] + _A8[s, _S8] * fnew[j]
+            for r in range(1, s):
+                if r != _S8:
+                    acc += _A8[s, r] * k[r - 1, j]
+            ytmp[j] = y[j] + h * acc
+        rhs(ytmp, p, model, law, coupling, het, nb, ev, k[s - 1])
+    for c in range(4):
+        for j in range(n):
+            acc = _D8[c, 0] * f[j] + _D8[c, _S8] * fnew[j]
+            for r in range(1, _S8_DENSE):
+                if r != _S8:
+                    acc += _D8[c, r] * k[r - 1, j]
+            dense[c, j] = h * acc
+
+
 @jit
 def step_rosenbrock(
     y, f, h, p, model, law, coupling, het, nb, ev, k, mat, perm, ytmp, ynew, fnew, rtol, atol
@@ -225,20 +303,33 @@ _D5, _D6, _D7 = 701980252875 / 199316789632, -1453857185 / 822651844, 69997945 /
 
 
 @jit_inline
-def dense_r5(method, j, h, f, k3, k4, k5, k6, fnew):
-    """Fifth coefficient of the interpolant of component ``j`` over a step of size h:
-    DOPRI5's (stages k1 = ``f``, k3 … k6, k7 = ``fnew``), 0 for the other methods
-    (cubic Hermite)."""
+def dense_tail(method, j, h, f, k3, k4, k5, k6, fnew, dense):
+    """Coefficients r5 … r8 of the interpolant of component ``j`` over a step of size h
+    (:func:`dense_value`): DOPRI5's r5 (stages k1 = ``f``, k3 … k6, k7 = ``fnew``),
+    DOP853's four from ``dense`` (filled by :func:`dense_dop853`), none for RK4 and
+    RODAS4 (cubic Hermite)."""
+    if method == DOP853:
+        return (dense[0, j], dense[1, j], dense[2, j], dense[3, j])
     if method != DOPRI5:
-        return 0.0
-    return h * (_D1 * f[j] + _D3 * k3[j] + _D4 * k4[j] + _D5 * k5[j] + _D6 * k6[j] + _D7 * fnew[j])
+        return (0.0, 0.0, 0.0, 0.0)
+    r5 = h * (_D1 * f[j] + _D3 * k3[j] + _D4 * k4[j] + _D5 * k5[j] + _D6 * k6[j] + _D7 * fnew[j])
+    return (r5, 0.0, 0.0, 0.0)
 
 
 @jit_inline
-def dense_value(y0, y1, d0, d1, h, r5, theta):
+def dense_mix(a, r, b, s):
+    """The coefficients r5 … r8 of a r + b s (a linear combination of components)."""
+    return (a * r[0] + b * s[0], a * r[1] + b * s[1], a * r[2] + b * s[2], a * r[3] + b * s[3])
+
+
+@jit_inline
+def dense_value(y0, y1, d0, d1, h, r, theta):
     """Interpolant at fraction ``theta`` of a step of size h from (y0, slope d0) to
-    (y1, slope d1): DOPRI5's continuous extension (order 4) with its coefficient
-    ``r5``, the cubic Hermite interpolant for ``r5`` = 0 (RK4, RODAS4).
+    (y1, slope d1) with the coefficients ``r`` = (r5, r6, r7, r8) of
+    :func:`dense_tail`: y0 + θ(r2 + θ'(r3 + θ(r4 + θ'(r5 + θ(r6 + θ'(r7 + θ r8)))))),
+    θ' = 1 − θ, r2 … r4 from the ends. DOPRI5's continuous extension (order 4) has
+    r5 only, DOP853's (order 7) all four, the cubic Hermite interpolant (RK4,
+    RODAS4) none.
 
     The extrema of a cycle are read from it: with the cubic Hermite interpolant over
     0.5 D0/V steps they scattered by ~1e-4 of the amplitude from cycle to cycle,
@@ -248,26 +339,43 @@ def dense_value(y0, y1, d0, d1, h, r5, theta):
     r2 = y1 - y0
     r3 = h * d0 - r2
     r4 = r2 - h * d1 - r3
-    return y0 + theta * (r2 + (1.0 - theta) * (r3 + theta * (r4 + (1.0 - theta) * r5)))
-
-
-@jit_inline
-def dense_slope(y0, y1, d0, d1, h, r5, theta):
-    """h × the time derivative of :func:`dense_value` at fraction ``theta``."""
-    r2 = y1 - y0
-    r3 = h * d0 - r2
-    r4 = r2 - h * d1 - r3
+    r5, r6, r7, r8 = r
     u = 1.0 - theta
-    return (
-        r2
-        + (u - theta) * r3
-        + theta * (2.0 - 3.0 * theta) * r4
-        + 2.0 * theta * u * (u - theta) * r5
+    if r6 == 0.0 and r7 == 0.0 and r8 == 0.0:
+        return y0 + theta * (r2 + u * (r3 + theta * (r4 + u * r5)))
+    return y0 + theta * (
+        r2 + u * (r3 + theta * (r4 + u * (r5 + theta * (r6 + u * (r7 + theta * r8)))))
     )
 
 
 @jit_inline
-def dense_extremum(y0, y1, d0, d1, h, r5):
+def dense_slope(y0, y1, d0, d1, h, r, theta):
+    """h × the time derivative of :func:`dense_value` at fraction ``theta``."""
+    r2 = y1 - y0
+    r3 = h * d0 - r2
+    r4 = r2 - h * d1 - r3
+    r5, r6, r7, r8 = r
+    u = 1.0 - theta
+    if r6 == 0.0 and r7 == 0.0 and r8 == 0.0:
+        return (
+            r2
+            + (u - theta) * r3
+            + theta * (2.0 - 3.0 * theta) * r4
+            + 2.0 * theta * u * (u - theta) * r5
+        )
+    # the nested polynomial and its derivative, from the innermost factor out
+    q = r7 + theta * r8
+    dq = r8
+    q, dq = r6 + u * q, u * dq - q
+    q, dq = r5 + theta * q, q + theta * dq
+    q, dq = r4 + u * q, u * dq - q
+    q, dq = r3 + theta * q, q + theta * dq
+    q, dq = r2 + u * q, u * dq - q
+    return q + theta * dq
+
+
+@jit_inline
+def dense_extremum(y0, y1, d0, d1, h, r):
     """Fraction θ ∈ [0, 1] of the step where the interpolant's slope vanishes, given
     slopes d0 and d1 of opposite sign (bisection, 50 halvings)."""
     lo = 0.0
@@ -275,7 +383,7 @@ def dense_extremum(y0, y1, d0, d1, h, r5):
     rising = d0 > 0.0
     for _ in range(50):
         mid = 0.5 * (lo + hi)
-        if (dense_slope(y0, y1, d0, d1, h, r5, mid) > 0.0) == rising:
+        if (dense_slope(y0, y1, d0, d1, h, r, mid) > 0.0) == rising:
             lo = mid
         else:
             hi = mid
@@ -283,14 +391,14 @@ def dense_extremum(y0, y1, d0, d1, h, r5):
 
 
 @jit
-def dense_crossing(y0, y1, d0, d1, h, r5, level):
+def dense_crossing(y0, y1, d0, d1, h, r, level):
     """Fraction θ of the step where the interpolant rises through ``level``
     (y0 < level ≤ y1; bisection, 50 halvings)."""
     lo = 0.0
     hi = 1.0
     for _ in range(50):
         mid = 0.5 * (lo + hi)
-        if dense_value(y0, y1, d0, d1, h, r5, mid) < level:
+        if dense_value(y0, y1, d0, d1, h, r, mid) < level:
             lo = mid
         else:
             hi = mid
@@ -302,13 +410,18 @@ def next_step_size(method, h, err, max_step):
     """The step after one of size ``h`` with error norm ``err`` (D0/V).
 
     RK4 keeps its fixed step. The adaptive methods use the standard controller
-    0.9 err^(−1/(q+1)) (q: order of the error estimate), growing at most 5× and
+    0.9 err^(−1/(q+1)) (q: order of the error estimate: 3 for RODAS4, 4 for
+    DOPRI5, 7 for DOP853's blended estimate), growing at most 5× and
     at most to ``max_step`` after an accepted step, shrinking at least 5× after a
     rejected one (and 5× when the error is not finite).
     """
     if method == RK4:
         return h
-    expo = -0.25 if method == ROSENBROCK else -0.2
+    expo = -0.2
+    if method == ROSENBROCK:
+        expo = -0.25
+    elif method == DOP853:
+        expo = -0.125
     if err <= 1.0:
         return min(max_step, h * min(5.0, 0.9 * max(err, 1e-10) ** expo))
     if math.isfinite(err):
@@ -316,11 +429,22 @@ def next_step_size(method, h, err, max_step):
     return h * 0.2
 
 
+#: Rows of the stage scratch ``k``: DOPRI5's k2 … k6, DOP853's K_1 … K_15 (row 11 unused).
+STAGE_ROWS, STAGE_ROWS_DOP853 = 5, 15
+
+
 @jit
-def step_scratch(n):
-    """Scratch of the explicit steps for a state of ``n`` values: f, ynew, fnew, ytmp
-    and the stages k2 … k6 as the rows of one (5, n) array."""
-    return np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty((5, n))
+def step_scratch(method, n):
+    """Scratch of the explicit steps for a state of ``n`` values: f, ynew, fnew, ytmp,
+    the stages as the rows of one array (``STAGE_ROWS`` or, for DOP853,
+    ``STAGE_ROWS_DOP853``) and DOP853's interpolant coefficients (4, n; (4, 0) for
+    the other methods)."""
+    rows = STAGE_ROWS_DOP853 if method == DOP853 else STAGE_ROWS
+    width = n if method == DOP853 else 0
+    return (
+        np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty((rows, n)),
+        np.zeros((4, width)),
+    )  # fmt: skip
 
 
 @jit

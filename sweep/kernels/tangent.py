@@ -28,8 +28,15 @@ from numba import literally
 
 from ..accelerate import jit
 from .equations import rhs
-from .layout import DOPRI5, ROSENBROCK
-from .steppers import step_dopri5, step_rk4, step_rosenbrock
+from .layout import DOP853, DOPRI5, ROSENBROCK
+from .steppers import (
+    STAGE_ROWS,
+    STAGE_ROWS_DOP853,
+    step_dop853,
+    step_dopri5,
+    step_rk4,
+    step_rosenbrock,
+)
 
 #: Size of the difference that gives the tangent step, relative to max(1, max |y|):
 #: about √(machine epsilon) / 10, so round-off (u |y| / ε ~ 1e-8) and the second-order
@@ -66,14 +73,15 @@ N_LYAP = 19
 @jit
 def tangent_arrays(method, n):
     """Scratch of the tangent: δ (n,); the rows of ``work`` (5, n): y + εδ, its slope,
-    a stage argument, the step's end and its slope; the explicit stages (5, n); RODAS4's
+    a stage argument, the step's end and its slope; the explicit stages (``STAGE_ROWS``
+    or, for DOP853, ``STAGE_ROWS_DOP853`` rows of n); RODAS4's
     stages (6, n), matrix (n, n) and pivots (n,) (empty for the other methods); the
     accumulator ``ly`` (``L_*``)."""
     n_ros = n if method == ROSENBROCK else 0
     return (
         np.empty(n),
         np.empty((5, n)),
-        np.empty((5, n)),
+        np.empty((STAGE_ROWS_DOP853 if method == DOP853 else STAGE_ROWS, n)),
         np.empty((6 if n_ros else 0, n)),
         np.empty((n_ros, n_ros)),
         np.empty(n_ros, np.int64),
@@ -111,7 +119,7 @@ def tangent_step(
     renormalise it; returns the logarithm of its growth.
 
     The difference of the method's step from y + εδ and from y (see the module
-    docstring); ``work`` (5, n) and ``stages`` (5, n) are scratch, ``ros_*`` RODAS4's.
+    docstring); ``work`` (5, n) and ``stages`` are scratch, ``ros_*`` RODAS4's.
     Compiled per variant (``literally``): its codes are constants of the grid kernel.
     """
     literally(model)
@@ -130,6 +138,10 @@ def tangent_step(
     rhs(y2, p, model, law, coupling, het, nb, ev, f2)
     if method == DOPRI5:
         step_dopri5(
+            y2, f2, h, p, model, law, coupling, het, nb, ev, stages, ytmp, ynew2, fnew2, rtol, atol
+        )
+    elif method == DOP853:
+        step_dop853(
             y2, f2, h, p, model, law, coupling, het, nb, ev, stages, ytmp, ynew2, fnew2, rtol, atol
         )
     elif method == ROSENBROCK:
