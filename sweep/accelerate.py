@@ -1,6 +1,7 @@
 """Numba policy: the one place where decorator arguments are decided.
 
-Decisions (each tested in ``tests/test_accelerate.py``):
+Decisions (each tested in ``tests/test_accelerate.py``; the measurements behind them
+are in the changelog of the documentation, ``docs/changelog.md``):
 
 * ``nogil=True`` everywhere, so Dask worker threads can run kernels side by side.
 * The grid kernels are cached on disk by default (``jit_kernel``): users rerun the
@@ -15,35 +16,33 @@ Decisions (each tested in ``tests/test_accelerate.py``):
 * ``fastmath=False``: runaway detection must see NaN and inf (``nnan``/``ninf``
   would let LLVM assume they never occur).
 * ``error_model="numpy"``: a division by zero gives inf/NaN (a classified
-  outcome), not a Python exception raised from inside a parallel loop.
+  outcome), not a Python exception raised from inside a kernel running on a
+  worker thread.
 * One grid kernel per variant (model, state law, method, coupling, equal or
-  unequal blocks): ``kernels.integrate.grid_kernel`` closes over the codes, so numba prunes
-  the other variants' branches and a run compiles only its own. Specialising with
-  ``numba.literally`` arguments was tried first and dropped: each combination took
-  as long to compile as the whole kernel (41 vs 42 s) and calls through the
-  dispatcher cost 14 ms each.
-* The right-hand side, the explicit steps and the dense-output coefficient are
-  inlined into the integration loop at numba-IR level (``inline="always"``): left
-  to LLVM, they stay calls passing a dozen arrays each (measured on an idle
-  machine: RK4 189 vs 288 ns per step, DOPRI5 318 vs 396 ns). Every inlined copy
-  costs compile time, so the Runge–Kutta stages are a loop around one call of the
-  right-hand side (cold compile 33 s → 16.5 s, bit-identical numbers).
+  unequal blocks, with or without the tangent for λ1): ``kernels.integrate.grid_kernel``
+  closes over the codes, so numba prunes the other variants' branches and a run
+  compiles only its own; the kernel with the tangent is compiled only when a run
+  needs λ1 (``dispatch.integrate_grid``). Specialising with ``numba.literally``
+  arguments instead compiled each combination as slowly as the whole kernel and
+  made every call through the dispatcher slow.
+* The right-hand side, the explicit steps and the dense-output helpers are inlined
+  into the integration loop at numba-IR level (``inline="always"``): left to LLVM,
+  they stay calls passing a dozen arrays each. Every inlined copy costs compile
+  time, so the Runge–Kutta stages are a loop around one call of the right-hand side.
 * The loop of ``integrate_system`` calls small inlined helpers, each written without
-  a loop or a non-inlined call behind a branch (``runaway_index``, ``update_cycle``). Where an
-  inlined body has one, numba's reference-count pruning fails and every array
-  argument is increfed and decrefed on every step: RK4 1.7x and DOPRI5 1.4x the time
-  per step (measured). The same holds for a call inside a helper's loop over blocks,
-  even behind a rare branch: the dense-output functions that ``update_cycle`` calls
-  when a step holds an extremum are inlined too (RK4 154 → 108 ns per step, DOPRI5
-  280 → 243 ns, cold compile +0.6 s). Rare work (a crossing of the cap, recording)
-  is a plain call in the loop's own branch, which costs nothing per step.
+  a loop or a non-inlined call behind a branch (``runaway_index``, ``update_cycle``).
+  Where an inlined body has one, numba's reference-count pruning fails and every
+  array argument is increfed and decrefed on every step; the same holds for a call
+  inside a helper's loop over blocks, even behind a rare branch, which is why the
+  dense-output functions that ``update_cycle`` calls are inlined too. Rare work (a
+  crossing of the cap, recording, DOP853's interpolant) is a plain call in the
+  loop's own branch, which costs nothing per step.
 * Threads have one owner, and numba's own thread pool is not used: on one machine
   ``backends.LocalThreads`` runs the serial grid kernel (``nogil``) on Python threads
   that take small batches of systems as they come free; under Dask each task calls
-  the same kernel and Dask owns the threads. The ``prange`` kernel this replaced
-  took 15 s (CPU) more to compile on a cold cache on top of the serial one's
-  33 s, and split its loop into equal contiguous blocks, which needed a shuffle of
-  the rows to share the costly runs near Kc between threads.
+  the same kernel and Dask owns the threads. A ``prange`` kernel compiled more slowly
+  and split its loop into equal contiguous blocks, which needed a shuffle of the rows
+  to share the costly runs near Kc between threads.
 """
 
 import os
