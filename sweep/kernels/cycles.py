@@ -525,7 +525,7 @@ def update_cycle(
     return new_peak, theta_peak
 
 
-@jit_inline
+@jit
 def dense_needed(f, fnew, p, nb, A, B):
     """Whether :func:`update_cycle` or the mean ℓ's extremes read the interpolant of the
     step with slopes ``f`` → ``fnew``: a slope of some ℓ_i, friction μ_i or (several

@@ -186,7 +186,7 @@ _S8 = tableau_dop853.N_STAGES  # 12: K_0 = f, K_1 … K_11, then K_12 = f(y_new)
 _S8_DENSE = tableau_dop853.N_STAGES_DENSE  # 16: … K_13 … K_15 for the interpolant
 
 
-@jit_inline
+@jit
 def step_dop853(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew, fnew, rtol, atol):
     """One DOP853 step (order 8); returns its error norm, DOP853's blend of the 5th- and
     3rd-order estimates, ‖e5‖² / √(‖e5‖² + 0.01 ‖e3‖²), scaled as for DOPRI5.
@@ -341,8 +341,6 @@ def dense_value(y0, y1, d0, d1, h, r, theta):
     r4 = r2 - h * d1 - r3
     r5, r6, r7, r8 = r
     u = 1.0 - theta
-    if r6 == 0.0 and r7 == 0.0 and r8 == 0.0:
-        return y0 + theta * (r2 + u * (r3 + theta * (r4 + u * r5)))
     return y0 + theta * (
         r2 + u * (r3 + theta * (r4 + u * (r5 + theta * (r6 + u * (r7 + theta * r8)))))
     )
@@ -356,22 +354,16 @@ def dense_slope(y0, y1, d0, d1, h, r, theta):
     r4 = r2 - h * d1 - r3
     r5, r6, r7, r8 = r
     u = 1.0 - theta
-    if r6 == 0.0 and r7 == 0.0 and r8 == 0.0:
-        return (
-            r2
-            + (u - theta) * r3
-            + theta * (2.0 - 3.0 * theta) * r4
-            + 2.0 * theta * u * (u - theta) * r5
-        )
-    # the nested polynomial and its derivative, from the innermost factor out
-    q = r7 + theta * r8
-    dq = r8
-    q, dq = r6 + u * q, u * dq - q
-    q, dq = r5 + theta * q, q + theta * dq
-    q, dq = r4 + u * q, u * dq - q
-    q, dq = r3 + theta * q, q + theta * dq
-    q, dq = r2 + u * q, u * dq - q
-    return q + theta * dq
+    # DOPRI5's terms first, DOP853's added: with r6 = r7 = r8 = 0 the same numbers
+    return (
+        r2
+        + (u - theta) * r3
+        + theta * (2.0 - 3.0 * theta) * r4
+        + 2.0 * theta * u * (u - theta) * r5
+        + theta * theta * u * (3.0 * u - 2.0 * theta) * r6
+        + 3.0 * theta * theta * u * u * (u - theta) * r7
+        + theta * theta * theta * u * u * (4.0 * u - 3.0 * theta) * r8
+    )
 
 
 @jit_inline
