@@ -210,13 +210,16 @@ def test_interrupted_write_keeps_earlier_result(in_tmp, result, monkeypatch):
     assert sorted(os.listdir(in_tmp)) == ["r.nc"]
 
 
-def test_readme_table_matches_the_schema():
-    """README's output-variable table lists exactly the declared variables, with their units."""
+def test_docs_table_matches_the_schema():
+    """The output-variable table of the docs' outputs page lists exactly the declared
+    variables, with their units."""
     import re
     from pathlib import Path
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    section = readme.split("### Output variables", 1)[1].split("\n\n", 2)[1]
+    page = Path(__file__).resolve().parents[1] / "docs" / "guide" / "outputs.md"
+    text = page.read_text()
+    start = text.index("| name | units | meaning |")
+    section = text[start:].split("\n\n", 1)[0]
     pretty = {"–": None, "1": "1", "s": "s", "µm": "um", "s⁻¹": "s-1", "µm s⁻¹": "um s-1",
               "µm⁻¹": "um-1"}  # fmt: skip
     documented = {}
