@@ -81,11 +81,21 @@ def test_grid_kernels_follow_the_policy_one_per_variant():
 
 
 @NO_JIT
-@pytest.mark.parametrize("name", ["rhs", "step_rk4", "step_dopri5", "dense_r5", "cycle_arrays"])
+@pytest.mark.parametrize(
+    "name", ["rhs", "step_rk4", "step_dopri5", "dense_tail", "dense_value", "cycle_arrays"]
+)
 def test_rhs_and_explicit_steps_are_inlined(name):
     """accelerate.py: the right-hand side and the explicit steps are inlined at numba-IR
     level (a third of the time per step)."""
     assert kernel_functions()[name].targetoptions.get("inline") == "always"
+
+
+@NO_JIT
+@pytest.mark.parametrize("name", ["step_dop853", "dense_dop853", "dense_needed"])
+def test_dop853_parts_are_plain_calls(name):
+    """accelerate.py: DOP853's step, interpolant and the test for where it is read are
+    plain calls, typed only in DOP853's kernels, so no other kernel compiles them."""
+    assert kernel_functions()[name].targetoptions.get("inline", "never") == "never"
 
 
 # Imports the kernels (compiles nothing) and reports each function's numba cache.
