@@ -472,6 +472,35 @@ def test_dop853_dense_output_is_seventh_order():
         assert mid_error(0.8, j) / mid_error(0.4, j) > 150
 
 
+@pytest.mark.parametrize(
+    "case",
+    [
+        {},  # one quasi-static block: steady above Kc, runaway below
+        {"model": "quasi-dynamic", "parameters": {"eta_W": 0.01}},  # limit cycles below Kc
+        {"blocks": 2, "parameters": {"k2_W": 0.05},  # two blocks: the mean ℓ and μ_i too
+         "initial": {"v_over_V": [1.05, 1.0], "phi_over_phi_ss": [1.0, 1.0]}},
+    ],
+)  # fmt: skip
+def test_dop853_classifies_as_dopri5(case):
+    """DOP853 reads extrema from its own interpolant, computed only on the steps where a
+    slope changes sign: the same labels as DOPRI5 on both sides of Kc, and the periods
+    and extremes of ln v of the cycles as DOPRI5 has them, to 1e-6 (measured: 1e-8; the
+    cubic Hermite interpolant in place of DOP853's misses by more)."""
+    ks = [0.5 * KC_W, 0.9 * KC_W, 0.98 * KC_W, 1.02 * KC_W, 1.1 * KC_W]
+    runs = {}
+    for method in ("dopri5", "dop853"):
+        config = make_config(
+            {**case, "sweep": {"K_W": ks}}, integrator={"method": method, "t_end": 1500.0}
+        )
+        runs[method] = run_grid(config)[0]
+    a, b = runs["dopri5"], runs["dop853"]
+    np.testing.assert_array_equal(a[:, layout.R_REGIME], b[:, layout.R_REGIME])
+    assert b[:, layout.R_N_STEPS].sum() < 0.5 * a[:, layout.R_N_STEPS].sum()
+    cycles = a[:, layout.R_REGIME] == layout.STICK_SLIP
+    for column in (layout.R_PERIOD, layout.R_LNV_MAX, layout.R_LNV_MIN):
+        np.testing.assert_allclose(b[cycles, column], a[cycles, column], rtol=1e-6, atol=1e-6)
+
+
 def test_dense_slope_is_the_derivative_of_the_interpolant():
     """The slope the extremum search bisects on is h d/dθ of the value, for the DOPRI5
     form (r5 only) and DOP853's (r5 … r8): against a central difference."""
