@@ -52,12 +52,16 @@ def integrate_grid(params, y0, settings, results, y_final, rec_dt=0.0, rec_t=Non
     ``rec_dt`` (D0/V); see ``kernels.integrate.integrate_system``. Runs still
     unsettled at t_end that ask for λ1 there are redone by the kernel that carries
     the tangent, compiled the first time one needs it: a config whose runs all
-    settle never compiles it.
+    settle never compiles it. Once one has, later calls of the variant use that
+    kernel for every run (:func:`tangent_first`).
     """
     if rec_t is None:
         rec_t, rec_y = np.empty(0), np.empty((0, y0.shape[1]))
     args = (settings, results, y_final, rec_dt, rec_t, rec_y)
     kernel = grid_kernel(params, settings)
+    if kernel in _TANGENT_FIRST:
+        ready_kernel(params, settings, tangent=True)(params, y0, *args)
+        return
     kernel(params, y0, *args)
     redo = np.flatnonzero(results[:, layout.R_REGIME] == layout.TANGENT_NEEDED)
     if redo.size:
@@ -66,6 +70,19 @@ def integrate_grid(params, y0, settings, results, y_final, rec_dt=0.0, rec_t=Non
         with_tangent(params[redo], y0[redo], settings, sub_results, sub_final, *args[3:])
         results[redo] = sub_results
         y_final[redo] = sub_final
+        _TANGENT_FIRST.add(kernel)
+
+
+#: Kernels without the tangent whose runs have needed it in this process: later calls of
+#: their variant go straight to the kernel with it (the same numbers, bit for bit, as a
+#: run redone; no run integrated twice).
+_TANGENT_FIRST = set()
+
+
+def tangent_first(params, settings):
+    """Whether calls of this variant go straight to the kernel with the tangent (a run
+    of it needed λ1 earlier in this process)."""
+    return grid_kernel(params, settings) in _TANGENT_FIRST
 
 
 def ready_kernel(params, settings, tangent=None):

@@ -168,7 +168,8 @@ def test_carrying_the_tangent_changes_no_trajectory():
 def test_runs_that_need_the_tangent_are_redone_by_its_kernel_number_for_number():
     """The kernel without the tangent hands exactly the runs unsettled at t_end to the
     kernel with it (``TANGENT_NEEDED``), and what ``integrate_grid`` returns is, bit
-    for bit, what the kernel with the tangent computes for every run from the start.
+    for bit, what the kernel with the tangent computes for every run from the start;
+    after that, the variant's calls go straight to that kernel, with the same numbers.
     Asked for λ1 over whole runs, the kernel without it steps no run."""
     ks = [1.1 * KC_W, 0.9 * KC_W, 1.0 * KC_W, 1.0002 * KC_W]
     t_end = 20.0  # runaway, cycle and slow decay all unsettled by then
@@ -187,9 +188,15 @@ def test_runs_that_need_the_tangent_are_redone_by_its_kernel_number_for_number()
     went_on = direct[0][:, layout.R_TAU_FINAL] > t_end
     assert went_on.sum() >= 3 and handed[went_on].all()
     np.testing.assert_array_equal(plain[~handed], direct[0][~handed])
+    dispatch._TANGENT_FIRST.clear()  # earlier tests may have switched this variant
     split = run_grid(config)
     np.testing.assert_array_equal(split[0], direct[0])
     np.testing.assert_array_equal(split[1], direct[1])
+    # runs of this variant needed λ1: later calls go straight to the kernel with it
+    assert dispatch.tangent_first(g.params, g.settings)
+    again = run_grid(config)
+    np.testing.assert_array_equal(again[0], direct[0])
+    np.testing.assert_array_equal(again[1], direct[1])
     assert split[0][3, layout.R_REGIME] == layout.UNDECIDED
     assert np.isfinite(split[0][3, layout.R_LYAPUNOV])
 
