@@ -59,8 +59,9 @@ def integrate_grid(params, y0, settings, results, y_final, rec_dt=0.0, rec_t=Non
         rec_t, rec_y = np.empty(0), np.empty((0, y0.shape[1]))
     args = (settings, results, y_final, rec_dt, rec_t, rec_y)
     kernel = grid_kernel(params, settings)
-    if kernel in _TANGENT_FIRST:
-        ready_kernel(params, settings, tangent=True)(params, y0, *args)
+    with_tangent = _TANGENT_FIRST.get(kernel)
+    if with_tangent is not None:
+        with_tangent(params, y0, *args)
         return
     kernel(params, y0, *args)
     redo = np.flatnonzero(results[:, layout.R_REGIME] == layout.TANGENT_NEEDED)
@@ -70,13 +71,13 @@ def integrate_grid(params, y0, settings, results, y_final, rec_dt=0.0, rec_t=Non
         with_tangent(params[redo], y0[redo], settings, sub_results, sub_final, *args[3:])
         results[redo] = sub_results
         y_final[redo] = sub_final
-        _TANGENT_FIRST.add(kernel)
+        _TANGENT_FIRST[kernel] = with_tangent
 
 
-#: Kernels without the tangent whose runs have needed it in this process: later calls of
-#: their variant go straight to the kernel with it (the same numbers, bit for bit, as a
-#: run redone; no run integrated twice).
-_TANGENT_FIRST = set()
+#: Kernels without the tangent whose runs have needed it in this process, each with its
+#: variant's compiled kernel with the tangent: later calls go straight to that one (the
+#: same numbers, bit for bit, as a run redone; no run integrated twice).
+_TANGENT_FIRST = {}
 
 
 def tangent_first(params, settings):
