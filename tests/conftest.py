@@ -246,6 +246,16 @@ store.write_part(directory, config, store.config_hash(config), 0, 2, 9, np.zeros
 """
 
 
+def python_stdout(code, *args, **run_options):
+    """What ``python -c code *args`` prints on stdout, run in a fresh process (options
+    such as ``env`` or ``cwd`` go to ``subprocess.run``); fails, showing its stderr,
+    if it exits non-zero or runs longer than ``SUBPROCESS_TIMEOUT``."""
+    proc = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True,
+                          timeout=SUBPROCESS_TIMEOUT, **run_options)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout
+
+
 def read_line(proc, timeout=SUBPROCESS_TIMEOUT):
     """The next line ``proc`` prints on its stdout (a text pipe); fails after ``timeout`` s."""
     ready, _, _ = select.select([proc.stdout], [], [], timeout)

@@ -4,14 +4,12 @@ no fastmath, numpy error model."""
 import json
 import os
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numba
 import numpy as np
 import pytest
-from conftest import SUBPROCESS_TIMEOUT
+from conftest import python_stdout
 
 from sweep import accelerate
 from sweep.kernels import cycles, equations, integrate, layout, steppers
@@ -120,15 +118,7 @@ def test_cache_switch(value, cache):
     env["NUMBA_DISABLE_JIT"] = "0"
     if value is not None:
         env["SWEEP_NUMBA_CACHE"] = value
-    proc = subprocess.run(
-        [sys.executable, "-c", CACHE_PROBE],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=SUBPROCESS_TIMEOUT,
-    )
-    assert proc.returncode == 0, proc.stderr
-    report = json.loads(proc.stdout)
+    report = json.loads(python_stdout(CACHE_PROBE, env=env))
     assert sorted(report) == sorted([*KERNELS, "grid_kernel()"])
     assert report.pop("grid_kernel()") == cache
     assert set(report.values()) == {"NullCache"}
@@ -191,10 +181,7 @@ def test_editing_an_inlined_helper_invalidates_the_cached_kernel(tmp_path):
 
     def run():
         code = f"CONFIG = {str(ROOT / 'configs' / 'quick.yaml')!r}\n{CACHED_RUN}"
-        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                              env=env, cwd=tmp_path, timeout=SUBPROCESS_TIMEOUT)  # fmt: skip
-        assert proc.returncode == 0, proc.stderr
-        return json.loads(proc.stdout.splitlines()[-1])
+        return json.loads(python_stdout(code, env=env, cwd=tmp_path).splitlines()[-1])
 
     first, again = run(), run()
     assert (first["misses"], again["hits"], again["misses"]) == (1, 1, 0)

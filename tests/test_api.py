@@ -2,13 +2,10 @@
 (sweep/examples.py): configs from paths, names, mappings and changes; results that
 combine along a fixed parameter; nothing written."""
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import QUICK, ROOT, SUBPROCESS_TIMEOUT, without_provenance
+from conftest import QUICK, ROOT, python_stdout, without_provenance
 
 import sweep
 from sweep import examples, runner
@@ -34,14 +31,7 @@ def test_import_loads_neither_numba_nor_matplotlib_nor_xarray():
         "import sys, sweep; "
         "print([m for m in ('numba', 'matplotlib', 'xarray') if m in sys.modules])"
     )
-    out = subprocess.run(
-        [sys.executable, "-c", code],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=SUBPROCESS_TIMEOUT,
-    )
-    assert out.stdout.strip() == "[]"
+    assert python_stdout(code).strip() == "[]"
 
 
 def test_run_from_a_path_a_name_and_a_mapping_agree(quick_result, tmp_path, monkeypatch):
@@ -196,11 +186,7 @@ def test_compile_kernels_compiles_only_the_configs_variants():
         " *(len(dispatch.grid_kernel(g.params, g.settings, t).signatures) for t in (0, 1)))"
     )
     for mode, expected in (("unsettled", "2 1 1"), ("never", "1 1 0")):
-        run = [sys.executable, "-c", code, mode]
-        out = subprocess.run(
-            run, capture_output=True, text=True, check=True, timeout=SUBPROCESS_TIMEOUT
-        )
-        assert out.stdout.split() == expected.split(), mode
+        assert python_stdout(code, mode).split() == expected.split(), mode
 
 
 def test_a_sweep_whose_runs_all_settle_never_compiles_the_tangent():
@@ -213,9 +199,5 @@ def test_a_sweep_whose_runs_all_settle_never_compiles_the_tangent():
         " progress=False)\n"
         "print(integrate.grid_kernel.cache_info().currsize, *ds['regime'].values.ravel())"
     )
-    run = [sys.executable, "-c", code]
-    out = subprocess.run(
-        run, capture_output=True, text=True, check=True, timeout=SUBPROCESS_TIMEOUT
-    )
-    count, *regimes = out.stdout.split()
+    count, *regimes = python_stdout(code).split()
     assert count == "1" and len(regimes) == 2

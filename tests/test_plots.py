@@ -4,7 +4,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import SUBPROCESS_TIMEOUT
+from conftest import python_stdout
 
 from sweep.cli import main
 from sweep.config import config_mapping, load_config, parse_config
@@ -357,14 +357,7 @@ fig = plot_result(ds)
 save_figure(plot_variable(ds, "period"), {str(tmp_path / "p.svg")!r})
 print(type(fig).__name__, "matplotlib.pyplot" in sys.modules)
 """
-    import subprocess
-    import sys
-
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=SUBPROCESS_TIMEOUT
-    )
-    assert out.returncode == 0, out.stderr
-    assert out.stdout.split() == ["Figure", "False"]
+    assert python_stdout(code).split() == ["Figure", "False"]
     assert (tmp_path / "p.svg").read_text().lstrip().startswith("<?xml")
 
 
@@ -401,18 +394,8 @@ def test_plot_command_maps_any_variable_in_any_format(one_d, tmp_path, capsys):
 
 def test_reading_and_plotting_results_loads_no_numba():
     """Plots and result files need no kernels: importing them loads no numba (1.25 s)."""
-    import subprocess
-    import sys
-
     code = "import sys, sweep.plots, sweep.dataset; print('numba' in sys.modules)"
-    out = subprocess.run(
-        [sys.executable, "-c", code],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=SUBPROCESS_TIMEOUT,
-    )
-    assert out.stdout.strip() == "False"
+    assert python_stdout(code).strip() == "False"
 
 
 def test_orbit_diagram_plots_each_runs_events_by_attractor(one_d, two_d, tmp_path, capsys):
