@@ -27,6 +27,12 @@ LINEAR_AMPLITUDE = 0.1
 # the integrator's local error tolerance, from one cycle to the next count as
 # converged to round-off (their ratio of differences would be noise).
 NOISE_FACTOR = 10.0
+#: An extremum of ℓ_i counts as a turning point (an event, a block's maximum) only
+#: when it stands this many times the local error tolerance atol + rtol |ℓ_i| out of
+#: the last counted turn (:func:`count_turn`). Once an oscillation has decayed below
+#: the tolerance, the step size controller takes steps as long as its period and
+#: sustains wiggles of 10–40 × atol (DOPRI5 and DOP853, K/Kc 1.0–1.2: make bench).
+TURN_FACTOR = 100.0
 #: Terms of a sequence the extrapolation uses (:func:`aitken_limit`): a verdict needs
 #: this many completed cycles, per residue class for a cycle of several events.
 TERMS = 4
@@ -52,6 +58,11 @@ W_T_PEAK = 4  # time of block i's last maximum of ℓ_i in the cycle (D0/V)
 N_WINDOW = 5
 #: The rows of ``win`` kept for each completed cycle (``past``: W_LMAX … W_MUMIN).
 N_PAST = 4
+# --- rows of every block's turning-point state (``turns``, see count_turn) ----
+T_HIGH = 0  # highest ℓ_i since its last counted minimum (or the start)
+T_LOW = 1  # lowest ℓ_i since its last counted maximum (or the start)
+T_LAST = 2  # the last counted turn: +1 a maximum, −1 a minimum, 0 none yet
+N_TURNS = 3
 # --- columns of the scalars kept for each completed cycle (``past_cs``) ------
 (
     X_SYNC,  # max |ℓ_i − ℓ_0| in the cycle
@@ -458,18 +469,45 @@ def start_cycle(y, p, nb, A, B, win, cs):
     cs[C_SLIP_EVENTS] = 0.0
 
 
+@jit
+def count_turn(turns, i, val, is_max, noise):
+    """Whether an extremum of ℓ_i of value ``val`` counts as a turning point: it must
+    stand out of the local error scale ``noise`` (TURN_FACTOR × the tolerance at
+    ``val``) against the last counted turn of the other kind, and turns alternate.
+
+    A slope changes sign by round-off where an oscillation has decayed below the
+    tolerance (the step size controller then takes steps longer than its period) or
+    on the flat top of a slow extremum; such extrema move ``turns`` (``T_*`` rows)
+    but are not counted, so neither events nor block maxima come from noise.
+    """
+    if is_max:
+        if turns[T_LAST, i] <= 0.0 and val - turns[T_LOW, i] > noise:
+            turns[T_HIGH, i] = val
+            turns[T_LAST, i] = 1.0
+            return True
+        turns[T_HIGH, i] = max(turns[T_HIGH, i], val)
+        return False
+    if turns[T_LAST, i] >= 0.0 and turns[T_HIGH, i] - val > noise:
+        turns[T_LOW, i] = val
+        turns[T_LAST, i] = -1.0
+        return True
+    turns[T_LOW, i] = min(turns[T_LOW, i], val)
+    return False
+
+
 @jit_inline
 def update_cycle(
     method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, p, nb, A, B, win, cs, slipped,
-    slip_lnv,
+    slip_lnv, turns, rtol, atol,
 ):  # fmt: skip
     """Fold the step from ``t`` to ``t + h`` into the current cycle's statistics.
 
     Extremes of every block's ℓ and friction are located inside the step with
     the dense output. Blocks with ℓ_i > ``slip_lnv`` after the step are marked in
     ``slipped`` (``cs[C_SLIPPING]``: whether any is). Returns ``(new_peak, theta)``:
-    whether ℓ_0 had a maximum in the step (its value goes to ``cs[C_PEAK_VALUE]``)
-    and where, as a fraction of the step.
+    whether ℓ_0 had a maximum in the step that counts as a turn (:func:`count_turn`
+    with tolerances ``rtol``, ``atol``; its value goes to ``cs[C_PEAK_VALUE]``) and
+    where, as a fraction of the step.
     """
     new_peak = False
     theta_peak = 0.0
@@ -486,7 +524,8 @@ def update_cycle(
             win[W_LMAX, i] = max(win[W_LMAX, i], val)
             win[W_LMIN, i] = min(win[W_LMIN, i], val)
             lnv_max_run = max(lnv_max_run, val)
-            if rising:
+            noise = TURN_FACTOR * (atol + rtol * abs(val))
+            if count_turn(turns, i, val, rising, noise) and rising:
                 win[W_T_PEAK, i] = t + theta * h
                 if i == 0:
                     new_peak = True
@@ -682,7 +721,8 @@ def cycle_arrays(y, p, nb, A, B):
     ``W_LMAX`` … ``W_MUMIN``, block) and scalars (``past_cs``: slot, ``X_*``); scratch
     of the search for cycles of several events (``limits``); every block's ℓ at the
     latest event (``section``); the cycle state ``cs`` (``C_*``); ``slipped`` (1: block
-    i slipped during the current slip event)."""
+    i slipped during the current slip event); every block's turning points (``turns``,
+    ``T_*`` rows: :func:`count_turn`)."""
     win = np.empty((N_WINDOW, nb))
     past = np.empty((HISTORY, N_PAST, nb))
     past_cs = np.empty((HISTORY, N_PAST_CS))
@@ -692,4 +732,8 @@ def cycle_arrays(y, p, nb, A, B):
     cs = new_cycle_state(y, nb)
     start_cycle(y, p, nb, A, B, win, cs)
     slipped = np.zeros(nb)
-    return win, past, past_cs, hist, limits, section, cs, slipped
+    turns = np.zeros((N_TURNS, nb))
+    for i in range(nb):
+        turns[T_HIGH, i] = y[i]
+        turns[T_LOW, i] = y[i]
+    return win, past, past_cs, hist, limits, section, cs, slipped, turns

@@ -491,7 +491,7 @@ def integrate_system(
     k3, k4, k5, k6 = k[1], k[2], k[3], k[4]  # the stages DOPRI5's dense output needs
     ev = np.empty(nb)
     k_ros, mat, perm = rosenbrock_scratch(method, n)
-    win, past, past_cs, hist, limits, section, cs, slipped = cycle_arrays(y, p, nb, A, B)
+    win, past, past_cs, hist, limits, section, cs, slipped, turns = cycle_arrays(y, p, nb, A, B)
     delta, work, stages, ros_k, ros_mat, ros_perm, ly = tangent_arrays(method, n if tangent else 0)
     needs_tangent = False
     if lyap == LYAP_ALWAYS:
@@ -585,7 +585,7 @@ def integrate_system(
                 dense_dop853(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense)
         new_peak, theta_peak = update_cycle(
             method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, p, nb, A, B, win, cs,
-            slipped, slip_lnv,
+            slipped, slip_lnv, turns, rtol, atol,
         )  # fmt: skip
         if new_peak and nb > 1:
             event_section(

@@ -369,17 +369,36 @@ def dense_slope(y0, y1, d0, d1, h, r, theta):
 @jit_inline
 def dense_extremum(y0, y1, d0, d1, h, r):
     """Fraction θ ∈ [0, 1] of the step where the interpolant's slope vanishes, given
-    slopes d0 and d1 of opposite sign (bisection, 50 halvings)."""
+    slopes d0 and d1 of opposite sign: the Illinois variant of false position, which
+    keeps the root bracketed and converges superlinearly (~8 slope evaluations where
+    bisection to round-off took 50), until the bracket stops shrinking."""
     lo = 0.0
     hi = 1.0
+    g_lo = h * d0
+    g_hi = h * d1
     rising = d0 > 0.0
-    for _ in range(50):
-        mid = 0.5 * (lo + hi)
-        if (dense_slope(y0, y1, d0, d1, h, r, mid) > 0.0) == rising:
-            lo = mid
+    kept = 0  # the end the last step kept (+1: hi, −1: lo); kept twice, its slope is halved
+    theta = 0.5
+    for _ in range(60):
+        theta = (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
+        if not (lo < theta < hi):
+            break
+        g = dense_slope(y0, y1, d0, d1, h, r, theta)
+        if g == 0.0:
+            break
+        if (g > 0.0) == rising:
+            lo = theta
+            g_lo = g
+            if kept == 1:
+                g_hi *= 0.5
+            kept = 1
         else:
-            hi = mid
-    return 0.5 * (lo + hi)
+            hi = theta
+            g_hi = g
+            if kept == -1:
+                g_lo *= 0.5
+            kept = -1
+    return min(max(theta, lo), hi)
 
 
 @jit
