@@ -68,11 +68,19 @@ def test_tangent_step_is_the_derivative_of_the_step_map(model, method):
     ]).T @ delta  # fmt: skip
     ynew = take_step(METHODS[method], y, h, p, m, nb)
     scratch = tangent.tangent_arrays(METHODS[method], n)
-    growth = tangent.tangent_step(
-        y, ynew, h, delta, *scratch[1:6], p, nb, np.empty(nb), 1e-8, 1e-10,
+
+    def slope(x):
+        out = np.empty(n)
+        equations.rhs(x, p, m, layout.AGING, layout.CHAIN, False, nb, np.empty(nb), out)
+        return out
+
+    j_delta = (slope(y + 1e-6 * delta) - slope(y - 1e-6 * delta)) / 2e-6
+    growth, rate = tangent.tangent_step(
+        y, slope(y), ynew, h, delta, *scratch[1:6], p, nb, np.empty(nb), 1e-8, 1e-10,
         m, layout.AGING, METHODS[method], layout.CHAIN, False,
     )  # fmt: skip
     np.testing.assert_allclose(np.exp(growth) * delta, expected, rtol=1e-6, atol=1e-9)
+    assert rate == pytest.approx(np.linalg.norm(j_delta), rel=1e-6)  # |J δ|: its step cap
 
 
 STEADY_CASES = {
@@ -135,13 +143,13 @@ TRAJECTORY = [layout.R_TAU_FINAL, layout.R_N_STEPS, layout.R_N_REJECTED, layout.
               layout.R_LNV_MAX_RUN, layout.R_TAU_RUNAWAY]  # fmt: skip
 
 
-def test_carrying_the_tangent_changes_no_trajectory():
-    """The state's steps do not depend on the tangent: the same runs (steady, cycle,
-    runaway, and one unsettled at t_end that carries it from there) follow the same
-    trajectory without λ1, with it from t_end on, and (early exit off) over the whole
-    run: the same final state, steps and maxima, bit for bit, and runs settled by
-    their cycles keep every number. Only the label of a run still unsettled at its end
-    may use λ1."""
+def test_the_tangent_changes_no_step_before_it_starts():
+    """The state's steps before the tangent starts do not depend on it: the same runs
+    (steady, cycle, runaway, and one unsettled at t_end that carries it from there)
+    without λ1 and with it from t_end on give, bit for bit, the same numbers for every
+    run settled by t_end, and (early exit off, so no run goes past t_end) for every
+    run. Carried over whole runs, the tangent caps the steps (``TANGENT_TURN``): the
+    labels stay, a steady run gets its λ1 and a runaway none."""
     ks = [1.1 * KC_W, 0.9 * KC_W, 1.0 * KC_W, 1.0002 * KC_W]
     base = {"sweep": {"K_W": ks}, "integrator": {"t_end": 400.0}}
     runs = {}
@@ -150,17 +158,22 @@ def test_carrying_the_tangent_changes_no_trajectory():
             config = make_config(base, classification={"lyapunov": mode, "early_exit": early})
             runs[mode, early] = run_grid(config)
     lam = [layout.R_LYAPUNOV, layout.R_LYAPUNOV_ERROR]
-    pairs = [(("never", True), ("unsettled", True)), (("never", False), ("unsettled", False)),
-             (("never", False), ("always", False))]  # fmt: skip
-    for a, b in pairs:
-        (res_a, yf_a), (res_b, yf_b) = runs[a], runs[b]
-        np.testing.assert_array_equal(yf_a, yf_b)
-        np.testing.assert_array_equal(res_a[:, TRAJECTORY], res_b[:, TRAJECTORY])
-        settled = res_a[:, layout.R_REGIME] != layout.UNDECIDED
+    for early in (True, False):
+        (res_a, yf_a), (res_b, yf_b) = runs["never", early], runs["unsettled", early]
+        by_t_end = res_a[:, layout.R_TAU_FINAL] < 400.0 if early else np.full(len(ks), True)
+        assert by_t_end.sum() >= 3
+        np.testing.assert_array_equal(yf_a[by_t_end], yf_b[by_t_end])
+        np.testing.assert_array_equal(
+            res_a[by_t_end][:, TRAJECTORY], res_b[by_t_end][:, TRAJECTORY]
+        )
+        settled = by_t_end & (res_a[:, layout.R_REGIME] != layout.UNDECIDED)
         other = np.setdiff1d(np.arange(res_a.shape[1]), lam)
         np.testing.assert_array_equal(res_a[settled][:, other], res_b[settled][:, other])
     assert np.isnan(runs["never", False][0][:, lam]).all()
     always = runs["always", False][0]
+    np.testing.assert_array_equal(
+        always[:3, layout.R_REGIME], runs["never", False][0][:3, layout.R_REGIME]
+    )
     assert np.isfinite(always[0, layout.R_LYAPUNOV])  # steady: λ1 over the whole run
     assert always[1, layout.R_REGIME] == layout.RUNAWAY and np.isnan(always[1, lam]).all()
 

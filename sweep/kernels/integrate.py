@@ -135,7 +135,9 @@ from .steppers import (
 )
 from .tangent import (
     L_ON,
+    L_RATE,
     LYAP_BLOCKS,
+    TANGENT_TURN,
     lyapunov_add,
     lyapunov_estimate,
     lyapunov_start,
@@ -470,8 +472,9 @@ def integrate_system(
     settled by then (``LYAP_UNSETTLED``), or over the whole run (``LYAP_ALWAYS``,
     which then settles no run before ``tau_end``). A kernel compiled without it
     (``tangent`` False) stops such a run where the tangent would start and marks it
-    ``TANGENT_NEEDED`` for the kernel with it to redo from the start: a run's steps do
-    not depend on the tangent, so the redone run is the same run, number for number.
+    ``TANGENT_NEEDED`` for the kernel with it to redo from the start: no step before
+    the tangent starts depends on it, so the redone run is the same run, number for
+    number, up to where the other kernel stopped it.
     """
     (
         nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit, slip_lnv,
@@ -528,6 +531,9 @@ def integrate_system(
         if n_steps + n_rejected >= max_steps:
             break
         h = min(h, tau_stop - t)
+        if tangent:
+            if (method == DOPRI5 or method == DOP853) and ly[L_RATE] > 0.0:  # TANGENT_TURN
+                h = min(h, TANGENT_TURN / ly[L_RATE])
         err = 0.0  # RK4: every step is accepted
         if method == DOPRI5:
             err = step_dopri5(
@@ -574,10 +580,11 @@ def integrate_system(
 
         if tangent:
             if ly[L_ON] > 0.0:
-                growth = tangent_step(
-                    y, ynew, h, delta, work, stages, ros_k, ros_mat, ros_perm, p, nb, ev, rtol,
-                    atol, model, law, method, coupling, het,
+                growth, rate = tangent_step(
+                    y, f, ynew, h, delta, work, stages, ros_k, ros_mat, ros_perm, p, nb, ev,
+                    rtol, atol, model, law, method, coupling, het,
                 )  # fmt: skip
+                ly[L_RATE] = rate
                 lyapunov_add(ly, t + h, h, growth)
 
         if method == DOP853:  # its interpolant costs three stages: only where it is read

@@ -10,9 +10,10 @@ y and from y + εδ, differenced (ε = ``TANGENT_EPS`` × max(1, max |y|)). For 
 explicit methods this is, to O(ε), the Runge–Kutta scheme applied to the
 variational equations δ' = J(y) δ; for RODAS4 it includes the change of its
 Jacobian along δ, which an analytic tangent would need second derivatives for.
-One tangent step costs one more step of the method (``make bench``). The state's
-steps do not depend on the tangent: a run with λ1 follows the trajectory of the
-same run without it, number for number.
+One tangent step costs one more step of the method (``make bench``). While the
+tangent is carried, DOPRI5's and DOP853's steps are capped so that they resolve it
+(``TANGENT_TURN``); before it starts, a run with λ1 follows the trajectory of the same
+run without it, number for number.
 
 The slope is fitted by least squares over blocks of equal length: the first block
 is a transient (δ aligning with the most unstable direction) and is left out;
@@ -44,6 +45,13 @@ from .steppers import (
 TANGENT_EPS = 1e-8
 #: Blocks a Lyapunov window is cut into; the first is the transient.
 LYAP_BLOCKS = 8
+#: While the tangent is carried, a DOPRI5 or DOP853 step turns δ by at most about this
+#: many radians: h ≤ TANGENT_TURN / |J δ|. The step size controller watches the state's
+#: error only, and a state decayed onto a fixed point below atol takes steps longer
+#: than the period of its linear modes, over which the tangent is not resolved (λ1 of a
+#: stable fixed point came out ~0 instead of its growth rate: test_tangent.py). RODAS4
+#: keeps its max_step instead: |J δ| includes the stiff decay it needs not resolve.
+TANGENT_TURN = 0.5
 
 # --- entries of the accumulator ``ly`` ----------------------------------------
 (
@@ -66,8 +74,9 @@ LYAP_BLOCKS = 8
     L_BWTT,
     L_BWTS,
     L_T_LAST,  # time of the last sample (D0/V)
-) = range(19)
-N_LYAP = 19
+    L_RATE,  # |J δ| at the start of the last tangent step (V/D0; 0: none yet)
+) = range(20)
+N_LYAP = 20
 
 
 @jit
@@ -112,11 +121,12 @@ def lyapunov_start(ly, delta, t, block):
 
 @jit
 def tangent_step(
-    y, ynew, h, delta, work, stages, ros_k, ros_mat, ros_perm, p, nb, ev, rtol, atol,
+    y, f, ynew, h, delta, work, stages, ros_k, ros_mat, ros_perm, p, nb, ev, rtol, atol,
     model, law, method, coupling, het,
 ):  # fmt: skip
-    """Carry δ (unit length) over the step of size ``h`` from ``y`` to ``ynew`` and
-    renormalise it; returns the logarithm of its growth.
+    """Carry δ (unit length) over the step of size ``h`` from ``y`` (slope ``f``) to
+    ``ynew`` and renormalise it; returns the logarithm of its growth and |J δ| at ``y``
+    (the difference of the slopes, V/D0).
 
     The difference of the method's step from y + εδ and from y (see the module
     docstring); ``work`` (5, n) and ``stages`` are scratch, ``ros_*`` RODAS4's.
@@ -136,6 +146,10 @@ def tangent_step(
     for j in range(n):
         y2[j] = y[j] + eps * delta[j]
     rhs(y2, p, model, law, coupling, het, nb, ev, f2)
+    rate = 0.0
+    for j in range(n):
+        rate += (f2[j] - f[j]) ** 2
+    rate = math.sqrt(rate) / eps
     if method == DOPRI5:
         step_dopri5(
             y2, f2, h, p, model, law, coupling, het, nb, ev, stages, ytmp, ynew2, fnew2, rtol, atol
@@ -158,7 +172,7 @@ def tangent_step(
     norm = math.sqrt(norm)
     for j in range(n):
         delta[j] /= norm
-    return math.log(norm)
+    return math.log(norm), rate
 
 
 @jit
