@@ -23,12 +23,15 @@ from .heterogeneity import DISTRIBUTIONS, PER_BLOCK, SPREAD_AXES, SPREAD_PREFIX,
 from .physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
 
 METHODS = ("dopri5", "rk4", "rosenbrock", "dop853")
-#: Default integrator per model where it is not dopri5: the inertial model is stiff
-#: in stick phases (decay rate A e^(-ln v/V)/M̂ towards force balance). dopri5 is
-#: held to steps below its stability limit there (with M̂ = 1e-3 it spends 2e7
-#: steps on the first 30 D0/V) and its stability-limited ripple adds false maxima;
-#: the linearly implicit rosenbrock stepper needs ~1e3 steps per cycle.
+#: Default integrator per model where it is not dop853: the inertial model is stiff
+#: in stick phases (decay rate A e^(-ln v/V)/M̂ towards force balance). The explicit
+#: methods are held to steps below their stability limit there (with M̂ = 1e-3 dopri5
+#: spends 2e7 steps on the first 30 D0/V) and their stability-limited ripple adds false
+#: maxima; the linearly implicit rosenbrock stepper needs ~1e3 steps per cycle.
 DEFAULT_METHODS = {"inertial": "rosenbrock"}
+#: Default step-size cap (D0/V) of the methods that have one: RODAS4 reads extrema from
+#: a cubic Hermite interpolant, whose error grows with the step.
+DEFAULT_MAX_STEPS = {"rosenbrock": 0.5}
 TIME_UNITS = ("D0/V", "s")
 #: When the largest Lyapunov exponent is computed: from t_end on, for runs not settled
 #: by then; over every whole run; or never.
@@ -152,18 +155,17 @@ class Integrator:
     sizes ``dt`` and ``max_step`` resolve the dynamics, whose time scale is D0/V,
     so they are always in units of D0/V."""
 
-    method: str = setting("dopri5", "stepper (the inertial model's default: rosenbrock)",
+    method: str = setting("dop853", "stepper (the inertial model's default: rosenbrock)",
                           METHODS)  # fmt: skip
     rtol: float = setting(1e-8, "relative tolerance of the adaptive methods", "(0, 1)")
     atol: float = setting(1e-10, "absolute tolerance of the adaptive methods", "(0, inf)")
     dt: float = setting(0.01, "fixed step of rk4", "(0, inf)", "D0/V")
-    # Largest step of the adaptive methods (.inf: no cap). The cap keeps about ten
-    # steps per linear period (4.87 D0/V for the paper's A, B): without it, once an
-    # oscillation has decayed to round-off the steps outgrow the period and the
-    # interpolant's round-off wiggles count as extrema. With early exit (the default)
-    # it costs almost nothing (measurements: docs/changelog.md, "max_step").
-    max_step: float = setting(0.5, "largest step of the adaptive methods (.inf: no cap)",
-                              "(0, inf)", "D0/V")  # fmt: skip
+    # Largest step of the adaptive methods. DOPRI5 and DOP853 need none: their dense
+    # output is as accurate as their steps, and extrema that do not stand out of the
+    # error scale count as no events (kernels/cycles.py, TURN_FACTOR). RODAS4 keeps
+    # 0.5 D0/V (DEFAULT_MAX_STEPS; docs/changelog.md, "max_step").
+    max_step: float = setting(math.inf, "largest step of the adaptive methods (.inf: no cap; "
+                              "rosenbrock's default: 0.5)", "(0, inf)", "D0/V")  # fmt: skip
     t_end: float = setting(3000.0, "end time", "(0, inf)", "t_unit")
     t_unit: str = setting("D0/V", "unit of t_end and max_t_end", TIME_UNITS)
     max_steps: int = setting(20_000_000, "step budget per run; past it the run is undecided",
@@ -864,7 +866,10 @@ def _parse_initial(c, raw, blocks):
 
 def _parse_integrator(c, raw, model):
     spec = c.mapping(raw.get("integrator", {}), "integrator")
-    defaults = Integrator(method=DEFAULT_METHODS.get(model, Integrator.method))
+    method = DEFAULT_METHODS.get(model, Integrator.method)
+    chosen = spec.get("method", method)
+    cap = DEFAULT_MAX_STEPS.get(chosen, math.inf) if isinstance(chosen, str) else math.inf
+    defaults = Integrator(method=method, max_step=cap)
     c.unknown(spec, "integrator", tuple(Integrator.__dataclass_fields__))
     given = {}
     if spec.get("max_step", defaults.max_step) in (None, math.inf):  # no cap (.inf or null)

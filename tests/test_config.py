@@ -261,8 +261,25 @@ def test_inertial_model_defaults_to_rosenbrock():
         return make_config(overrides, integrator=integrator).integrator.method
 
     assert method("inertial", {"m_W": 1.0}) == "rosenbrock"
-    assert method("quasi-dynamic", {"eta_W": 0.1}) == "dopri5"
+    assert method("quasi-dynamic", {"eta_W": 0.1}) == "dop853"
     assert method("inertial", {"m_W": 1.0}, method="dopri5") == "dopri5"
+
+
+def test_only_rosenbrock_caps_its_steps_by_default():
+    """DOPRI5 and DOP853 take the steps their controller asks for; RODAS4, which reads
+    extrema from a cubic Hermite interpolant, keeps 0.5 D0/V unless told otherwise."""
+
+    def max_step(model, extra, **integrator):
+        overrides = {"model": model, "parameters": extra, "integrator": None}
+        return make_config(overrides, integrator=integrator).integrator.max_step
+
+    assert max_step("quasi-static", {}) == math.inf
+    assert max_step("quasi-static", {}, method="dopri5") == math.inf
+    assert max_step("inertial", {"m_W": 1.0}) == 0.5
+    assert max_step("quasi-static", {}, method="rosenbrock") == 0.5
+    assert max_step("inertial", {"m_W": 1.0}, max_step=2.0) == 2.0
+    assert max_step("inertial", {"m_W": 1.0}, max_step=math.inf) == math.inf
+    assert max_step("inertial", {"m_W": 1.0}, method="dop853") == math.inf
 
 
 def raw_config(model_name="quasi-dynamic", law="aging", parameters=None, sweep=None, **other):
