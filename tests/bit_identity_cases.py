@@ -41,6 +41,11 @@ CASES = {
     "no_early_exit": _case(classification={"early_exit": False}),
     "slip_law": _case(state_law="slip", sweep={"K_W": [0.045, 0.06]}),
     "rk4": _case(integrator={"method": "rk4", "dt": 0.02, "t_end": 300.0}),
+    "dop853": _case(integrator={"method": "dop853", "max_step": float("inf")}),
+    "dop853_no_early_exit": _case(
+        integrator={"method": "dop853", "max_step": float("inf")},
+        classification={"early_exit": False},
+    ),
     "quasi_dynamic": _case(
         model="quasi-dynamic",
         parameters={**_ONE_BLOCK["parameters"], "eta_W": 0.01},
