@@ -9,7 +9,7 @@ a refactoring. So the reference is computed here, on this machine, by the code o
 
 That code is kept in the repository, not looked up in its history (which a shallow
 clone or an unpacked release lacks): :data:`REFERENCE_ARCHIVE` is ``git archive`` of
-the commit's ``sweep/`` and ``tests/bit_identity_cases.py`` (about 80 kB), and git
+the commit's ``sweep/`` and ``tests/bit_identity_cases.py`` (about 120 kB), and git
 writes the commit's id into its header. To move the reference, which rewrites the
 archive and :data:`REFERENCE_COMMIT`::
 
@@ -32,7 +32,7 @@ from conftest import SUBPROCESS_TIMEOUT
 
 from bit_identity_cases import compute_all, flatten
 
-#: The code every number is compared with: the layout before issues 12 and 15.
+#: The code every number is compared with: DOP853 by default, without a step cap (issue 24).
 REFERENCE_COMMIT = "9ba53b1a66620731bef6e42432a400f77810cc5e"
 #: That commit's ``sweep/`` and ``tests/bit_identity_cases.py`` (``git archive``).
 REFERENCE_ARCHIVE = Path(__file__).parent / "data" / "bit_identity_reference.tar.gz"
