@@ -18,18 +18,24 @@ are in the changelog of the documentation, ``docs/changelog.md``):
 * ``error_model="numpy"``: a division by zero gives inf/NaN (a classified
   outcome), not a Python exception raised from inside a kernel running on a
   worker thread.
+* ``no_cfunc_wrapper=True``: no kernel is passed as a first-class function, and the
+  C wrapper numba builds for that by default cost 0.5 s of a cold compile. The
+  CPython wrappers stay: tests and notebooks call the helpers from Python.
 * One grid kernel per variant (model, state law, method, coupling, equal or
   unequal blocks, with or without the tangent for λ1): ``kernels.integrate.grid_kernel``
-  closes over the codes, so numba prunes the other variants' branches and a run
-  compiles only its own; the kernel with the tangent is compiled only when a run
-  needs λ1 (``dispatch.integrate_grid``). Specialising with ``numba.literally``
+  closes over the codes and holds the loop itself, so numba prunes the other
+  variants' branches before it inlines any helper and a run compiles only its own
+  (tested); the kernel with the tangent is compiled only when a run needs λ1
+  (``dispatch.integrate_grid``). The loop is not an inlined function of its own:
+  numba copies an inlined body once per basic block together with its whole scope
+  (numba#8989), which was 10 s of a 27 s cold compile. Specialising with ``numba.literally``
   arguments instead compiled each combination as slowly as the whole kernel and
   made every call through the dispatcher slow.
 * The right-hand side, the explicit steps and the dense-output helpers are inlined
   into the integration loop at numba-IR level (``inline="always"``): left to LLVM,
   they stay calls passing a dozen arrays each. Every inlined copy costs compile
   time, so the Runge–Kutta stages are a loop around one call of the right-hand side.
-* The loop of ``integrate_system`` calls small inlined helpers, each written without
+* The grid kernel's loop calls small inlined helpers, each written without
   a loop or a non-inlined call behind a branch (``runaway_index``, ``update_cycle``).
   Where an inlined body has one, numba's reference-count pruning fails and every
   array argument is increfed and decrefed on every step; the same holds for a call
@@ -52,7 +58,7 @@ import numba
 #: Whether compiled kernels are cached on disk (``SWEEP_NUMBA_CACHE=0`` disables).
 CACHE = os.environ.get("SWEEP_NUMBA_CACHE", "1") != "0"
 
-_COMMON = {"nogil": True, "fastmath": False, "error_model": "numpy"}
+_COMMON = {"nogil": True, "fastmath": False, "error_model": "numpy", "no_cfunc_wrapper": True}
 
 
 def jit_kernel(func):

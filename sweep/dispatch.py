@@ -49,7 +49,7 @@ def integrate_grid(params, y0, settings, results, y_final, rec_dt=0.0, rec_t=Non
 
     ``results``/``y_final`` are filled in place. A trace passes one row and
     recording buffers ``rec_t`` (m,) and ``rec_y`` (m, n_vars) for the state every
-    ``rec_dt`` (D0/V); see ``kernels.integrate.integrate_system``. Runs still
+    ``rec_dt`` (D0/V); see ``kernels.integrate.grid_kernel``. Runs still
     unsettled at t_end that ask for λ1 there are redone by the kernel that carries
     the tangent, compiled the first time one needs it: a config whose runs all
     settle never compiles it. Once one has, later calls of the variant use that

@@ -33,9 +33,9 @@ def kernel_functions():
 
 
 KERNELS = sorted(kernel_functions())
-#: Helpers the grid kernels inline, one per integrator: the discovery must find at
-#: least these (a guard against discovering nothing).
-ENTRY_POINTS = {"integrate_system", "step_rk4", "step_dopri5", "step_rosenbrock"}
+#: Helpers of the grid kernels' loop, one per integrator and the classifier's: the
+#: discovery must find at least these (a guard against discovering nothing).
+ENTRY_POINTS = {"update_cycle", "step_rk4", "step_dopri5", "step_dop853", "step_rosenbrock"}
 #: Model, law, method, coupling codes and unequal blocks of one variant (quasi-static,
 #: aging, DOPRI5, chain, equal blocks).
 ROOT = Path(__file__).resolve().parents[1]
@@ -54,6 +54,7 @@ def assert_policy(dispatcher):
     assert options["nogil"] is True  # Dask threads run kernels side by side
     assert options["fastmath"] is False  # runaway detection must see NaN and inf
     assert options["error_model"] == "numpy"  # x/0 → inf, not an exception
+    assert options["no_cfunc_wrapper"] is True  # no first-class use: not worth compiling
     # one owner of the threads: the backends' (local or Dask), never numba's pool
     assert options.get("parallel", False) is False
 
@@ -68,14 +69,42 @@ def test_kernel_options(name):
 
 @NO_JIT
 def test_grid_kernels_follow_the_policy_one_per_variant():
-    """The factory's grid kernels: the policy, one dispatcher per variant (built once),
-    and the per-system loop inlined into them."""
+    """The factory's grid kernels: the policy, one dispatcher per variant (built once)."""
     kernel = integrate.grid_kernel(*VARIANT)
     assert_policy(kernel)
     assert integrate.grid_kernel(*VARIANT) is kernel
     other = integrate.grid_kernel(layout.QUASI_DYNAMIC, *VARIANT[1:])
     assert other is not kernel
-    assert integrate.integrate_system.targetoptions.get("inline") == "always"
+
+
+# Compiles the grid kernel of quick.yaml with DOPRI5, cache off, and reports how many
+# signatures numba compiled of the parts that only other variants use.
+PRUNE_PROBE = """
+import json
+from sweep import dispatch
+from sweep.config import load_config, with_changes
+from sweep.grid import build_grid
+from sweep.kernels import steppers, tangent
+config = with_changes(load_config(CONFIG), {"integrator": {"method": "dopri5"}})
+grid = build_grid(config)
+dispatch.ready_kernel(grid.params, grid.settings)
+others = {"step_dop853": steppers.step_dop853, "dense_dop853": steppers.dense_dop853,
+          "step_rosenbrock": steppers.step_rosenbrock, "tangent_step": tangent.tangent_step}
+print(json.dumps({name: len(f.signatures) for name, f in others.items()}))
+"""
+
+
+@pytest.mark.slow
+def test_a_variant_compiles_only_its_own_parts():
+    """The codes are constants of the grid kernel's closure, and numba prunes the other
+    variants' branches before it inlines and types the helpers: a DOPRI5 kernel
+    without the tangent compiles neither DOP853's nor RODAS4's step, nor the tangent
+    step (each costs seconds of a cold start)."""
+    env = dict(os.environ, SWEEP_NUMBA_CACHE="0", NUMBA_DISABLE_JIT="0")
+    code = f"CONFIG = {str(ROOT / 'configs' / 'quick.yaml')!r}\n{PRUNE_PROBE}"
+    report = json.loads(python_stdout(code, env=env).splitlines()[-1])
+    assert report == {"step_dop853": 0, "dense_dop853": 0, "step_rosenbrock": 0,
+                      "tangent_step": 0}  # fmt: skip
 
 
 @NO_JIT

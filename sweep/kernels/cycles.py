@@ -52,7 +52,7 @@ STEADY_TERMS = 16
 SEARCH_FACTOR = 100.0
 
 
-# --- rows of a cycle's per-block statistics (win in integrate_system) -------
+# --- rows of a cycle's per-block statistics (win in the grid kernel) -------
 W_LMAX, W_LMIN, W_MUMAX, W_MUMIN = range(4)  # extremes of ℓ_i and of friction A ℓ_i + B ψ_i
 W_T_PEAK = 4  # time of block i's last maximum of ℓ_i in the cycle (D0/V)
 N_WINDOW = 5
@@ -71,7 +71,7 @@ N_TURNS = 3
 ) = range(3)
 N_PAST_CS = 3
 
-# --- entries of the scalar cycle state ``cs`` of integrate_system ------------
+# --- entries of the scalar cycle state ``cs`` of the grid kernel -----------
 (
     C_N_PEAKS,  # maxima of ℓ_0 seen
     C_T_PEAK,  # time of the last maximum of ℓ_0 (D0/V)

@@ -1,9 +1,9 @@
-"""The integration loop of one system and the grid kernel around it.
+"""The grid kernel: the integration loop of every system, one after another.
 
 ``grid_kernel`` builds one serial kernel per variant (model, state law, method,
-coupling, equal or unequal blocks); ``integrate_system`` steps one system, folds
-every step into the cycle classifier (and, where asked, the tangent for λ1) and
-writes its statistics.
+coupling, equal or unequal blocks); its loop steps each system, folds every step
+into the cycle classifier (and, where asked, the tangent for λ1) and writes its
+statistics with the helpers here.
 """
 
 import functools
@@ -454,249 +454,35 @@ def read_settings(settings):
     )  # fmt: skip
 
 
-@jit_inline
-def integrate_system(
-    p, y0, settings, result, y_final, rec_dt, rec_t, rec_y, model, law, method, coupling, het,
-    tangent,
-):  # fmt: skip
-    """Integrate one system (parameters ``p``: ``P_*``) from ``y0``; its statistics go
-    to ``result`` (``R_*``), its final state to ``y_final``. Traces: the state every
-    ``rec_dt`` (D0/V, interpolated) and at the end goes to ``rec_t``/``rec_y`` while
-    they have room (sweeps pass empty buffers); the count is ``result[R_N_RECORDED]``.
-
-    ``model``, ``law``, ``method``, ``coupling``, ``het`` (per-block columns in
-    ``p``) and ``tangent`` are the kernel's variant: constants of :func:`grid_kernel`,
-    whose inlined copy of this function keeps only that variant's branches.
-
-    The tangent for λ1 (``tangent.py``) is carried from ``tau_end`` on by runs not
-    settled by then (``LYAP_UNSETTLED``), or over the whole run (``LYAP_ALWAYS``,
-    which then settles no run before ``tau_end``). A kernel compiled without it
-    (``tangent`` False) stops such a run where the tangent would start and marks it
-    ``TANGENT_NEEDED`` for the kernel with it to redo from the start: no step before
-    the tangent starts depends on it, so the redone run is the same run, number for
-    number, up to where the other kernel stopped it.
-    """
-    (
-        nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit, slip_lnv,
-        lyap, n_events,
-    ) = read_settings(settings)  # fmt: skip
-    A = p[P_A]
-    B = p[P_B]
-    tau_end = p[P_TAU_END]
-    # unsettled runs go on past tau_end only with early exit (else: fixed-length runs)
-    tau_max = max(p[P_TAU_MAX], tau_end) if early_exit else tau_end
-    lin_growth = p[P_LIN_GROWTH]
-    max_step = p[P_MAX_STEP]
-
-    n = y0.size
-    y = y0.copy()
-    f, ynew, fnew, ytmp, k, dense = step_scratch(method, n)
-    k3, k4, k5, k6 = k[1], k[2], k[3], k[4]  # the stages DOPRI5's dense output needs
-    ev = np.empty(nb)
-    k_ros, mat, perm = rosenbrock_scratch(method, n)
-    win, past, past_cs, hist, limits, section, cs, slipped, turns = cycle_arrays(y, p, nb, A, B)
-    delta, work, stages, ros_k, ros_mat, ros_perm, ly = tangent_arrays(method, n if tangent else 0)
-    needs_tangent = False
-    if lyap == LYAP_ALWAYS:
-        if tangent:
-            lyapunov_start(ly, delta, 0.0, tau_end / LYAP_BLOCKS)
-        else:
-            needs_tangent = True
-            tau_max = 0.0  # no step: the kernel with the tangent runs it
-    # no run is settled before tau_end while λ1 is measured over whole runs
-    t_settle = tau_end if lyap == LYAP_ALWAYS else 0.0
-
-    n_rec = record_start(y, rec_t, rec_y)
-
-    rhs(y, p, model, law, coupling, het, nb, ev, f)
-    t = 0.0
-    h = p[P_DT] if method == RK4 else min(1e-3, max_step, tau_end)
-    n_steps = 0
-    n_rejected = 0
-    regime = -1
-    tau_runaway = np.nan
-    # unsettled at tau_end: go on (settling early from then on) up to tau_max
-    tau_stop = tau_end
-    while t < tau_max:
-        if t >= tau_stop:
-            tau_stop = tau_max
-            if verdict_held(cs, 1):  # a verdict that held over one whole cycle of events
-                regime = int(cs[C_VERDICT])
-                break
-            if lyap == LYAP_UNSETTLED and tau_max > t:
-                if not tangent:
-                    needs_tangent = True
-                    break
-                lyapunov_start(ly, delta, t, (tau_max - t) / LYAP_BLOCKS)
-        if n_steps + n_rejected >= max_steps:
-            break
-        h = min(h, tau_stop - t)
-        if tangent:
-            if (method == DOPRI5 or method == DOP853) and ly[L_RATE] > 0.0:  # TANGENT_TURN
-                h = min(h, TANGENT_TURN / ly[L_RATE])
-        err = 0.0  # RK4: every step is accepted
-        if method == DOPRI5:
-            err = step_dopri5(
-                y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew, fnew, rtol, atol
-            )
-        elif method == DOP853:
-            err = step_dop853(
-                y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew, fnew, rtol, atol
-            )
-        elif method == ROSENBROCK:
-            err = step_rosenbrock(
-                y, f, h, p, model, law, coupling, het, nb, ev, k_ros, mat, perm, ytmp, ynew,
-                fnew, rtol, atol,
-            )  # fmt: skip
-        else:
-            step_rk4(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew)
-            rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
-        h_next = next_step_size(method, h, err, max_step)
-        if not (err <= 1.0):
-            n_rejected += 1
-            h = h_next
-            if h < 1e-300:
-                regime = collapse_regime(y, nb)
-                tau_runaway = t if regime == RUNAWAY else np.nan
-                break
-            continue
-        n_steps += 1
-
-        crossed = runaway_index(ynew, fnew, nb, lnv_cap)
-        if crossed != NO_RUNAWAY:
-            regime = RUNAWAY
-            tau_runaway = t + h
-            if crossed >= 0:  # the step is kept: the run ends after it
-                if method == DOP853:
-                    dense_dop853(
-                        y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense
-                    )
-                tau_runaway = cap_crossing(
-                    method, crossed, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, nb, lnv_cap,
-                    win, cs,
-                )  # fmt: skip
-                t += h
-            break
-
-        if tangent:
-            if ly[L_ON] > 0.0:
-                growth, rate = tangent_step(
-                    y, f, ynew, h, delta, work, stages, ros_k, ros_mat, ros_perm, p, nb, ev,
-                    rtol, atol, model, law, method, coupling, het,
-                )  # fmt: skip
-                ly[L_RATE] = rate
-                lyapunov_add(ly, t + h, h, growth)
-
-        if method == DOP853:  # its interpolant costs three stages: only where it is read
-            if n_rec > 0 or dense_needed(f, fnew, p, nb, A, B):
-                dense_dop853(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense)
-        new_peak, theta_peak = update_cycle(
-            method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, p, nb, A, B, win, cs,
-            slipped, slip_lnv, turns, rtol, atol,
-        )  # fmt: skip
-        if new_peak and nb > 1:
-            event_section(
-                method, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, nb, theta_peak, section
-            )
-        if cs[C_SLIPPING] > 0.0:
-            cs[C_IN_EVENT] = 1.0
-        elif cs[C_IN_EVENT] > 0.0:
-            end_slip_event(nb, slipped, cs)
-        if nb > 1:  # extremes of the mean ℓ, written out here (see accelerate.py: an
-            # inlined helper with a branch around its loops refcounts every step)
-            m0 = 0.0
-            m1 = 0.0
-            dm0 = 0.0
-            dm1 = 0.0
-            for i in range(nb):
-                m0 += y[i] / nb
-                m1 += ynew[i] / nb
-                dm0 += f[i] / nb
-                dm1 += fnew[i] / nb
-            if (dm0 > 0.0) == (dm1 <= 0.0):
-                r5 = 0.0
-                r6 = 0.0
-                r7 = 0.0
-                r8 = 0.0
-                for i in range(nb):
-                    r = dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense)
-                    r5 += r[0] / nb
-                    r6 += r[1] / nb
-                    r7 += r[2] / nb
-                    r8 += r[3] / nb
-                theta = dense_extremum(m0, m1, dm0, dm1, h, (r5, r6, r7, r8))
-                val = dense_value(m0, m1, dm0, dm1, h, (r5, r6, r7, r8), theta)
-                cs[C_WIN_MBAR_MAX] = max(cs[C_WIN_MBAR_MAX], val)
-                cs[C_WIN_MBAR_MIN] = min(cs[C_WIN_MBAR_MIN], val)
-            cs[C_WIN_MBAR_MAX] = max(cs[C_WIN_MBAR_MAX], m1)
-            cs[C_WIN_MBAR_MIN] = min(cs[C_WIN_MBAR_MIN], m1)
-        if n_rec > 0:
-            n_rec = record_step(
-                method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, rec_dt, rec_t, rec_y, n_rec
-            )
-        t_new_peak = t + theta_peak * h
-        t += h
-        for j in range(n):
-            y[j] = ynew[j]
-            f[j] = fnew[j]
-        h = h_next
-
-        if new_peak:
-            cs[C_N_PEAKS] += 1
-            if cs[C_N_PEAKS] >= 2:
-                close_cycle(
-                    t_new_peak, nb, win, past, past_cs, hist, limits, section, cs, accuracy,
-                    steady_amp, lin_growth, rtol, atol,
-                )  # fmt: skip
-            cs[C_T_PEAK] = t_new_peak
-            # the new cycle starts at this peak
-            start_cycle(y, p, nb, A, B, win, cs)
-            win[W_LMAX, 0] = max(win[W_LMAX, 0], cs[C_PEAK_VALUE])
-            if early_exit and verdict_held(cs, n_confirm) and t >= t_settle:
-                regime = int(cs[C_VERDICT])
-                break
-
-        # decayed onto a linearly stable steady state
-        if early_exit and lin_growth < 0.0 and max_abs(y) < steady_amp and t >= t_settle:
-            regime = STEADY
-            break
-
-    lam, lam_err, span = lyapunov_estimate(ly)
-    by_cycles = regime >= 0 or cs[C_VERDICT] >= 0  # settled by the cycle classifier
-    regime, attractor = final_regime(
-        regime, t, tau_stop, y, cs, hist, limits, nb, steady_amp, lin_growth, accuracy, rtol,
-        atol, lam, lam_err, span,
-    )  # fmt: skip
-    if attractor == UNBOUNDED or (by_cycles and lyap == LYAP_UNSETTLED):
-        # λ1 of the part of the run before a runaway or before it settled: a transient's
-        lam, lam_err = np.nan, np.nan
-    write_result(
-        result, regime, attractor, t, n_steps, n_rejected, tau_runaway, nb, win, past, past_cs,
-        hist, cs, lam, lam_err, n_events,
-    )  # fmt: skip
-    for j in range(n):
-        y_final[j] = y[j]
-    result[R_N_RECORDED] = record_end(t, y, rec_t, rec_y, n_rec)
-    if needs_tangent:
-        result[R_REGIME] = TANGENT_NEEDED
-
-
 @functools.cache
 def grid_kernel(model, law, method, coupling, het, tangent):
     """The serial grid kernel of one variant: model, state law, method and coupling
     codes (int), whether blocks differ (``het``, bool) and whether it carries the
-    tangent for λ1 (``tangent``, bool; without it, runs that need λ1 come back
-    ``TANGENT_NEEDED``, see :func:`integrate_system`).
+    tangent for λ1 (``tangent``, bool).
 
-    Built and compiled on first use, one per variant: the codes are constants of
-    the closure, so once the helpers are inlined numba prunes the other variants'
-    branches before typing (the other methods' steppers are never compiled), and
-    numba's cache keys each variant by their values. The helpers themselves are
-    still prepared for inlining with every branch (their codes are arguments), which
-    is why the Runge–Kutta stages are loops around one call of :func:`rhs`. Sweeps and
-    traces call the same kernel: ``integrate_grid(params, y0, settings, results, y_final, rec_dt,
-    rec_t, rec_y)`` integrates every row one after another; a trace passes one row
-    and recording buffers, sweeps empty buffers (see :func:`integrate_system`).
+    ``integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y)``
+    integrates every row one after another: the system with parameters ``params[s]``
+    (``P_*``) from ``y0[s]``; its statistics go to ``results[s]`` (``R_*``), its final
+    state to ``y_final[s]``. Traces pass one row and buffers for the state every
+    ``rec_dt`` (D0/V, interpolated) and at the end, ``rec_t``/``rec_y``, written while
+    they have room (sweeps pass empty buffers); the count is ``R_N_RECORDED``.
+
+    The tangent for λ1 (``tangent.py``) is carried from ``tau_end`` on by runs not
+    settled by then (``LYAP_UNSETTLED``), or over the whole run (``LYAP_ALWAYS``,
+    which then settles no run before ``tau_end``). A kernel compiled without it stops
+    such a run where the tangent would start and marks it ``TANGENT_NEEDED`` for the
+    kernel with it to redo from the start: no step before the tangent starts depends
+    on it, so the redone run is the same run, number for number, up to where the
+    other kernel stopped it.
+
+    Built and compiled on first use, one per variant. The codes are constants of the
+    closure, so numba prunes the other variants' branches before it inlines the
+    helpers: the other methods' steppers are never compiled. The loop is written
+    here, not in an inlined function of its own: numba copies an inlined body once
+    per basic block with its whole scope, which took 10 of a 27 s compile. The
+    helpers are still prepared for inlining with every branch (their codes are
+    arguments), which is why the Runge–Kutta stages are loops around one call of
+    :func:`rhs`.
 
     Only these kernels are cached on disk (``accelerate.jit_kernel``), each with
     everything it calls compiled in. numba keys a cache entry on the closure's
@@ -707,10 +493,262 @@ def grid_kernel(model, law, method, coupling, het, tangent):
 
     def integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y):
         _ = sources  # a closure value: part of numba's cache key (see above)
+        (
+            nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit,
+            slip_lnv, lyap, n_events,
+        ) = read_settings(settings)  # fmt: skip
+        n = y0.shape[1]
         for s in range(params.shape[0]):
-            integrate_system(
-                params[s], y0[s], settings, results[s], y_final[s], rec_dt, rec_t, rec_y,
-                model, law, method, coupling, het, tangent,
+            p = params[s]
+            result = results[s]
+            A = p[P_A]
+            B = p[P_B]
+            tau_end = p[P_TAU_END]
+            # unsettled runs go on past tau_end only with early exit (else: fixed-length runs)
+            tau_max = max(p[P_TAU_MAX], tau_end) if early_exit else tau_end
+            lin_growth = p[P_LIN_GROWTH]
+            max_step = p[P_MAX_STEP]
+
+            y = y0[s].copy()
+            f, ynew, fnew, ytmp, k, dense = step_scratch(method, n)
+            k3, k4, k5, k6 = k[1], k[2], k[3], k[4]  # the stages DOPRI5's dense output needs
+            ev = np.empty(nb)
+            k_ros, mat, perm = rosenbrock_scratch(method, n)
+            win, past, past_cs, hist, limits, section, cs, slipped, turns = cycle_arrays(
+                y, p, nb, A, B
+            )
+            delta, work, stages, ros_k, ros_mat, ros_perm, ly = tangent_arrays(
+                method, n if tangent else 0
+            )
+            needs_tangent = False
+            if lyap == LYAP_ALWAYS:
+                if tangent:
+                    lyapunov_start(ly, delta, 0.0, tau_end / LYAP_BLOCKS)
+                else:
+                    needs_tangent = True
+                    tau_max = 0.0  # no step: the kernel with the tangent runs it
+            # no run is settled before tau_end while λ1 is measured over whole runs
+            t_settle = tau_end if lyap == LYAP_ALWAYS else 0.0
+
+            n_rec = record_start(y, rec_t, rec_y)
+
+            rhs(y, p, model, law, coupling, het, nb, ev, f)
+            t = 0.0
+            h = p[P_DT] if method == RK4 else min(1e-3, max_step, tau_end)
+            n_steps = 0
+            n_rejected = 0
+            regime = -1
+            tau_runaway = np.nan
+            # unsettled at tau_end: go on (settling early from then on) up to tau_max
+            tau_stop = tau_end
+            while t < tau_max:
+                if t >= tau_stop:
+                    tau_stop = tau_max
+                    if verdict_held(cs, 1):  # a verdict that held over one whole cycle of events
+                        regime = int(cs[C_VERDICT])
+                        break
+                    if lyap == LYAP_UNSETTLED and tau_max > t:
+                        if not tangent:
+                            needs_tangent = True
+                            break
+                        lyapunov_start(ly, delta, t, (tau_max - t) / LYAP_BLOCKS)
+                if n_steps + n_rejected >= max_steps:
+                    break
+                h = min(h, tau_stop - t)
+                if tangent:
+                    if (method == DOPRI5 or method == DOP853) and ly[L_RATE] > 0.0:  # TANGENT_TURN
+                        h = min(h, TANGENT_TURN / ly[L_RATE])
+                err = 0.0  # RK4: every step is accepted
+                if method == DOPRI5:
+                    err = step_dopri5(
+                        y,
+                        f,
+                        h,
+                        p,
+                        model,
+                        law,
+                        coupling,
+                        het,
+                        nb,
+                        ev,
+                        k,
+                        ytmp,
+                        ynew,
+                        fnew,
+                        rtol,
+                        atol,
+                    )
+                elif method == DOP853:
+                    err = step_dop853(
+                        y,
+                        f,
+                        h,
+                        p,
+                        model,
+                        law,
+                        coupling,
+                        het,
+                        nb,
+                        ev,
+                        k,
+                        ytmp,
+                        ynew,
+                        fnew,
+                        rtol,
+                        atol,
+                    )
+                elif method == ROSENBROCK:
+                    err = step_rosenbrock(
+                        y, f, h, p, model, law, coupling, het, nb, ev, k_ros, mat, perm, ytmp, ynew,
+                        fnew, rtol, atol,
+                    )  # fmt: skip
+                else:
+                    step_rk4(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew)
+                    rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
+                h_next = next_step_size(method, h, err, max_step)
+                if not (err <= 1.0):
+                    n_rejected += 1
+                    h = h_next
+                    if h < 1e-300:
+                        regime = collapse_regime(y, nb)
+                        tau_runaway = t if regime == RUNAWAY else np.nan
+                        break
+                    continue
+                n_steps += 1
+
+                crossed = runaway_index(ynew, fnew, nb, lnv_cap)
+                if crossed != NO_RUNAWAY:
+                    regime = RUNAWAY
+                    tau_runaway = t + h
+                    if crossed >= 0:  # the step is kept: the run ends after it
+                        if method == DOP853:
+                            dense_dop853(
+                                y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense
+                            )
+                        tau_runaway = cap_crossing(
+                            method, crossed, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, nb,
+                            lnv_cap, win, cs,
+                        )  # fmt: skip
+                        t += h
+                    break
+
+                if tangent:
+                    if ly[L_ON] > 0.0:
+                        growth, rate = tangent_step(
+                            y, f, ynew, h, delta, work, stages, ros_k, ros_mat, ros_perm, p, nb, ev,
+                            rtol, atol, model, law, method, coupling, het,
+                        )  # fmt: skip
+                        ly[L_RATE] = rate
+                        lyapunov_add(ly, t + h, h, growth)
+
+                if method == DOP853:  # its interpolant costs three stages: only where it is read
+                    if n_rec > 0 or dense_needed(f, fnew, p, nb, A, B):
+                        dense_dop853(
+                            y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense
+                        )
+                new_peak, theta_peak = update_cycle(
+                    method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, p, nb, A, B, win, cs,
+                    slipped, slip_lnv, turns, rtol, atol,
+                )  # fmt: skip
+                if new_peak and nb > 1:
+                    event_section(
+                        method, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, nb, theta_peak, section
+                    )
+                if cs[C_SLIPPING] > 0.0:
+                    cs[C_IN_EVENT] = 1.0
+                elif cs[C_IN_EVENT] > 0.0:
+                    end_slip_event(nb, slipped, cs)
+                if nb > 1:  # extremes of the mean ℓ, written out here (see accelerate.py: an
+                    # inlined helper with a branch around its loops refcounts every step)
+                    m0 = 0.0
+                    m1 = 0.0
+                    dm0 = 0.0
+                    dm1 = 0.0
+                    for i in range(nb):
+                        m0 += y[i] / nb
+                        m1 += ynew[i] / nb
+                        dm0 += f[i] / nb
+                        dm1 += fnew[i] / nb
+                    if (dm0 > 0.0) == (dm1 <= 0.0):
+                        r5 = 0.0
+                        r6 = 0.0
+                        r7 = 0.0
+                        r8 = 0.0
+                        for i in range(nb):
+                            r = dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense)
+                            r5 += r[0] / nb
+                            r6 += r[1] / nb
+                            r7 += r[2] / nb
+                            r8 += r[3] / nb
+                        theta = dense_extremum(m0, m1, dm0, dm1, h, (r5, r6, r7, r8))
+                        val = dense_value(m0, m1, dm0, dm1, h, (r5, r6, r7, r8), theta)
+                        cs[C_WIN_MBAR_MAX] = max(cs[C_WIN_MBAR_MAX], val)
+                        cs[C_WIN_MBAR_MIN] = min(cs[C_WIN_MBAR_MIN], val)
+                    cs[C_WIN_MBAR_MAX] = max(cs[C_WIN_MBAR_MAX], m1)
+                    cs[C_WIN_MBAR_MIN] = min(cs[C_WIN_MBAR_MIN], m1)
+                if n_rec > 0:
+                    n_rec = record_step(
+                        method,
+                        t,
+                        h,
+                        y,
+                        ynew,
+                        f,
+                        fnew,
+                        k3,
+                        k4,
+                        k5,
+                        k6,
+                        dense,
+                        rec_dt,
+                        rec_t,
+                        rec_y,
+                        n_rec,
+                    )
+                t_new_peak = t + theta_peak * h
+                t += h
+                for j in range(n):
+                    y[j] = ynew[j]
+                    f[j] = fnew[j]
+                h = h_next
+
+                if new_peak:
+                    cs[C_N_PEAKS] += 1
+                    if cs[C_N_PEAKS] >= 2:
+                        close_cycle(
+                            t_new_peak, nb, win, past, past_cs, hist, limits, section, cs, accuracy,
+                            steady_amp, lin_growth, rtol, atol,
+                        )  # fmt: skip
+                    cs[C_T_PEAK] = t_new_peak
+                    # the new cycle starts at this peak
+                    start_cycle(y, p, nb, A, B, win, cs)
+                    win[W_LMAX, 0] = max(win[W_LMAX, 0], cs[C_PEAK_VALUE])
+                    if early_exit and verdict_held(cs, n_confirm) and t >= t_settle:
+                        regime = int(cs[C_VERDICT])
+                        break
+
+                # decayed onto a linearly stable steady state
+                if early_exit and lin_growth < 0.0 and max_abs(y) < steady_amp and t >= t_settle:
+                    regime = STEADY
+                    break
+
+            lam, lam_err, span = lyapunov_estimate(ly)
+            by_cycles = regime >= 0 or cs[C_VERDICT] >= 0  # settled by the cycle classifier
+            regime, attractor = final_regime(
+                regime, t, tau_stop, y, cs, hist, limits, nb, steady_amp, lin_growth, accuracy,
+                rtol, atol, lam, lam_err, span,
             )  # fmt: skip
+            if attractor == UNBOUNDED or (by_cycles and lyap == LYAP_UNSETTLED):
+                # λ1 of the part of the run before a runaway or before it settled: a transient's
+                lam, lam_err = np.nan, np.nan
+            write_result(
+                result, regime, attractor, t, n_steps, n_rejected, tau_runaway, nb, win, past,
+                past_cs, hist, cs, lam, lam_err, n_events,
+            )  # fmt: skip
+            for j in range(n):
+                y_final[s, j] = y[j]
+            result[R_N_RECORDED] = record_end(t, y, rec_t, rec_y, n_rec)
+            if needs_tangent:
+                result[R_REGIME] = TANGENT_NEEDED
 
     return jit_kernel(integrate_grid)
