@@ -8,7 +8,10 @@ are in the changelog of the documentation, ``docs/changelog.md``):
   CLI many times and a warm cache saves the compile time. Writing the cache from
   several processes at once can crash (numba#4807), so the runner compiles in the
   parent process before any worker starts, and ``SWEEP_NUMBA_CACHE=0`` turns
-  caching off (e.g. on a shared, read-only install). The helpers they call are not
+  caching off (e.g. on a shared, read-only install). Each variant's kernel has cache
+  files of its own, so a command that needs several (``make figures``,
+  ``sweep.compile_kernels`` of several configs) compiles them side by side in other
+  processes that never write the same file (``dispatch.load_kernels``). The helpers they call are not
   cached (``jit``): a cached grid kernel holds their compiled code, and numba checks
   a cache entry against its own file only, so a helper cached beside it could be
   stale after an edit to a file it calls. The grid kernel's cache key covers every

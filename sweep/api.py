@@ -59,17 +59,28 @@ def run(config, *, threads=None, client=None, progress=True):
         )
 
 
-def compile_kernels(config):
-    """Compile the kernels that ``config`` (as for :func:`run`) may use, or load them
-    from numba's on-disk cache, in this process: its variant's, and the one with the
-    tangent for λ1 where unsettled runs ask for it (``classification.lyapunov``). Run
-    it once before job-array tasks or workers on other nodes start, so that they
-    only read the cache. Returns None."""
-    from .dispatch import load_kernel
+def compile_kernels(*configs, processes=None):
+    """Compile the kernels that ``configs`` (each as for :func:`run`) may use, or load
+    them from numba's on-disk cache, into this process: each config's variant, and
+    the one with the tangent for λ1 where unsettled runs ask for it
+    (``classification.lyapunov``). Run it once before job-array tasks or workers on
+    other nodes start, so that they only read the cache. Several variants are
+    compiled side by side in up to ``processes`` fresh processes (default: one per
+    core; ``dispatch.load_kernels``). Returns None."""
+    from .dispatch import load_kernels, may_need_tangent
     from .grid import build_grid
 
-    grid = build_grid(load_config(config))
-    load_kernel(grid.params, grid.settings, every=True)
+    configs = [load_config(config) for config in configs]
+    positive = isinstance(processes, int) and not isinstance(processes, bool) and processes >= 1
+    if not (processes is None or positive):
+        source = configs[0].source if configs else "compile_kernels"
+        raise InputError(source, [f"processes must be a positive integer, got {processes!r}"])
+    jobs = []
+    for config in configs:
+        g = build_grid(config)
+        jobs += [(g.params, g.settings, None)]
+        jobs += [(g.params, g.settings, True)] if may_need_tangent(g.settings) else []
+    load_kernels(jobs, processes)
 
 
 def _check_threads(source, threads):

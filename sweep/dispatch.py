@@ -6,8 +6,14 @@ run is. The backends, the Dask tasks and traces all integrate through
 :func:`integrate_grid`.
 """
 
+import json
 import logging
+import os
+import subprocess
+import sys
 import threading
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import numpy as np
 
@@ -27,12 +33,18 @@ def grid_kernel(params, settings, tangent=None):
     ``lyapunov: always``)."""
     from .kernels.integrate import grid_kernel as build  # numba: on first use
 
+    with _BUILD:  # one dispatcher per variant, also when threads ask at once
+        return build(*variant(params, settings, tangent))
+
+
+def variant(params, settings, tangent=None):
+    """The arguments of ``kernels.integrate.grid_kernel`` for these arrays: model, law,
+    method and coupling codes, unequal blocks, with the tangent (see :func:`grid_kernel`)."""
     if tangent is None:
         tangent = int(settings[layout.S_LYAPUNOV]) == layout.LYAP_ALWAYS
     codes = (layout.S_MODEL, layout.S_LAW, layout.S_METHOD, layout.S_COUPLING)
     heterogeneous = params.shape[1] > layout.N_PARAMS
-    with _BUILD:  # one dispatcher per variant, also when threads ask at once
-        return build(*(int(settings[c]) for c in codes), heterogeneous, bool(tangent))
+    return (*(int(settings[c]) for c in codes), heterogeneous, bool(tangent))
 
 
 def may_need_tangent(settings):
@@ -123,3 +135,59 @@ def load_kernel(params, settings, every=False):
     ready_kernel(params, settings)
     if every and may_need_tangent(settings):
         ready_kernel(params, settings, tangent=True)
+
+
+def load_kernels(jobs, processes=None):
+    """:func:`ready_kernel` for several variants: ``jobs`` are (params, settings,
+    tangent) triples of the kernels' arrays (``tangent`` as for :func:`grid_kernel`).
+
+    numba holds one lock over all compiling in a process, so the distinct variants
+    this process has not compiled yet are shared out among up to ``processes`` fresh
+    Python processes (default: one per core), each compiling its share one after
+    another (the helpers that every variant calls are compiled once per process) and
+    writing numba's cache; this process then loads them. Each variant has cache files
+    of its own (``kernels.integrate.grid_kernel``), so no two processes write the same
+    file (numba#4807). With the cache off (``SWEEP_NUMBA_CACHE=0``), one variant to
+    build or one process, they are compiled here one after another; a share whose
+    process failed is compiled here too (with a warning)."""
+    from .accelerate import CACHE, thread_count
+
+    wanted = {}
+    for params, settings, tangent in jobs:
+        job = (params[:0], np.ascontiguousarray(settings), tangent)
+        wanted.setdefault(variant(*job), job)
+    todo = [job for job in wanted.values() if not grid_kernel(*job).signatures]
+    processes = min(thread_count(processes), len(todo))
+    if CACHE and processes > 1:
+        log.info("compiling (or loading) %d kernels in %d processes ...", len(todo), processes)
+        shares = [todo[i::processes] for i in range(processes)]
+        with ThreadPoolExecutor(processes) as pool:
+            for failure in pool.map(_compile_elsewhere, shares):
+                if failure:
+                    log.warning("compiling kernels in another process failed: %s", failure)
+    for job in wanted.values():
+        ready_kernel(*job)
+
+
+def _compile_elsewhere(jobs):
+    """Compile the kernels of (params, settings, tangent) jobs of :func:`load_kernels` in
+    a fresh process, which writes numba's cache; returns None, or the end of its
+    error output if it failed."""
+    spec = json.dumps([
+        {"width": params.shape[1], "settings": settings.tolist(), "tangent": tangent}
+        for params, settings, tangent in jobs
+    ])  # fmt: skip
+    env = dict(os.environ)
+    package_root = str(Path(__file__).resolve().parents[1])  # this copy of sweep
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [package_root, env.get("PYTHONPATH")]))
+    code = "import sys; from sweep.dispatch import compile_specs; compile_specs(sys.argv[1])"
+    proc = subprocess.run([sys.executable, "-c", code, spec], env=env, capture_output=True,
+                          text=True)  # fmt: skip
+    return None if proc.returncode == 0 else proc.stderr.strip()[-500:]
+
+
+def compile_specs(spec):
+    """Compile in this process, one after another, the kernels that the JSON ``spec`` of
+    :func:`_compile_elsewhere` lists: the other process's side of :func:`load_kernels`."""
+    for job in json.loads(spec):
+        ready_kernel(np.empty((0, job["width"])), np.array(job["settings"]), job["tangent"])

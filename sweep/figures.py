@@ -279,6 +279,8 @@ def make_figures(
     this works from any folder; ``route``: the 1-D sweep whose orbit diagram is drawn.
     ``suffix``: ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
     """
+    from .dispatch import load_kernels
+    from .grid import build_grid
     from .plots import plot_bifurcation, plot_orbit_diagram, plot_result
     from .runner import compute
 
@@ -287,10 +289,15 @@ def make_figures(
     config = load_config(paper)
     phase_config = load_config(twoblock)
     bifurcation_configs = [load_config(p) for p in bifurcation]
-    for path in nblock:
-        load_config(path)
+    nblock_configs = [load_config(path) for path in nblock]
     route_config = load_config(route)
     check_writable(out_dir / f"fig1_one_block{suffix}", str(out_dir), "--out-dir", suffix)
+    rows = (*ONE_BLOCK_ROWS, *((label, {**c, "k2_W": K2_W}) for label, c in TWO_BLOCK_ROWS))
+    trace_configs = [variant(config, f"{config.name}_{r}", **c) for r, (_, c) in enumerate(rows)]
+    every = [*trace_configs, phase_config, *bifurcation_configs, *nblock_configs, route_config]
+    # side by side; each variant here also has runs that need the tangent for λ1
+    grids = [build_grid(c) for c in every]
+    load_kernels([(g.params, g.settings, t) for g in grids for t in (None, True)], threads)
     paths = [
         save_figure(figure_one_block(config), out_dir / f"fig1_one_block{suffix}", dpi),
         save_figure(figure_two_blocks(config), out_dir / f"fig2_two_blocks{suffix}", dpi),

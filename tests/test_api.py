@@ -2,6 +2,9 @@
 (sweep/examples.py): configs from paths, names, mappings and changes; results that
 combine along a fixed parameter; nothing written."""
 
+import json
+import os
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -12,6 +15,7 @@ from sweep import examples, runner
 from sweep.cli import main
 from sweep.config import MAPPING_SOURCE, config_mapping
 from sweep.dataset import write_netcdf
+from sweep.errors import InputError
 
 
 def without_file_attrs(ds):
@@ -187,6 +191,47 @@ def test_compile_kernels_compiles_only_the_configs_variants():
     )
     for mode, expected in (("unsettled", "2 1 1"), ("never", "1 1 0")):
         assert python_stdout(code, mode).split() == expected.split(), mode
+
+
+# Compiles two variants of quick.yaml side by side (or, with the cache off, here), runs
+# one of them and reports the run's numbers and how numba's cache served the kernels.
+SIDE_BY_SIDE = """
+import json, sys, sweep
+from sweep import dispatch
+from sweep.grid import build_grid
+configs = [sweep.with_changes('quick', {'integrator': {'method': m},
+                                        'classification': {'lyapunov': 'never'}})
+           for m in ('dop853', 'dopri5')]
+sweep.compile_kernels(*configs, processes=2)
+stats = [dispatch.grid_kernel(g.params, g.settings).stats for g in map(build_grid, configs)]
+ds = sweep.run(configs[1], progress=False)
+print(json.dumps({"hits": [sum(s.cache_hits.values()) for s in stats],
+                  "misses": [sum(s.cache_misses.values()) for s in stats],
+                  "n_steps": ds["n_steps"].values.tolist(),
+                  "period": ds["period"].values.tolist()}))
+"""
+
+
+@pytest.mark.slow
+def test_compile_kernels_builds_variants_side_by_side(tmp_path):
+    """``compile_kernels(*configs, processes=2)``: the variants are compiled in other
+    processes, which write numba's cache (this one only loads them: hits, no
+    misses), and a run with them gives the same numbers as one compiled here with
+    the cache off."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), SWEEP_NUMBA_CACHE="1")
+    side_by_side = json.loads(python_stdout(SIDE_BY_SIDE, env=env).splitlines()[-1])
+    assert side_by_side["hits"] == [1, 1] and side_by_side["misses"] == [0, 0]
+    env["SWEEP_NUMBA_CACHE"] = "0"
+    here = json.loads(python_stdout(SIDE_BY_SIDE, env=env).splitlines()[-1])
+    assert here["hits"] == [0, 0]  # compiled here: nothing came from a cache
+    assert side_by_side["n_steps"] == here["n_steps"]
+    np.testing.assert_array_equal(side_by_side["period"], here["period"])
+
+
+@pytest.mark.parametrize("processes", [0, -1, 1.5, True, "2"])
+def test_compile_kernels_rejects_a_bad_process_count(processes):
+    with pytest.raises(InputError, match="processes must be a positive integer"):
+        sweep.compile_kernels("quick", processes=processes)
 
 
 def test_a_sweep_whose_runs_all_settle_never_compiles_the_tangent():

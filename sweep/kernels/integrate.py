@@ -487,7 +487,10 @@ def grid_kernel(model, law, method, coupling, het, tangent):
     Only these kernels are cached on disk (``accelerate.jit_kernel``), each with
     everything it calls compiled in. numba keys a cache entry on the closure's
     values and on this file's timestamp: the closure holds the digest of every
-    kernel source, so an edit to any kernel file compiles the kernel afresh.
+    kernel source, so an edit to any kernel file compiles the kernel afresh. Each
+    variant's function is named after its codes, and numba names its cache files
+    after the function: processes that compile different variants at once
+    (``dispatch.load_kernels``) write different files.
     """
     sources = source_digest()
 
@@ -751,4 +754,6 @@ def grid_kernel(model, law, method, coupling, het, tangent):
             if needs_tangent:
                 result[R_REGIME] = TANGENT_NEEDED
 
+    codes = "_".join(str(int(c)) for c in (model, law, method, coupling, het, tangent))
+    integrate_grid.__qualname__ = f"{integrate_grid.__qualname__}_{codes}"
     return jit_kernel(integrate_grid)
