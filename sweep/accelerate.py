@@ -11,8 +11,8 @@ are in the changelog of the documentation, ``docs/changelog.md``):
   caching off (e.g. on a shared, read-only install). Each variant's kernel has cache
   files of its own, so a command that needs several (``make figures``,
   ``sweep.compile_kernels`` of several configs) compiles them side by side in other
-  processes that never write the same file (``dispatch.load_kernels``). The helpers they call are not
-  cached (``jit``): a cached grid kernel holds their compiled code, and numba checks
+  processes that never write the same file (``dispatch.load_kernels``). The helpers
+  they call are not cached (``jit``): a cached grid kernel holds their compiled code, and numba checks
   a cache entry against its own file only, so a helper cached beside it could be
   stale after an edit to a file it calls. The grid kernel's cache key covers every
   kernel source instead (``kernels.integrate.grid_kernel``).
