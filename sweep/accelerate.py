@@ -12,10 +12,10 @@ are in the changelog of the documentation, ``docs/changelog.md``):
   files of its own, so a command that needs several (``make figures``,
   ``sweep.compile_kernels`` of several configs) compiles them side by side in other
   processes that never write the same file (``dispatch.load_kernels``). The helpers
-  they call are not cached (``jit``): a cached grid kernel holds their compiled code, and numba checks
-  a cache entry against its own file only, so a helper cached beside it could be
-  stale after an edit to a file it calls. The grid kernel's cache key covers every
-  kernel source instead (``kernels.integrate.grid_kernel``).
+  the kernels call are not cached (``jit``): a cached grid kernel holds their compiled code,
+  and numba checks a cache entry against its own file only, so a helper cached beside
+  it could be stale after an edit to a file it calls. The grid kernel's cache key
+  covers every kernel source instead (``kernels.integrate.grid_kernel``).
 * ``fastmath=False``: runaway detection must see NaN and inf (``nnan``/``ninf``
   would let LLVM assume they never occur).
 * ``error_model="numpy"``: a division by zero gives inf/NaN (a classified
