@@ -34,10 +34,11 @@ are in the changelog of the documentation, ``docs/changelog.md``):
   (numba#8989), which was 10 s of a 27 s cold compile. Specialising with ``numba.literally``
   arguments instead compiled each combination as slowly as the whole kernel and
   made every call through the dispatcher slow.
-* The right-hand side, the explicit steps and the dense-output helpers are inlined
-  into the integration loop at numba-IR level (``inline="always"``): left to LLVM,
-  they stay calls passing a dozen arrays each. Every inlined copy costs compile
-  time, so the Runge–Kutta stages are a loop around one call of the right-hand side.
+* The right-hand side, the explicit steps (DOP853's too: 4 % per step, no measurable
+  compile time) and the dense-output helpers are inlined into the integration loop at
+  numba-IR level (``inline="always"``): left to LLVM, they stay calls passing a dozen
+  arrays each. Every inlined copy costs compile time, so the Runge–Kutta stages are a
+  loop around one call of the right-hand side.
 * The grid kernel's loop calls small inlined helpers, each written without
   a loop or a non-inlined call behind a branch (``runaway_index``, ``update_cycle``).
   Where an inlined body has one, numba's reference-count pruning fails and every

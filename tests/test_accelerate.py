@@ -88,8 +88,8 @@ from sweep.kernels import steppers, tangent
 config = with_changes(load_config(CONFIG), {"integrator": {"method": "dopri5"}})
 grid = build_grid(config)
 dispatch.ready_kernel(grid.params, grid.settings)
-others = {"step_dop853": steppers.step_dop853, "dense_dop853": steppers.dense_dop853,
-          "step_rosenbrock": steppers.step_rosenbrock, "tangent_step": tangent.tangent_step}
+others = {"dense_dop853": steppers.dense_dop853, "step_rosenbrock": steppers.step_rosenbrock,
+          "tangent_step": tangent.tangent_step}
 print(json.dumps({name: len(f.signatures) for name, f in others.items()}))
 """
 
@@ -98,18 +98,18 @@ print(json.dumps({name: len(f.signatures) for name, f in others.items()}))
 def test_a_variant_compiles_only_its_own_parts():
     """The codes are constants of the grid kernel's closure, and numba prunes the other
     variants' branches before it inlines and types the helpers: a DOPRI5 kernel
-    without the tangent compiles neither DOP853's nor RODAS4's step, nor the tangent
-    step (each costs seconds of a cold start)."""
+    without the tangent compiles neither DOP853's interpolant nor RODAS4's step, nor
+    the tangent step (each costs seconds of a cold start)."""
     env = dict(os.environ, SWEEP_NUMBA_CACHE="0", NUMBA_DISABLE_JIT="0")
     code = f"CONFIG = {str(ROOT / 'configs' / 'quick.yaml')!r}\n{PRUNE_PROBE}"
     report = json.loads(python_stdout(code, env=env).splitlines()[-1])
-    assert report == {"step_dop853": 0, "dense_dop853": 0, "step_rosenbrock": 0,
-                      "tangent_step": 0}  # fmt: skip
+    assert report == {"dense_dop853": 0, "step_rosenbrock": 0, "tangent_step": 0}
 
 
 @NO_JIT
 @pytest.mark.parametrize(
-    "name", ["rhs", "step_rk4", "step_dopri5", "dense_tail", "dense_value", "cycle_arrays"]
+    "name",
+    ["rhs", "step_rk4", "step_dopri5", "step_dop853", "dense_tail", "dense_value", "cycle_arrays"],
 )
 def test_rhs_and_explicit_steps_are_inlined(name):
     """accelerate.py: the right-hand side and the explicit steps are inlined at numba-IR
@@ -118,10 +118,10 @@ def test_rhs_and_explicit_steps_are_inlined(name):
 
 
 @NO_JIT
-@pytest.mark.parametrize("name", ["step_dop853", "dense_dop853", "dense_needed"])
+@pytest.mark.parametrize("name", ["dense_dop853", "dense_needed"])
 def test_dop853_parts_are_plain_calls(name):
-    """accelerate.py: DOP853's step, interpolant and the test for where it is read are
-    plain calls, typed only in DOP853's kernels, so no other kernel compiles them."""
+    """accelerate.py: DOP853's interpolant and the test for where it is read are plain
+    calls, typed only in DOP853's kernels, so no other kernel compiles them."""
     assert kernel_functions()[name].targetoptions.get("inline", "never") == "never"
 
 

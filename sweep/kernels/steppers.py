@@ -186,7 +186,7 @@ _S8 = tableau_dop853.N_STAGES  # 12: K_0 = f, K_1 … K_11, then K_12 = f(y_new)
 _S8_DENSE = tableau_dop853.N_STAGES_DENSE  # 16: … K_13 … K_15 for the interpolant
 
 
-@jit
+@jit_inline
 def step_dop853(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew, fnew, rtol, atol):
     """One DOP853 step (order 8); returns its error norm, DOP853's blend of the 5th- and
     3rd-order estimates, ‖e5‖² / √(‖e5‖² + 0.01 ‖e3‖²), scaled as for DOPRI5.
