@@ -240,6 +240,18 @@ def add_figure_commands(sub):
         "--out", help="output .png, .pdf or .svg (default: <first result>_bifurcation.png)"
     )
     _add_dpi(bif)
+    comp = sub.add_parser(
+        "compile",
+        help="compile the kernels of configs into numba's cache, side by side (before job arrays)",
+    )
+    comp.add_argument(
+        "configs", nargs="+", metavar="CONFIG", help="YAML config files or packaged example names"
+    )
+    comp.add_argument(
+        "--processes",
+        type=_positive_int,
+        help="processes that compile side by side (default: one per core)",
+    )
     figs = sub.add_parser("figures", help="regenerate the paper's figures (in ./results)")
     figs.add_argument(
         "--config", default="paper", help="the paper config (default: the packaged example paper)"
@@ -470,6 +482,18 @@ def cmd_bifurcation(args):
     return 0
 
 
+def cmd_compile(args):
+    from .accelerate import CACHE
+    from .api import compile_kernels
+
+    compile_kernels(*args.configs, processes=args.processes)
+    if CACHE:
+        print(f"the kernels of {len(args.configs)} config(s) are in numba's cache")
+    else:
+        print("compiled; SWEEP_NUMBA_CACHE=0, so nothing was kept for later runs")
+    return 0
+
+
 def cmd_figures(args):
     from .figures import make_figures
 
@@ -495,6 +519,7 @@ COMMANDS = {
     "trace": cmd_trace,
     "bifurcation": cmd_bifurcation,
     "figures": cmd_figures,
+    "compile": cmd_compile,
 }
 
 

@@ -140,6 +140,27 @@ def test_bad_arguments_exit_2(option, capsys):
     assert info.value.code == 2
 
 
+def test_compile_loads_every_configs_kernels(tmp_path, capsys):
+    """``compile CONFIG...`` (warming numba's cache before job arrays) builds, in this
+    process, the kernel of each config's variant and the one with the tangent where
+    its unsettled runs ask for λ1; a bad config is refused with every problem and exit 2,
+    before anything is compiled."""
+    from sweep.config import load_config
+    from sweep.dispatch import grid_kernel
+    from sweep.grid import build_grid
+
+    path = write_config(tmp_path / "dopri5.yaml", {"integrator": {"method": "dopri5"}})
+    assert cli.main(["compile", str(QUICK), str(path)]) == 0
+    assert "the kernels of 2 config(s)" in capsys.readouterr().out
+    for config in (load_config(QUICK), load_config(path)):
+        g = build_grid(config)
+        for tangent in (False, True):
+            assert grid_kernel(g.params, g.settings, tangent).signatures, (config, tangent)
+    bad = write_config(tmp_path / "bad.yaml", {"parameters": {"A": -0.01}})
+    assert cli.main(["compile", str(QUICK), str(bad)]) == 2
+    assert f"{bad}: parameters.A must be in (0, inf), got -0.01" in capsys.readouterr().err
+
+
 #: Two stiffnesses either side of Kc, short runs: runaway at 0.8 Kc, steady at 1.2 Kc.
 TINY = {"sweep": {"K_W": [0.8 * KC_W, 1.2 * KC_W]}, "integrator": {"t_end": 150.0}}
 
