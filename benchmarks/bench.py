@@ -101,15 +101,21 @@ def engine_run(config, threads=1, repeats=1, passes=1):
     return out["results"], seconds
 
 
-def scipy_rhs(t, y, A, B, kappa):
-    """The one-block quasi-static aging case of ``sweep.physics.log_form_rhs``, on
-    scalars with ``math``: the numpy reference costs 32 instead of 9 µs per call under
-    LSODA (2-element arrays), which would make the SciPy loops about 3.5x slower than a
-    user's need be. ``tests/test_bench.py`` checks that the two agree."""
-    lnv, psi = y
+def one_block_slopes(lnv, psi, A, B, kappa):
+    """(d ln v/dt, dψ/dt) of the one-block quasi-static aging case of
+    ``sweep.physics.log_form_rhs``, on scalars with ``math``: the peers' right-hand side
+    (SciPy's, and CyRK's compiled by numba). The numpy reference costs 32 instead of
+    9 µs per call under LSODA (2-element arrays), which would make the SciPy loops
+    about 3.5x slower than a user's need be. ``tests/test_bench.py`` checks that the
+    two agree."""
     e = math.exp(lnv)
     dpsi = math.exp(-psi) - e
-    return [(kappa * (1.0 - e) - B * dpsi) / A, dpsi]
+    return (kappa * (1.0 - e) - B * dpsi) / A, dpsi
+
+
+def scipy_rhs(t, y, A, B, kappa):
+    """:func:`one_block_slopes` as ``solve_ivp`` calls a right-hand side."""
+    return list(one_block_slopes(y[0], y[1], A, B, kappa))
 
 
 def scipy_classify(k_w, t_end, method, lnv_cap):
@@ -430,11 +436,10 @@ def _cyrk_loop():
         return None
     import numba
 
+    slopes = numba.njit(one_block_slopes)
+
     def diffeq(dy, t, y, args):  # ln v/V and psi of one quasi-static aging block
-        e = math.exp(y[0])
-        dpsi = math.exp(-y[1]) - e
-        dy[0] = (args[2] * (1.0 - e) - args[1] * dpsi) / args[0]
-        dy[1] = dpsi
+        dy[0], dy[1] = slopes(y[0], y[1], args[0], args[1], args[2])
 
     @numba.njit
     def run_all(address, kappas, A, B, psi0, t_end, rtol, atol, method, steps):
