@@ -565,42 +565,14 @@ def grid_kernel(model, law, method, coupling, het, tangent):
                 err = 0.0  # RK4: every step is accepted
                 if method == DOPRI5:
                     err = step_dopri5(
-                        y,
-                        f,
-                        h,
-                        p,
-                        model,
-                        law,
-                        coupling,
-                        het,
-                        nb,
-                        ev,
-                        k,
-                        ytmp,
-                        ynew,
-                        fnew,
-                        rtol,
-                        atol,
-                    )
+                        y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp,
+                        ynew, fnew, rtol, atol,
+                    )  # fmt: skip
                 elif method == DOP853:
                     err = step_dop853(
-                        y,
-                        f,
-                        h,
-                        p,
-                        model,
-                        law,
-                        coupling,
-                        het,
-                        nb,
-                        ev,
-                        k,
-                        ytmp,
-                        ynew,
-                        fnew,
-                        rtol,
-                        atol,
-                    )
+                        y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp,
+                        ynew, fnew, rtol, atol,
+                    )  # fmt: skip
                 elif method == ROSENBROCK:
                     err = step_rosenbrock(
                         y, f, h, p, model, law, coupling, het, nb, ev, k_ros, mat, perm, ytmp, ynew,
@@ -692,23 +664,9 @@ def grid_kernel(model, law, method, coupling, het, tangent):
                     cs[C_WIN_MBAR_MIN] = min(cs[C_WIN_MBAR_MIN], m1)
                 if n_rec > 0:
                     n_rec = record_step(
-                        method,
-                        t,
-                        h,
-                        y,
-                        ynew,
-                        f,
-                        fnew,
-                        k3,
-                        k4,
-                        k5,
-                        k6,
-                        dense,
-                        rec_dt,
-                        rec_t,
-                        rec_y,
-                        n_rec,
-                    )
+                        method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, rec_dt,
+                        rec_t, rec_y, n_rec,
+                    )  # fmt: skip
                 t_new_peak = t + theta_peak * h
                 t += h
                 for j in range(n):
