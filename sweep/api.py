@@ -67,7 +67,7 @@ def compile_kernels(*configs, processes=None):
     other nodes start, so that they only read the cache. Several variants are
     compiled side by side in up to ``processes`` fresh processes (default: one per
     core; ``dispatch.load_kernels``). Returns None."""
-    from .dispatch import load_kernels, may_need_tangent
+    from .dispatch import kernel_jobs, load_kernels
     from .grid import build_grid
 
     configs = [load_config(config) for config in configs]
@@ -75,12 +75,9 @@ def compile_kernels(*configs, processes=None):
     if not (processes is None or positive):
         source = configs[0].source if configs else "compile_kernels"
         raise InputError(source, [f"processes must be a positive integer, got {processes!r}"])
-    jobs = []
-    for config in configs:
-        g = build_grid(config)
-        jobs += [(g.params, g.settings, None)]
-        jobs += [(g.params, g.settings, True)] if may_need_tangent(g.settings) else []
-    load_kernels(jobs, processes)
+    grids = [build_grid(config) for config in configs]
+    load_kernels([job for g in grids for job in kernel_jobs(g.params, g.settings, every=True)],
+                 processes)  # fmt: skip
 
 
 def _check_threads(source, threads):

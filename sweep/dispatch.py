@@ -132,9 +132,18 @@ def load_kernel(params, settings, every=False):
     workers, job-array tasks) only read it; on threads in one process it is
     compiled when a run first needs it. Only the variants the run uses are compiled.
     """
-    ready_kernel(params, settings)
+    for job in kernel_jobs(params, settings, every):
+        ready_kernel(*job)
+
+
+def kernel_jobs(params, settings, every=False):
+    """The (params, settings, tangent) jobs of :func:`ready_kernel` for one run's arrays:
+    its variant, and with ``every`` also the kernel with the tangent where runs may
+    need it (:func:`may_need_tangent`)."""
+    jobs = [(params, settings, None)]
     if every and may_need_tangent(settings):
-        ready_kernel(params, settings, tangent=True)
+        jobs.append((params, settings, True))
+    return jobs
 
 
 def load_kernels(jobs, processes=None):
