@@ -4,18 +4,18 @@ Decisions (each tested in ``tests/test_accelerate.py``; the measurements behind 
 are in the changelog of the documentation, ``docs/changelog.md``):
 
 * ``nogil=True`` everywhere, so Dask worker threads can run kernels side by side.
-* The grid kernels are cached on disk by default (``jit_kernel``): users rerun the
-  CLI many times and a warm cache saves the compile time. Writing the cache from
-  several processes at once can crash (numba#4807), so the runner compiles in the
-  parent process before any worker starts, and ``SWEEP_NUMBA_CACHE=0`` turns
-  caching off (e.g. on a shared, read-only install). Each variant's kernel has cache
-  files of its own, so a command that needs several (``make figures``,
-  ``sweep.compile_kernels`` of several configs) compiles them side by side in other
-  processes that never write the same file (``dispatch.load_kernels``). The helpers
-  the kernels call are not cached (``jit``): a cached grid kernel holds their compiled code,
-  and numba checks a cache entry against its own file only, so a helper cached beside
-  it could be stale after an edit to a file it calls. The grid kernel's cache key
-  covers every kernel source instead (``kernels.integrate.grid_kernel``).
+* The grid kernels are cached on disk by default (``jit_kernel``): users rerun the CLI
+  many times and a warm cache saves the compile time. Writing the cache from several
+  processes at once can crash (numba#4807), so the runner compiles in the parent
+  process before any worker starts, and ``SWEEP_NUMBA_CACHE=0`` turns caching off
+  (e.g. on a shared, read-only install). Each variant's kernel has cache files of its
+  own, so a command that needs several (``make figures``, ``sweep.compile_kernels`` of
+  several configs) compiles them side by side in other processes that never write the
+  same file (``dispatch.load_kernels``). The helpers the kernels call are not cached
+  (``jit``): a cached grid kernel holds their compiled code, and numba checks a cache
+  entry against its own file only, so a helper cached beside it could be stale after
+  an edit to a file it calls. The grid kernel's cache key covers every kernel source
+  instead (``kernels.integrate.grid_kernel``).
 * ``fastmath=False``: runaway detection must see NaN and inf (``nnan``/``ninf``
   would let LLVM assume they never occur).
 * ``error_model="numpy"``: a division by zero gives inf/NaN (a classified
@@ -24,16 +24,16 @@ are in the changelog of the documentation, ``docs/changelog.md``):
 * ``no_cfunc_wrapper=True``: no kernel is passed as a first-class function, and the
   C wrapper numba builds for that by default cost 0.5 s of a cold compile. The
   CPython wrappers stay: tests and notebooks call the helpers from Python.
-* One grid kernel per variant (model, state law, method, coupling, equal or
-  unequal blocks, with or without the tangent for λ1): ``kernels.integrate.grid_kernel``
-  closes over the codes and holds the loop itself, so numba prunes the other
-  variants' branches before it inlines any helper and a run compiles only its own
-  (tested); the kernel with the tangent is compiled only when a run needs λ1
-  (``dispatch.integrate_grid``). The loop is not an inlined function of its own:
-  numba copies an inlined body once per basic block together with its whole scope
-  (numba#8989), which was 10 s of a 27 s cold compile. Specialising with ``numba.literally``
-  arguments instead compiled each combination as slowly as the whole kernel and
-  made every call through the dispatcher slow.
+* One grid kernel per variant (model, state law, method, coupling, equal or unequal
+  blocks, with or without the tangent for λ1): ``kernels.integrate.grid_kernel``
+  closes over the codes and holds the loop itself, so numba prunes the other variants'
+  branches before it inlines any helper and a run compiles only its own (tested); the
+  kernel with the tangent is compiled only when a run needs λ1
+  (``dispatch.integrate_grid``). The loop is not an inlined function of its own: numba
+  copies an inlined body once per basic block together with its whole scope
+  (numba#8989), which was 10 s of a 27 s cold compile. Specialising with
+  ``numba.literally`` arguments instead compiled each combination as slowly as the
+  whole kernel and made every call through the dispatcher slow.
 * The right-hand side, the explicit steps (DOP853's too: 4 % per step, no measurable
   compile time) and the dense-output helpers are inlined into the integration loop at
   numba-IR level (``inline="always"``): left to LLVM, they stay calls passing a dozen
