@@ -33,6 +33,7 @@ import math
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -609,22 +610,39 @@ def bench_sweep(config_path):
     return out
 
 
+#: A run of a tiny sweep of CONFIG (with CHANGES) in a fresh process: prints its seconds.
+COMPILE_RUN = (
+    "import ast, time, sys; t=time.perf_counter();"
+    "from sweep.config import load_config, with_changes; from sweep.runner import compute;"
+    "compute(with_changes(load_config(sys.argv[1]), ast.literal_eval(sys.argv[2])),"
+    " show_progress=False);"
+    "print(time.perf_counter()-t)"
+)
+#: Another model than the default config's: a variant whose kernel is not cached.
+FURTHER_VARIANT = {"model": "quasi-dynamic", "parameters": {"eta_W": 0.1}}
+
+
 def bench_compile(config_path):
-    """JIT time: a fresh process running a tiny sweep with the cache off, then on."""
-    code = (
-        "import time, sys; t=time.perf_counter();"
-        "from sweep.config import load_config; from sweep.runner import compute;"
-        f"compute(load_config({str(config_path)!r}), show_progress=False);"
-        "print(time.perf_counter()-t)"
-    )
-    out = {}
-    for label, cache in (("cache_off_seconds", "0"), ("cache_warm_seconds", "1")):
+    """JIT time: a fresh process running a tiny sweep with the cache off, then on; and
+    a further variant (another model) with only the helpers it shares cached."""
+
+    def seconds(cache, changes=None, cache_dir=None):
         env = dict(os.environ, SWEEP_NUMBA_CACHE=cache)
-        if cache == "1":  # warm the cache first
-            subprocess.run([sys.executable, "-c", code], env=env, check=True, capture_output=True)
-        run = subprocess.run([sys.executable, "-c", code], env=env, check=True, capture_output=True)
-        out[label] = float(run.stdout.split()[-1])
+        if cache_dir:
+            env["NUMBA_CACHE_DIR"] = cache_dir
+        command = [sys.executable, "-c", COMPILE_RUN, str(config_path), repr(changes or {})]
+        run = subprocess.run(command, env=env, check=True, capture_output=True)
+        return float(run.stdout.split()[-1])
+
+    out = {"cache_off_seconds": seconds("0")}
+    seconds("1")  # warm the cache first
+    out["cache_warm_seconds"] = seconds("1")
     out["compile_seconds"] = out["cache_off_seconds"] - out["cache_warm_seconds"]
+    with tempfile.TemporaryDirectory() as cache_dir:
+        seconds("1", cache_dir=cache_dir)  # the default config's kernel and helpers
+        out["further_variant_seconds"] = seconds("1", FURTHER_VARIANT, cache_dir)
+        out["further_warm_seconds"] = seconds("1", FURTHER_VARIANT, cache_dir)
+    out["further_compile_seconds"] = out["further_variant_seconds"] - out["further_warm_seconds"]
     return out
 
 
@@ -751,7 +769,8 @@ def main(argv=None):
     figures["compile"] = c = bench_compile(repo_config(size["compile"]))
     print(
         f"JIT compile {c['compile_seconds']:.1f} s (fresh process: {c['cache_off_seconds']:.1f} s "
-        f"with cache off, {c['cache_warm_seconds']:.1f} s with a warm cache)"
+        f"with cache off, {c['cache_warm_seconds']:.1f} s with a warm cache); a further "
+        f"variant (another model), shared helpers cached: {c['further_compile_seconds']:.1f} s"
     )
     if "twoblock" in figures:
         _print_targets(figures)
@@ -814,6 +833,11 @@ def _print_targets(f):
             f"{f['threads_large']['speedup_2_threads']:.2f}x",
         ),
         ("cold JIT compile (default config)", "< 10 s", f"{f['compile']['compile_seconds']:.1f} s"),
+        (
+            "JIT compile of a further variant (another model), shared helpers cached",
+            "< 10 s",
+            f"{f['compile']['further_compile_seconds']:.1f} s",
+        ),
         (
             "settling runs: default classification vs none beyond the simple cycle",
             "<= 1.03x per step",

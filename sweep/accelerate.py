@@ -4,18 +4,20 @@ Decisions (each tested in ``tests/test_accelerate.py``; the measurements behind 
 are in the changelog of the documentation, ``docs/changelog.md``):
 
 * ``nogil=True`` everywhere, so Dask worker threads can run kernels side by side.
-* The grid kernels are cached on disk by default (``jit_kernel``): users rerun the CLI
-  many times and a warm cache saves the compile time. Writing the cache from several
-  processes at once can crash (numba#4807), so the runner compiles in the parent
-  process before any worker starts, and ``SWEEP_NUMBA_CACHE=0`` turns caching off
-  (e.g. on a shared, read-only install). Each variant's kernel has cache files of its
-  own, so a command that needs several (``make figures``, ``sweep.compile_kernels`` of
-  several configs) compiles them side by side in other processes that never write the
-  same file (``dispatch.load_kernels``). The helpers the kernels call are not cached
-  (``jit``): a cached grid kernel holds their compiled code, and numba checks a cache
-  entry against its own file only, so a helper cached beside it could be stale after
-  an edit to a file it calls. The grid kernel's cache key covers every kernel source
-  instead (``kernels.integrate.grid_kernel``).
+* The grid kernels and the helpers they call are cached on disk by default
+  (``jit``, :class:`SourceKeyedCache`): users rerun the CLI many times and a warm
+  cache saves the compile time, and a variant not compiled before (another model,
+  law, method or coupling) loads the helpers it shares with those that were, which
+  halves its compile (17 → 9–10 s, ``docs/performance.md``). numba checks an entry
+  against its own file only and a compiled function holds the code of everything it
+  calls, so the key also covers every kernel source and this file: an edit anywhere
+  compiles afresh (tested). numba's cache is not safe to write from several processes
+  at once (numba#4807, #10128), so loading and saving hold a lock on the cache folder;
+  a command that needs several variants (``make figures``, ``sweep.compile_kernels``
+  of several configs) compiles them side by side in other processes
+  (``dispatch.load_kernels``), and the runner compiles before any worker starts.
+  ``SWEEP_NUMBA_CACHE=0`` turns caching off (e.g. on a shared, read-only install).
+  Inlined helpers (``jit_inline``) are not cached: they are compiled into callers.
 * ``fastmath=False``: runaway detection must see NaN and inf (``nnan``/``ninf``
   would let LLVM assume they never occur).
 * ``error_model="numpy"``: a division by zero gives inf/NaN (a classified
@@ -55,9 +57,15 @@ are in the changelog of the documentation, ``docs/changelog.md``):
   to share the costly runs near Kc between threads.
 """
 
+import contextlib
+import fcntl
+import functools
+import hashlib
 import os
+from pathlib import Path
 
 import numba
+from numba.core.caching import FunctionCache
 
 #: Whether compiled kernels are cached on disk (``SWEEP_NUMBA_CACHE=0`` disables).
 CACHE = os.environ.get("SWEEP_NUMBA_CACHE", "1") != "0"
@@ -65,21 +73,80 @@ CACHE = os.environ.get("SWEEP_NUMBA_CACHE", "1") != "0"
 _COMMON = {"nogil": True, "fastmath": False, "error_model": "numpy", "no_cfunc_wrapper": True}
 
 
-def jit_kernel(func):
-    """Compile an entry point (a grid kernel) with the project's numba policy, cached
-    on disk unless ``SWEEP_NUMBA_CACHE=0``."""
-    return numba.njit(cache=CACHE, **_COMMON)(func)
+@functools.cache
+def source_digest():
+    """SHA-256 (hex) of the sources compiled code comes from: every file of
+    ``sweep/kernels`` and this policy, in name order."""
+    here = Path(__file__).parent
+    digest = hashlib.sha256()
+    for path in [*sorted((here / "kernels").glob("*.py")), here / "accelerate.py"]:
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+class SourceKeyedCache(FunctionCache):
+    """numba's on-disk cache of one function, keyed also on :func:`source_digest` and
+    safe to share between processes.
+
+    numba checks an entry against its own file only, and a compiled function holds
+    the code of everything it calls: the digest in the key makes an edit to any kernel
+    file compile afresh. numba numbers the data files of a function in its index, so
+    two processes that save the same function at once can point one index at the
+    other's data (numba#4807, #10128): loading and saving hold a lock on the cache
+    folder (shared, exclusive), so processes that compile side by side
+    (``dispatch.load_kernels``) or start on one install at once stay safe.
+    """
+
+    def _index_key(self, sig, codegen):
+        return (*super()._index_key(sig, codegen), source_digest())
+
+    @contextlib.contextmanager
+    def _locked(self, mode):
+        if not os.path.isdir(self._cache_path):  # nothing cached yet
+            yield
+            return
+        try:
+            lock = open(os.path.join(self._cache_path, "sweep-numba.lock"), "a")
+        except OSError:  # a read-only cache: nothing is written to it
+            yield
+            return
+        with lock:
+            fcntl.flock(lock, mode)
+            try:
+                yield
+            finally:
+                fcntl.flock(lock, fcntl.LOCK_UN)
+
+    def load_overload(self, sig, target_context):
+        with self._locked(fcntl.LOCK_SH):
+            return super().load_overload(sig, target_context)
+
+    def save_overload(self, sig, data):
+        self._impl.locator.ensure_cache_path()
+        with self._locked(fcntl.LOCK_EX):
+            super().save_overload(sig, data)
+
+
+def _cached(dispatcher):
+    """``dispatcher`` with :class:`SourceKeyedCache` unless ``SWEEP_NUMBA_CACHE=0`` (or
+    ``NUMBA_DISABLE_JIT=1``: then it is the plain function)."""
+    if CACHE and not numba.config.DISABLE_JIT:
+        dispatcher._cache = SourceKeyedCache(dispatcher.py_func)
+    return dispatcher
 
 
 def jit(func):
-    """Compile a helper of the kernels with the project's numba policy (not cached:
-    the kernel that calls it is)."""
-    return numba.njit(cache=False, **_COMMON)(func)
+    """Compile a helper of the kernels with the project's numba policy, cached on disk
+    like the kernels: a further variant loads the helpers it shares with one compiled
+    before."""
+    return _cached(numba.njit(**_COMMON)(func))
 
 
 def jit_inline(func):
-    """Compile a small hot helper that numba inlines into every caller (not cached)."""
-    return numba.njit(inline="always", cache=False, **_COMMON)(func)
+    """Compile a small hot helper that numba inlines into every caller (not cached:
+    it is compiled into them)."""
+    return numba.njit(inline="always", **_COMMON)(func)
 
 
 def thread_count(n_threads):

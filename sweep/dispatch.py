@@ -153,12 +153,12 @@ def load_kernels(jobs, processes=None):
     numba holds one lock over all compiling in a process, so the distinct variants
     this process has not compiled yet are shared out among up to ``processes`` fresh
     Python processes (default: one per core), each compiling its share one after
-    another (the helpers that every variant calls are compiled once per process) and
-    writing numba's cache; this process then loads them. Each variant has cache files
-    of its own (``kernels.integrate.grid_kernel``), so no two processes write the same
-    file (numba#4807). With the cache off (``SWEEP_NUMBA_CACHE=0``), one variant to
-    build or one process, they are compiled here one after another; a share whose
-    process failed is compiled here too (with a warning)."""
+    another (the helpers that every variant calls are compiled once per process, or
+    loaded from the cache) and writing numba's cache, under its lock
+    (``accelerate.SourceKeyedCache``); this process then loads them. With the cache
+    off (``SWEEP_NUMBA_CACHE=0``), one variant to build or one process, they are
+    compiled here one after another; a share whose process failed is compiled here
+    too (with a warning)."""
     from .accelerate import CACHE, thread_count
 
     wanted = {}

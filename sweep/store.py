@@ -46,7 +46,6 @@ from pathlib import Path
 
 import numpy as np
 
-from . import kernels
 from ._version import __version__
 from .errors import InputError, OutputBusy, PartError
 
@@ -55,7 +54,7 @@ PART_FORMAT = 1
 #: Modules whose code decides the numbers stored in a part (accelerate.py: fastmath,
 #: error model; dispatch.py: which compiled variant integrates a run): grid.py and
 #: dispatch.py and everything in the package they import; ``kernels`` is the kernel
-#: package (every file of it, ``kernels.source_digest``).
+#: package and the numba policy (``accelerate.source_digest``).
 NUMERIC_MODULES = (
     "kernels",
     "grid.py",
@@ -100,7 +99,9 @@ def config_hash(config):
     here = Path(__file__).parent
     for name in NUMERIC_MODULES:
         if name == "kernels":
-            digest.update(kernels.source_digest().encode())
+            from .accelerate import source_digest  # numba: only where parts are keyed
+
+            digest.update(source_digest().encode())
         else:
             digest.update((here / name).read_bytes())
     return digest.hexdigest()[:16]

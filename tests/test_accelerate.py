@@ -125,32 +125,37 @@ def test_dop853_parts_are_plain_calls(name):
     assert kernel_functions()[name].targetoptions.get("inline", "never") == "never"
 
 
-# Imports the kernels (compiles nothing) and reports each function's numba cache.
+# Imports the kernels (compiles nothing) and reports each function's numba cache and
+# whether it is inlined.
 CACHE_PROBE = """
 import json
 from sweep.kernels import cycles, equations, integrate, steppers
-report = {name: type(obj._cache).__name__
+report = {name: [type(obj._cache).__name__, obj.targetoptions.get("inline") == "always"]
           for module in (equations, steppers, cycles, integrate)
           for name, obj in vars(module).items()
           if getattr(obj, "__module__", None) == module.__name__ and name != "grid_kernel"}
-report["grid_kernel()"] = type(integrate.grid_kernel(0, 0, 0, 0, False, False)._cache).__name__
+report["grid_kernel()"] = [type(integrate.grid_kernel(0, 0, 0, 0, False, False)._cache).__name__,
+                           False]
 print(json.dumps(report))
 """
 
 
-@pytest.mark.parametrize("value, cache", [(None, "FunctionCache"), ("0", "NullCache"),
-                                          ("1", "FunctionCache")])  # fmt: skip
+@pytest.mark.parametrize("value, cache", [(None, "SourceKeyedCache"), ("0", "NullCache"),
+                                          ("1", "SourceKeyedCache")])  # fmt: skip
 def test_cache_switch(value, cache):
-    """The grid kernels are cached by default (variable unset), not with
-    SWEEP_NUMBA_CACHE=0; the helpers they compile in never are (accelerate.py)."""
+    """The grid kernels and the helpers they call are cached by default (variable
+    unset), none of them with SWEEP_NUMBA_CACHE=0; inlined helpers never are (they are
+    compiled into their callers)."""
     env = {k: v for k, v in os.environ.items() if k != "SWEEP_NUMBA_CACHE"}
     env["NUMBA_DISABLE_JIT"] = "0"
     if value is not None:
         env["SWEEP_NUMBA_CACHE"] = value
     report = json.loads(python_stdout(CACHE_PROBE, env=env))
     assert sorted(report) == sorted([*KERNELS, "grid_kernel()"])
-    assert report.pop("grid_kernel()") == cache
-    assert set(report.values()) == {"NullCache"}
+    inlined = {name for name, (_, inline) in report.items() if inline}
+    assert inlined and len(inlined) < len(report)
+    for name, (kind, inline) in report.items():
+        assert kind == ("NullCache" if inline else cache), name
 
 
 def test_nan_and_inf_survive_compiled_code():
@@ -177,48 +182,75 @@ def test_thread_count():
 def test_one_cache_decision_in_this_process():
     """The grid kernels follow the one decision (whatever the environment says)."""
     kernel = integrate.grid_kernel(*VARIANT)
-    expected = "FunctionCache" if accelerate.CACHE else "NullCache"
+    expected = "SourceKeyedCache" if accelerate.CACHE else "NullCache"
     assert type(kernel._cache).__name__ == expected
 
 
 # One small run in a fresh process: its step count and whether numba's cache served
-# the grid kernel.
+# the grid kernel and the classifier's entry point (a helper in another file).
 CACHED_RUN = """
 import json, sweep
 from sweep.dispatch import grid_kernel
 from sweep.grid import build_grid
-ds = sweep.run(CONFIG, progress=False)
-g = build_grid(sweep.load_config(CONFIG))
-stats = grid_kernel(g.params, g.settings).stats
-print(json.dumps({"n_steps": ds["n_steps"].values.tolist(), "hits": sum(stats.cache_hits.values()),
-                  "misses": sum(stats.cache_misses.values())}))
+from sweep.kernels.cycles import close_cycle
+config = sweep.load_config(CONFIG)
+if MODEL:
+    config = sweep.with_changes(config, {"model": MODEL, "parameters": {"eta_W": 0.1}})
+ds = sweep.run(config, progress=False)
+g = build_grid(config)
+report = {"n_steps": ds["n_steps"].values.tolist()}
+for name, f in (("kernel", grid_kernel(g.params, g.settings)), ("helper", close_cycle)):
+    report[name] = [sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
+print(json.dumps(report))
 """
+
+
+def cached_run(tmp_path, model=None, cache="1"):
+    """CACHED_RUN of quick.yaml (with ``model``) with the copy of the package and the
+    numba cache in ``tmp_path``: its report."""
+    env = dict(os.environ, PYTHONPATH=str(tmp_path), NUMBA_CACHE_DIR=str(tmp_path / "cache"),
+               SWEEP_NUMBA_CACHE=cache, NUMBA_DISABLE_JIT="0")  # fmt: skip
+    config = str(ROOT / "configs" / "quick.yaml")
+    code = f"CONFIG = {config!r}\nMODEL = {model!r}\n{CACHED_RUN}"
+    return json.loads(python_stdout(code, env=env, cwd=tmp_path).splitlines()[-1])
+
+
+def copy_package(tmp_path):
+    shutil.copytree(
+        ROOT / "sweep", tmp_path / "sweep", ignore=shutil.ignore_patterns("__pycache__")
+    )
 
 
 @pytest.mark.slow
 def test_editing_an_inlined_helper_invalidates_the_cached_kernel(tmp_path):
-    """numba checks a cache entry against its own file only; the grid kernel's key also
-    covers every kernel source (``kernels.source_digest``). A copy of the package
-    compiles and caches a kernel, loads it from the cache, then has the step-size
-    controller (``steppers.next_step_size``, inlined from another file) edited: the
-    next run must compile afresh and take other steps, not load the stale kernel."""
-    shutil.copytree(
-        ROOT / "sweep", tmp_path / "sweep", ignore=shutil.ignore_patterns("__pycache__")
-    )
-    env = dict(os.environ, PYTHONPATH=str(tmp_path), NUMBA_CACHE_DIR=str(tmp_path / "cache"),
-               SWEEP_NUMBA_CACHE="1", NUMBA_DISABLE_JIT="0")  # fmt: skip
-
-    def run():
-        code = f"CONFIG = {str(ROOT / 'configs' / 'quick.yaml')!r}\n{CACHED_RUN}"
-        return json.loads(python_stdout(code, env=env, cwd=tmp_path).splitlines()[-1])
-
-    first, again = run(), run()
-    assert (first["misses"], again["hits"], again["misses"]) == (1, 1, 0)
+    """numba checks a cache entry against its own file only; the key of every cached
+    function also covers every kernel source (``accelerate.source_digest``). A copy of
+    the package compiles and caches a kernel, loads it from the cache, then has the
+    step-size controller (``steppers.next_step_size``, inlined from another file)
+    edited: the next run must compile the kernel and the cached helpers afresh and
+    take other steps, not load stale code."""
+    copy_package(tmp_path)
+    first, again = cached_run(tmp_path), cached_run(tmp_path)
+    assert (first["kernel"], again["kernel"]) == ([0, 1], [1, 0])
+    assert first["helper"] == [0, 1]
     assert again["n_steps"] == first["n_steps"]
     helper = tmp_path / "sweep" / "kernels" / "steppers.py"
     text = helper.read_text()
     assert text.count("0.9 * max(err, 1e-10)") == 1
     helper.write_text(text.replace("0.9 * max(err, 1e-10)", "0.7 * max(err, 1e-10)"))
-    edited = run()
-    assert (edited["hits"], edited["misses"]) == (0, 1)
+    edited = cached_run(tmp_path)
+    assert (edited["kernel"], edited["helper"]) == ([0, 1], [0, 1])
     assert edited["n_steps"] != first["n_steps"]
+
+
+@pytest.mark.slow
+def test_a_further_variant_loads_the_shared_helpers(tmp_path):
+    """A variant not compiled before (quasi-dynamic after quasi-static) compiles its
+    kernel but loads the classifier from the cache, and gives the numbers of a compile
+    with the cache off."""
+    copy_package(tmp_path)
+    cached_run(tmp_path)
+    further = cached_run(tmp_path, model="quasi-dynamic")
+    assert (further["kernel"], further["helper"]) == ([0, 1], [1, 0])
+    fresh = cached_run(tmp_path, model="quasi-dynamic", cache="0")
+    assert fresh["n_steps"] == further["n_steps"]

@@ -11,20 +11,3 @@ Only jitted loops live here; the equations are documented in ``sweep/physics.py`
 Everything a kernel needs is passed as an argument: numba's cache freezes globals,
 so module-level names are true constants.
 """
-
-import hashlib
-from pathlib import Path
-
-
-def source_digest():
-    """SHA-256 (hex) of every source file of this package, in name order.
-
-    numba's on-disk cache notices edits to a function's own file only; the grid
-    kernel carries this digest (``integrate.grid_kernel``), so an edit to any
-    kernel file, e.g. an inlined helper, compiles it afresh.
-    """
-    digest = hashlib.sha256()
-    for path in sorted(Path(__file__).parent.glob("*.py")):
-        digest.update(path.name.encode())
-        digest.update(path.read_bytes())
-    return digest.hexdigest()

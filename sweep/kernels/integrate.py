@@ -11,8 +11,7 @@ import math
 
 import numpy as np
 
-from ..accelerate import jit, jit_inline, jit_kernel
-from . import source_digest
+from ..accelerate import jit, jit_inline
 from .cycles import (
     C_CONV,
     C_EVENTS,
@@ -484,18 +483,12 @@ def grid_kernel(model, law, method, coupling, het, tangent):
     arguments), which is why the Runge–Kutta stages are loops around one call of
     :func:`rhs`.
 
-    Only these kernels are cached on disk (``accelerate.jit_kernel``), each with
-    everything it calls compiled in. numba keys a cache entry on the closure's
-    values and on this file's timestamp: the closure holds the digest of every
-    kernel source, so an edit to any kernel file compiles the kernel afresh. Each
-    variant's function is named after its codes, and numba names its cache files
-    after the function: processes that compile different variants at once
-    (``dispatch.load_kernels``) write different files.
+    Cached on disk like the helpers it calls (``accelerate.SourceKeyedCache``: keyed
+    on every kernel source, safe to share between processes). Each variant's function
+    is named after its codes, so its cache files are its own.
     """
-    sources = source_digest()
 
     def integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y):
-        _ = sources  # a closure value: part of numba's cache key (see above)
         n = y0.shape[1]
         for s in range(params.shape[0]):  # the settings are read per system: hoisted out
             # of this loop they made every step 3 % slower (make bench)
@@ -715,4 +708,4 @@ def grid_kernel(model, law, method, coupling, het, tangent):
 
     codes = "_".join(str(int(c)) for c in (model, law, method, coupling, het, tangent))
     integrate_grid.__qualname__ = f"{integrate_grid.__qualname__}_{codes}"
-    return jit_kernel(integrate_grid)
+    return jit(integrate_grid)
