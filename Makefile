@@ -19,8 +19,11 @@ $(STAMP): pyproject.toml
 sweep: $(STAMP)
 	$(PY) -m sweep run $(CONFIG) $(if $(THREADS),--threads $(THREADS))
 
+# The suite on TEST_WORKERS processes (pytest-xdist; "auto": one per core), which take
+# tests as they come free and share numba's on-disk cache of compiled kernels.
+TEST_WORKERS ?= 2
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist worksteal
 
 # The kernels as plain Python, so they count in coverage runs: the tests of the
 # model, kernels, grid, files and CLI (the long regularised, batch and figure runs
