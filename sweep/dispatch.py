@@ -24,6 +24,11 @@ log = logging.getLogger(__name__)
 
 _BUILD = threading.Lock()
 
+#: Largest state (values per system) whose kernel is compiled for its size, with its
+#: scratch on the stack (``kernels/stack.py``): one to three blocks, or two inertial.
+#: Each size is a variant of its own; larger systems share one kernel.
+STACK_STATE_MAX = 6
+
 
 def grid_kernel(params, settings, tangent=None):
     """The serial grid kernel (``kernels.integrate.grid_kernel``) of the variant that the
@@ -39,12 +44,16 @@ def grid_kernel(params, settings, tangent=None):
 
 def variant(params, settings, tangent=None):
     """The arguments of ``kernels.integrate.grid_kernel`` for these arrays: model, law,
-    method and coupling codes, unequal blocks, with the tangent (see :func:`grid_kernel`)."""
+    method and coupling codes, unequal blocks, with the tangent (see :func:`grid_kernel`),
+    and the state size the kernel is compiled for (0: any; ``STACK_STATE_MAX``)."""
     if tangent is None:
         tangent = int(settings[layout.S_LYAPUNOV]) == layout.LYAP_ALWAYS
     codes = (layout.S_MODEL, layout.S_LAW, layout.S_METHOD, layout.S_COUPLING)
     heterogeneous = params.shape[1] > layout.N_PARAMS
-    return (*(int(settings[c]) for c in codes), heterogeneous, bool(tangent))
+    per_block = 3 if int(settings[layout.S_MODEL]) == layout.INERTIAL else 2
+    n_state = per_block * int(settings[layout.S_NBLOCKS])
+    n_fixed = n_state if n_state <= STACK_STATE_MAX else 0
+    return (*(int(settings[c]) for c in codes), heterogeneous, bool(tangent), n_fixed)
 
 
 def may_need_tangent(settings):

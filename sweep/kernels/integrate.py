@@ -60,6 +60,7 @@ from .layout import (
     DOP853,
     DOPRI5,
     FIXED_POINT,
+    INERTIAL,
     LYAP_ALWAYS,
     LYAP_UNSETTLED,
     N_RESULTS,
@@ -118,7 +119,10 @@ from .layout import (
     UNDECIDED,
     UNRESOLVED,
 )
+from .stack import stack_matrix, stack_vector
 from .steppers import (
+    STAGE_ROWS,
+    STAGE_ROWS_DOP853,
     dense_crossing,
     dense_dop853,
     dense_extremum,
@@ -454,10 +458,16 @@ def read_settings(settings):
 
 
 @functools.cache
-def grid_kernel(model, law, method, coupling, het, tangent):
+def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
     """The serial grid kernel of one variant: model, state law, method and coupling
-    codes (int), whether blocks differ (``het``, bool) and whether it carries the
-    tangent for λ1 (``tangent``, bool).
+    codes (int), whether blocks differ (``het``, bool), whether it carries the
+    tangent for λ1 (``tangent``, bool) and the state size it is compiled for
+    (``n_fixed``, values per system; 0: any).
+
+    With a fixed size, the state, the stages and the other scratch of the step are
+    arrays of that size on the stack (``stack.py``), which LLVM keeps in registers:
+    1.1–1.24× faster per step for one and two blocks, the same numbers bit for bit
+    (``docs/performance.md``). Otherwise they are numba arrays on the heap.
 
     ``integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y)``
     integrates every row one after another: the system with parameters ``params[s]``
@@ -488,8 +498,16 @@ def grid_kernel(model, law, method, coupling, het, tangent):
     is named after its codes, so its cache files are its own.
     """
 
+    nb_fixed = n_fixed // (3 if model == INERTIAL else 2)
+    k_rows = STAGE_ROWS_DOP853 if method == DOP853 else STAGE_ROWS
+    dense_width = n_fixed if method == DOP853 else 0
+
     def integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y):
-        n = y0.shape[1]
+        if n_fixed > 0 and y0.shape[0] > 0 and y0.shape[1] != n_fixed:
+            raise ValueError("the state size differs from the one this kernel is compiled for")
+        # a constant for LLVM, typed int64 for numba: helpers taking n or nb are compiled
+        # once, not once per size
+        n = np.int64(n_fixed) if n_fixed > 0 else y0.shape[1]
         for s in range(params.shape[0]):  # the settings are read per system: hoisted out
             # of this loop they made every step 3 % slower (make bench)
             (
@@ -506,10 +524,24 @@ def grid_kernel(model, law, method, coupling, het, tangent):
             lin_growth = p[P_LIN_GROWTH]
             max_step = p[P_MAX_STEP]
 
-            y = y0[s].copy()
-            f, ynew, fnew, ytmp, k, dense = step_scratch(method, n)
+            if n_fixed > 0:  # a small system: scratch on the stack (kernels/stack.py)
+                nb = np.int64(nb_fixed)
+                y = stack_vector(n_fixed)
+                f = stack_vector(n_fixed)
+                ynew = stack_vector(n_fixed)
+                fnew = stack_vector(n_fixed)
+                ytmp = stack_vector(n_fixed)
+                k = stack_matrix(k_rows, n_fixed)
+                dense = stack_matrix(4, dense_width)
+                dense[:, :] = 0.0
+                ev = stack_vector(nb_fixed)
+                for j in range(n):
+                    y[j] = y0[s, j]
+            else:
+                y = y0[s].copy()
+                f, ynew, fnew, ytmp, k, dense = step_scratch(method, n)
+                ev = np.empty(nb)
             k3, k4, k5, k6 = k[1], k[2], k[3], k[4]  # the stages DOPRI5's dense output needs
-            ev = np.empty(nb)
             k_ros, mat, perm = rosenbrock_scratch(method, n)
             win, past, past_cs, hist, limits, section, cs, slipped, turns = cycle_arrays(
                 y, p, nb, A, B
@@ -706,6 +738,6 @@ def grid_kernel(model, law, method, coupling, het, tangent):
             if needs_tangent:
                 result[R_REGIME] = TANGENT_NEEDED
 
-    codes = "_".join(str(int(c)) for c in (model, law, method, coupling, het, tangent))
+    codes = "_".join(str(int(c)) for c in (model, law, method, coupling, het, tangent, n_fixed))
     integrate_grid.__qualname__ = f"{integrate_grid.__qualname__}_{codes}"
     return jit(integrate_grid)
