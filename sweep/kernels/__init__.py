@@ -6,6 +6,7 @@
 - ``steppers``: RK4, DOPRI5 and RODAS4 steps and their dense output.
 - ``cycles``: the cycle classifier (per-cycle statistics, return-map verdicts).
 - ``integrate``: the integration loop of one system and the per-variant grid kernel.
+- ``stack``: fixed-size scratch arrays on the stack, for kernels of one small state size.
 
 Only jitted loops live here; the equations are documented in ``sweep/physics.py``.
 Everything a kernel needs is passed as an argument: numba's cache freezes globals,
