@@ -23,6 +23,13 @@ CASES = {
     "rosenbrock, two inertial blocks": ("rosenbrock", {
         "blocks": 2, "model": "inertial", "parameters": {"m_W": 1.0},
         "sweep": {"K_W": [0.04, 0.08], "k2_W": [0.02]}}),
+    # the kernels with the tangent for λ1
+    "dopri5 with the tangent": ("dopri5", {"sweep": {"K_W": [0.03, 0.045, 0.06]},
+                                           "classification": {"lyapunov": "always"}}),
+    "rosenbrock with the tangent": ("rosenbrock", {
+        "blocks": 2, "model": "inertial", "parameters": {"m_W": 1.0},
+        "sweep": {"K_W": [0.04, 0.08], "k2_W": [0.02]},
+        "classification": {"lyapunov": "always"}}),
 }  # fmt: skip
 
 
@@ -45,11 +52,14 @@ def test_fixed_size_kernels_give_the_same_numbers(case):
     codes = dispatch.variant(g.params, g.settings)
     n = g.y0.shape[1]
     assert codes[-1] == n  # small systems get the kernel for their size
+    assert codes[-2] == ("tangent" in case)
     fixed = run(integrate.grid_kernel(*codes), g)
     any_size = run(integrate.grid_kernel(*codes[:-1], 0), g)
     # the runs integrated, and settled differently across the transition
     assert (fixed[0][:, layout.R_N_STEPS] > 10).all()
     assert len(set(fixed[0][:, layout.R_REGIME])) >= 2
+    if "tangent" in case:  # λ1 was measured
+        assert np.isfinite(fixed[0][:, layout.R_LYAPUNOV]).any()
     np.testing.assert_array_equal(fixed[0], any_size[0])
     np.testing.assert_array_equal(fixed[1], any_size[1])
 

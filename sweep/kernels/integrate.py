@@ -501,6 +501,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
     nb_fixed = n_fixed // (3 if model == INERTIAL else 2)
     k_rows = STAGE_ROWS_DOP853 if method == DOP853 else STAGE_ROWS
     dense_width = n_fixed if method == DOP853 else 0
+    ros_rows, ros_n = (6, n_fixed) if method == ROSENBROCK else (0, 0)
 
     def integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y):
         if n_fixed > 0 and y0.shape[0] > 0 and y0.shape[1] != n_fixed:
@@ -542,13 +543,26 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                 f, ynew, fnew, ytmp, k, dense = step_scratch(method, n)
                 ev = np.empty(nb)
             k3, k4, k5, k6 = k[1], k[2], k[3], k[4]  # the stages DOPRI5's dense output needs
-            k_ros, mat, perm = rosenbrock_scratch(method, n)
+            if n_fixed > 0:  # RODAS4's stages and matrix (empty for the other methods)
+                k_ros = stack_matrix(ros_rows, n_fixed)
+                mat = stack_matrix(ros_n, ros_n)
+                perm = np.empty(ros_n, np.int64)
+            else:
+                k_ros, mat, perm = rosenbrock_scratch(method, n)
             win, past, past_cs, hist, limits, section, cs, slipped, turns = cycle_arrays(
                 y, p, nb, A, B
             )
+            # the tangent's scratch (empty without it) and its accumulator
             delta, work, stages, ros_k, ros_mat, ros_perm, ly = tangent_arrays(
-                method, n if tangent else 0
+                method, n if tangent and n_fixed == 0 else 0
             )
+            if n_fixed > 0 and tangent:
+                delta = stack_vector(n_fixed)
+                work = stack_matrix(5, n_fixed)
+                stages = stack_matrix(k_rows, n_fixed)
+                ros_k = stack_matrix(ros_rows, n_fixed)
+                ros_mat = stack_matrix(ros_n, ros_n)
+                ros_perm = np.empty(ros_n, np.int64)
             needs_tangent = False
             if lyap == LYAP_ALWAYS:
                 if tangent:
