@@ -29,7 +29,7 @@ are in the changelog of the documentation, ``docs/changelog.md``):
 * One grid kernel per variant (model, state law, method, coupling, equal or unequal
   blocks, with or without the tangent for λ1, and the state size of systems with at
   most ``dispatch.STACK_STATE_MAX`` values, whose scratch is then on the stack, where
-  LLVM keeps it in registers: 1.15–1.27× per step, tested bit for bit against the
+  LLVM keeps it in registers: 1.1–1.4× per step, tested bit for bit against the
   kernel for any size; numba's heap arrays it cannot): ``kernels.integrate.grid_kernel``
   closes over the codes and holds the loop itself, so numba prunes the other variants'
   branches before it inlines any helper and a run compiles only its own (tested); the
