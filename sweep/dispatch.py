@@ -50,8 +50,8 @@ def variant(params, settings, tangent=None):
         tangent = int(settings[layout.S_LYAPUNOV]) == layout.LYAP_ALWAYS
     codes = (layout.S_MODEL, layout.S_LAW, layout.S_METHOD, layout.S_COUPLING)
     heterogeneous = params.shape[1] > layout.N_PARAMS
-    per_block = 3 if int(settings[layout.S_MODEL]) == layout.INERTIAL else 2
-    n_state = per_block * int(settings[layout.S_NBLOCKS])
+    model = int(settings[layout.S_MODEL])
+    n_state = layout.values_per_block(model) * int(settings[layout.S_NBLOCKS])
     n_fixed = n_state if n_state <= STACK_STATE_MAX else 0
     return (*(int(settings[c]) for c in codes), heterogeneous, bool(tangent), n_fixed)
 

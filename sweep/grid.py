@@ -181,7 +181,7 @@ def block_parameters(config, phys):
 
 def state_size(config):
     """State variables per system: ℓ and ψ per block, and z per block (inertial model)."""
-    return config.blocks * (3 if config.model == "inertial" else 2)
+    return config.blocks * layout.values_per_block(MODEL_CODES[config.model])
 
 
 def initial_state(config, n_systems):

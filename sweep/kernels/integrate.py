@@ -60,7 +60,6 @@ from .layout import (
     DOP853,
     DOPRI5,
     FIXED_POINT,
-    INERTIAL,
     LYAP_ALWAYS,
     LYAP_UNSETTLED,
     N_RESULTS,
@@ -118,9 +117,11 @@ from .layout import (
     UNBOUNDED,
     UNDECIDED,
     UNRESOLVED,
+    values_per_block,
 )
 from .stack import stack_matrix, stack_vector
 from .steppers import (
+    ROS_STAGE_ROWS,
     STAGE_ROWS,
     STAGE_ROWS_DOP853,
     dense_crossing,
@@ -141,6 +142,7 @@ from .tangent import (
     L_RATE,
     LYAP_BLOCKS,
     TANGENT_TURN,
+    TANGENT_WORK_ROWS,
     lyapunov_add,
     lyapunov_estimate,
     lyapunov_start,
@@ -498,10 +500,11 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
     is named after its codes, so its cache files are its own.
     """
 
-    nb_fixed = n_fixed // (3 if model == INERTIAL else 2)
+    # the shapes of step_scratch, rosenbrock_scratch and tangent_arrays, for size n_fixed
+    nb_fixed = n_fixed // values_per_block(model)
     k_rows = STAGE_ROWS_DOP853 if method == DOP853 else STAGE_ROWS
     dense_width = n_fixed if method == DOP853 else 0
-    ros_rows, ros_n = (6, n_fixed) if method == ROSENBROCK else (0, 0)
+    ros_rows, ros_n = (ROS_STAGE_ROWS, n_fixed) if method == ROSENBROCK else (0, 0)
 
     def integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y):
         if n_fixed > 0 and y0.shape[0] > 0 and y0.shape[1] != n_fixed:
@@ -558,7 +561,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
             )
             if n_fixed > 0 and tangent:
                 delta = stack_vector(n_fixed)
-                work = stack_matrix(5, n_fixed)
+                work = stack_matrix(TANGENT_WORK_ROWS, n_fixed)
                 stages = stack_matrix(k_rows, n_fixed)
                 ros_k = stack_matrix(ros_rows, n_fixed)
                 ros_mat = stack_matrix(ros_n, ros_n)

@@ -21,6 +21,12 @@ FIXED_POINT, PERIODIC, QUASI_PERIODIC, CHAOTIC, UNRESOLVED, UNBOUNDED = range(6)
 # by then, or over every whole run
 LYAP_NEVER, LYAP_UNSETTLED, LYAP_ALWAYS = range(3)
 
+
+def values_per_block(model):
+    """State values per block of model code ``model``: ℓ and ψ, and z if inertial."""
+    return 3 if model == INERTIAL else 2
+
+
 # --- columns of the per-system parameter array (all dimensionless) ----------
 (
     P_A,  # direct effect

@@ -442,6 +442,8 @@ def next_step_size(method, h, err, max_step):
 
 #: Rows of the stage scratch ``k``: DOPRI5's k2 … k6, DOP853's K_1 … K_15 (row 11 unused).
 STAGE_ROWS, STAGE_ROWS_DOP853 = 5, 15
+#: Rows of RODAS4's stage scratch.
+ROS_STAGE_ROWS = 6
 
 
 @jit
@@ -462,5 +464,5 @@ def step_scratch(method, n):
 def rosenbrock_scratch(method, n):
     """Scratch of the RODAS4 step (stages, matrix, pivots); empty for other methods."""
     if method == ROSENBROCK:
-        return np.empty((6, n)), np.empty((n, n)), np.empty(n, np.int64)
+        return np.empty((ROS_STAGE_ROWS, n)), np.empty((n, n)), np.empty(n, np.int64)
     return np.empty((0, n)), np.empty((0, 0)), np.empty(0, np.int64)

@@ -31,6 +31,7 @@ from ..accelerate import jit
 from .equations import rhs
 from .layout import DOP853, DOPRI5, ROSENBROCK
 from .steppers import (
+    ROS_STAGE_ROWS,
     STAGE_ROWS,
     STAGE_ROWS_DOP853,
     step_dop853,
@@ -77,21 +78,23 @@ TANGENT_TURN = 0.5
     L_RATE,  # |J δ| at the start of the last tangent step (V/D0; 0: none yet)
 ) = range(20)
 N_LYAP = 20
+#: Rows of the tangent's ``work`` scratch (see :func:`tangent_arrays`).
+TANGENT_WORK_ROWS = 5
 
 
 @jit
 def tangent_arrays(method, n):
-    """Scratch of the tangent: δ (n,); the rows of ``work`` (5, n): y + εδ, its slope,
-    a stage argument, the step's end and its slope; the explicit stages (``STAGE_ROWS``
-    or, for DOP853, ``STAGE_ROWS_DOP853`` rows of n); RODAS4's
-    stages (6, n), matrix (n, n) and pivots (n,) (empty for the other methods); the
-    accumulator ``ly`` (``L_*``)."""
+    """Scratch of the tangent: δ (n,); the rows of ``work`` (``TANGENT_WORK_ROWS``, n):
+    y + εδ, its slope, a stage argument, the step's end and its slope; the explicit
+    stages (``STAGE_ROWS`` or, for DOP853, ``STAGE_ROWS_DOP853`` rows of n); RODAS4's
+    stages (``ROS_STAGE_ROWS``, n), matrix (n, n) and pivots (n,) (empty for the other
+    methods); the accumulator ``ly`` (``L_*``)."""
     n_ros = n if method == ROSENBROCK else 0
     return (
         np.empty(n),
-        np.empty((5, n)),
+        np.empty((TANGENT_WORK_ROWS, n)),
         np.empty((STAGE_ROWS_DOP853 if method == DOP853 else STAGE_ROWS, n)),
-        np.empty((6 if n_ros else 0, n)),
+        np.empty((ROS_STAGE_ROWS if n_ros else 0, n)),
         np.empty((n_ros, n_ros)),
         np.empty(n_ros, np.int64),
         np.zeros(N_LYAP),
@@ -129,7 +132,8 @@ def tangent_step(
     (the difference of the slopes, V/D0).
 
     The difference of the method's step from y + εδ and from y (see the module
-    docstring); ``work`` (5, n) and ``stages`` are scratch, ``ros_*`` RODAS4's.
+    docstring); ``work`` (``TANGENT_WORK_ROWS``, n) and ``stages`` are scratch,
+    ``ros_*`` RODAS4's.
     Compiled per variant (``literally``): its codes are constants of the grid kernel.
     """
     literally(model)
