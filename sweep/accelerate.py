@@ -44,6 +44,17 @@ are in the changelog of the documentation, ``docs/changelog.md``):
   numba-IR level (``inline="always"``): left to LLVM, they stay calls passing a dozen
   arrays each. Every inlined copy costs compile time, so the Runge–Kutta stages are a
   loop around one call of the right-hand side.
+* The classifier's per-step update (``update_cycle``) is inlined by LLVM instead
+  (``jit_forceinline``: numba's ``forceinline``, LLVM's ``alwaysinline``): compiled on
+  its own, cached and shared by the variants of its method, it no longer has its body
+  and scope copied into the kernel by numba's inliner, and it runs as fast per step
+  (measured with DOPRI5, DOP853 and RODAS4, heap and stack scratch). DOP853's step
+  inlined that way was 2-3 % slower per step and compiled no faster, so it is not.
+* Helpers are specialised on the variant's codes and on no other constant
+  (:class:`VariantDispatcher`): numba compiles a copy of a function for every constant
+  argument it is called with (``history_value`` eight times in one kernel).
+  Together with the above, a cold compile of the default config takes 13.5 s instead
+  of 16 and a further variant 6 s instead of 8 (``docs/performance.md``).
 * The grid kernel's loop calls small inlined helpers, each written without
   a loop or a non-inlined call behind a branch (``runaway_index``, ``update_cycle``).
   Where an inlined body has one, numba's reference-count pruning fails and every
@@ -68,7 +79,9 @@ import os
 from pathlib import Path
 
 import numba
+from numba.core import types
 from numba.core.caching import FunctionCache
+from numba.core.registry import CPUDispatcher
 
 #: Whether compiled kernels are cached on disk (``SWEEP_NUMBA_CACHE=0`` disables).
 CACHE = os.environ.get("SWEEP_NUMBA_CACHE", "1") != "0"
@@ -131,25 +144,58 @@ class SourceKeyedCache(FunctionCache):
             super().save_overload(sig, data)
 
 
-def _cached(dispatcher):
-    """``dispatcher`` with :class:`SourceKeyedCache` unless ``SWEEP_NUMBA_CACHE=0`` (or
-    ``NUMBA_DISABLE_JIT=1``: then it is the plain function)."""
-    if CACHE and not numba.config.DISABLE_JIT:
-        dispatcher._cache = SourceKeyedCache(dispatcher.py_func)
+#: The parameters a helper is compiled for each constant value of, when a caller
+#: passes a constant: the variant's codes, so each variant's helpers hold only its own
+#: branches. Any other constant (a count, an index, a flag) is passed as a value of
+#: its type, so the helper compiles once and every variant shares it.
+VARIANT_CODES = frozenset({"model", "law", "method", "coupling", "het"})
+
+
+class VariantDispatcher(CPUDispatcher):
+    """numba's dispatcher, specialising a call from compiled code on the constants of
+    :data:`VARIANT_CODES` only (numba would compile a copy for every constant
+    argument: ``history_value`` eight times in one kernel)."""
+
+    def get_call_template(self, args, kws):
+        pysig, args = self._compiler.fold_argument_types(args, kws)
+        names = list(pysig.parameters)
+        args = tuple(
+            a if name in VARIANT_CODES else types.unliteral(a)
+            for name, a in zip(names, args, strict=True)
+        )
+        return super().get_call_template(args, {})
+
+
+def _compiled(func, **options):
+    """``func`` compiled with the project's policy and ``options`` (a
+    :class:`VariantDispatcher`, cached by :class:`SourceKeyedCache` unless
+    ``SWEEP_NUMBA_CACHE=0``); the plain function under ``NUMBA_DISABLE_JIT=1``."""
+    if numba.config.DISABLE_JIT:
+        return func
+    dispatcher = VariantDispatcher(func, targetoptions={"nopython": True, **_COMMON, **options})
+    if CACHE:
+        dispatcher._cache = SourceKeyedCache(func)
     return dispatcher
 
 
 def jit(func):
-    """Compile a helper of the kernels with the project's numba policy, cached on disk
-    like the kernels: a further variant loads the helpers it shares with one compiled
+    """Compile a kernel or a helper of the kernels with the project's numba policy,
+    cached on disk: a further variant loads the helpers it shares with one compiled
     before."""
-    return _cached(numba.njit(**_COMMON)(func))
+    return _compiled(func, forceinline=False)
 
 
 def jit_inline(func):
     """Compile a small hot helper that numba inlines into every caller (not cached:
     it is compiled into them)."""
     return numba.njit(inline="always", **_COMMON)(func)
+
+
+def jit_forceinline(func):
+    """Compile a large hot helper on its own (cached, shared by the variants with its
+    codes) and have LLVM inline it into every caller: as fast as :func:`jit_inline`,
+    without numba copying its body and scope into the caller."""
+    return _compiled(func, forceinline=True)
 
 
 def thread_count(n_threads):

@@ -84,13 +84,19 @@ import json
 from sweep import dispatch
 from sweep.config import load_config, with_changes
 from sweep.grid import build_grid
-from sweep.kernels import steppers, tangent
+from numba.core import types
+from sweep.kernels import cycles, steppers, tangent
 config = with_changes(load_config(CONFIG), {"integrator": {"method": "dopri5"}})
 grid = build_grid(config)
 dispatch.ready_kernel(grid.params, grid.settings)
 others = {"dense_dop853": steppers.dense_dop853, "step_rosenbrock": steppers.step_rosenbrock,
           "tangent_step": tangent.tangent_step}
-print(json.dumps({name: len(f.signatures) for name, f in others.items()}))
+report = {name: len(f.signatures) for name, f in others.items()}
+literal = {name: sorted({str(a) for s in f.signatures for a in s if isinstance(a, types.Literal)})
+           for name, f in {"history_value": cycles.history_value,
+                           "update_cycle": cycles.update_cycle}.items()}
+report.update(history_value=len(cycles.history_value.signatures), literal=literal)
+print(json.dumps(report))
 """
 
 
@@ -99,11 +105,16 @@ def test_a_variant_compiles_only_its_own_parts():
     """The codes are constants of the grid kernel's closure, and numba prunes the other
     variants' branches before it inlines and types the helpers: a DOPRI5 kernel
     without the tangent compiles neither DOP853's interpolant nor RODAS4's step, nor
-    the tangent step (each costs seconds of a cold start)."""
+    the tangent step (each costs seconds of a cold start). Helpers are specialised on
+    the codes they are passed (``update_cycle`` on DOPRI5's) and on no other constant:
+    ``history_value``, called with constant and variable arguments, compiles once."""
     env = dict(os.environ, SWEEP_NUMBA_CACHE="0", NUMBA_DISABLE_JIT="0")
     code = f"CONFIG = {str(ROOT / 'configs' / 'quick.yaml')!r}\n{PRUNE_PROBE}"
     report = json.loads(python_stdout(code, env=env).splitlines()[-1])
-    assert report == {"dense_dop853": 0, "step_rosenbrock": 0, "tangent_step": 0}
+    assert report == {
+        "dense_dop853": 0, "step_rosenbrock": 0, "tangent_step": 0, "history_value": 1,
+        "literal": {"history_value": [], "update_cycle": [f"Literal[int]({layout.DOPRI5})"]},
+    }  # fmt: skip
 
 
 @NO_JIT
@@ -118,11 +129,22 @@ def test_rhs_and_explicit_steps_are_inlined(name):
 
 
 @NO_JIT
+def test_the_classifier_update_is_inlined_by_llvm():
+    """accelerate.py: the classifier's per-step update is compiled on its own (cached,
+    not copied into the kernel by numba's inliner) and inlined by LLVM."""
+    options = cycles.update_cycle.targetoptions
+    assert options["forceinline"] is True
+    assert options.get("inline", "never") == "never"
+
+
+@NO_JIT
 @pytest.mark.parametrize("name", ["dense_dop853", "dense_needed"])
 def test_dop853_parts_are_plain_calls(name):
     """accelerate.py: DOP853's interpolant and the test for where it is read are plain
     calls, typed only in DOP853's kernels, so no other kernel compiles them."""
-    assert kernel_functions()[name].targetoptions.get("inline", "never") == "never"
+    options = kernel_functions()[name].targetoptions
+    assert options.get("inline", "never") == "never"
+    assert options["forceinline"] is False
 
 
 # Imports the kernels (compiles nothing) and reports each function's numba cache and

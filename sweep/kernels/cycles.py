@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from ..accelerate import jit, jit_inline
+from ..accelerate import jit, jit_forceinline, jit_inline
 from .layout import B_A, B_B, N_PARAMS, STEADY, STICK_SLIP
 from .steppers import dense_extremum, dense_mix, dense_tail, dense_value
 
@@ -495,7 +495,7 @@ def count_turn(turns, i, val, is_max, noise):
     return False
 
 
-@jit_inline
+@jit_forceinline
 def update_cycle(
     method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, p, nb, A, B, win, cs, slipped,
     slip_lnv, turns, rtol, atol,
