@@ -7,8 +7,8 @@ are in the changelog of the documentation, ``docs/changelog.md``):
 * The grid kernels and the helpers they call are cached on disk by default
   (``jit``, :class:`SourceKeyedCache`): users rerun the CLI many times and a warm
   cache saves the compile time, and a variant not compiled before (another model,
-  law, method or coupling) loads the helpers it shares with those that were, which
-  halves its compile (17 → 9–10 s, ``docs/performance.md``). numba checks an entry
+  law, method or coupling) loads the helpers it shares with those that were and
+  compiles in 6–7 s instead of 13.5 (``docs/performance.md``). numba checks an entry
   against its own file only and a compiled function holds the code of everything it
   calls, so the key also covers every kernel source and this file: an edit anywhere
   compiles afresh (tested). numba's cache is not safe to write from several processes
