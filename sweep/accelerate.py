@@ -154,7 +154,8 @@ VARIANT_CODES = frozenset({"model", "law", "method", "coupling", "het"})
 class VariantDispatcher(CPUDispatcher):
     """numba's dispatcher, specialising a call from compiled code on the constants of
     :data:`VARIANT_CODES` only (numba would compile a copy for every constant
-    argument: ``history_value`` eight times in one kernel)."""
+    argument: ``history_value`` eight times in one kernel). A helper that needs some
+    other argument as a constant (``numba.literally``) must name it there."""
 
     def get_call_template(self, args, kws):
         pysig, args = self._compiler.fold_argument_types(args, kws)
