@@ -182,7 +182,9 @@ def _compiled(func, **options):
 def jit(func):
     """Compile a kernel or a helper of the kernels with the project's numba policy,
     cached on disk: a further variant loads the helpers it shares with one compiled
-    before."""
+    before. ``forceinline=False`` is explicit because numba otherwise passes the option
+    on from the caller being compiled (a helper first called from ``update_cycle``
+    would be inlined everywhere)."""
     return _compiled(func, forceinline=False)
 
 
