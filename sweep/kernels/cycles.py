@@ -33,6 +33,12 @@ NOISE_FACTOR = 10.0
 #: the tolerance, the step size controller takes steps as long as its period and
 #: sustains wiggles of 10–40 × atol (DOPRI5 and DOP853, K/Kc 1.0–1.2: make bench).
 TURN_FACTOR = 100.0
+#: How far the interpolant of a step may stray beyond the step's ends where a slope
+#: changes sign, in units of the ends' difference plus h × their slopes: an extremum
+#: within TURN_FACTOR × the tolerance of the ends by this bound is not located (the
+#: wiggles of a decayed oscillation, :func:`lnv_extremum_matters`). Measured up to 8.4
+#: on such wiggles, where the interpolant's higher terms dominate (test_kernels.py).
+EXCURSION_FACTOR = 10.0
 #: Terms of a sequence the extrapolation uses (:func:`aitken_limit`): a verdict needs
 #: this many completed cycles, per residue class for a cycle of several events.
 TERMS = 4
@@ -495,6 +501,42 @@ def count_turn(turns, i, val, is_max, noise):
     return False
 
 
+@jit_inline
+def lnv_extremum_matters(i, h, y, ynew, f, fnew, turns, rtol, atol):
+    """Whether the extremum of ℓ_i in a step where its slope changes sign must be
+    located with the interpolant. It need not when its excursion bound (the ends'
+    difference plus h × their slopes, × ``EXCURSION_FACTOR``) keeps it within the local
+    error scale (``TURN_FACTOR`` × the tolerance) of the step's ends and, wherever it
+    lies there, it could not count as a turn (:func:`count_turn`): the wiggles of an
+    oscillation decayed below the tolerance, which otherwise cost root searches (and
+    DOP853 three more stages) at almost every step (``docs/performance.md``)."""
+    lo = min(y[i], ynew[i])
+    hi = max(y[i], ynew[i])
+    span = EXCURSION_FACTOR * ((hi - lo) + h * (abs(f[i]) + abs(fnew[i])))
+    least = TURN_FACTOR * (atol + rtol * max(0.0, min(abs(lo), abs(hi)) - span))
+    if span > least:
+        return True
+    if f[i] > 0.0:  # a maximum: could it stand out of the last counted minimum?
+        return turns[T_LAST, i] <= 0.0 and hi + span - turns[T_LOW, i] > least
+    return turns[T_LAST, i] >= 0.0 and turns[T_HIGH, i] - (lo - span) > least
+
+
+@jit_inline
+def extremum_matters(x0, x1, d0, d1, h, tol):
+    """Whether the extremum of a quantity in a step of size h where its slope changes
+    sign (from ``x0``, slope ``d0`` to ``x1``, slope ``d1``) must be located: unless its
+    excursion bound (as in :func:`lnv_extremum_matters`) is within ``TURN_FACTOR`` ×
+    its tolerance ``tol``. For a block's friction and the mean ℓ, whose extremes are
+    kept but never counted as turns."""
+    return EXCURSION_FACTOR * (abs(x1 - x0) + h * (abs(d0) + abs(d1))) > TURN_FACTOR * tol
+
+
+@jit_inline
+def friction_tolerance(a_i, b_i, lnv, psi, rtol, atol):
+    """The tolerance of a block's friction A_i ℓ_i + B_i ψ_i at ℓ_i = ``lnv``, ψ_i = ``psi``."""
+    return a_i * (atol + rtol * abs(lnv)) + b_i * (atol + rtol * abs(psi))
+
+
 @jit_forceinline
 def update_cycle(
     method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, p, nb, A, B, win, cs, slipped,
@@ -518,21 +560,26 @@ def update_cycle(
         rising = f[i] > 0.0
         falling_now = fnew[i] <= 0.0
         if rising == falling_now:  # slope changed sign: one extremum in the step
-            r = dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense)
-            theta = dense_extremum(y[i], ynew[i], f[i], fnew[i], h, r)
-            val = dense_value(y[i], ynew[i], f[i], fnew[i], h, r, theta)
-            win[W_LMAX, i] = max(win[W_LMAX, i], val)
-            win[W_LMIN, i] = min(win[W_LMIN, i], val)
-            lnv_max_run = max(lnv_max_run, val)
-            noise = TURN_FACTOR * (atol + rtol * abs(val))
-            if count_turn(turns, i, val, rising, noise) and rising:
-                win[W_T_PEAK, i] = t + theta * h
-                if i == 0:
-                    new_peak = True
-                    theta_peak = theta
-                    cs[C_PEAK_VALUE] = val
-                elif i == nb - 1:
-                    cs[C_WIN_T_PEAK_LAST] = t + theta * h
+            if lnv_extremum_matters(i, h, y, ynew, f, fnew, turns, rtol, atol):
+                r = dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense)
+                theta = dense_extremum(y[i], ynew[i], f[i], fnew[i], h, r)
+                val = dense_value(y[i], ynew[i], f[i], fnew[i], h, r, theta)
+                win[W_LMAX, i] = max(win[W_LMAX, i], val)
+                win[W_LMIN, i] = min(win[W_LMIN, i], val)
+                lnv_max_run = max(lnv_max_run, val)
+                noise = TURN_FACTOR * (atol + rtol * abs(val))
+                if count_turn(turns, i, val, rising, noise) and rising:
+                    win[W_T_PEAK, i] = t + theta * h
+                    if i == 0:
+                        new_peak = True
+                        theta_peak = theta
+                        cs[C_PEAK_VALUE] = val
+                    elif i == nb - 1:
+                        cs[C_WIN_T_PEAK_LAST] = t + theta * h
+            elif rising:  # below the error scale, no turn: the ends stand for it
+                turns[T_HIGH, i] = max(turns[T_HIGH, i], max(y[i], ynew[i]))
+            else:
+                turns[T_LOW, i] = min(turns[T_LOW, i], min(y[i], ynew[i]))
         win[W_LMAX, i] = max(win[W_LMAX, i], ynew[i])
         win[W_LMIN, i] = min(win[W_LMIN, i], ynew[i])
         lnv_max_run = max(lnv_max_run, ynew[i])
@@ -545,7 +592,9 @@ def update_cycle(
         mu = a_i * ynew[i] + b_i * ynew[nb + i]
         dmu0 = a_i * f[i] + b_i * f[nb + i]
         dmu1 = a_i * fnew[i] + b_i * fnew[nb + i]
-        if (dmu0 > 0.0) == (dmu1 <= 0.0):
+        if (dmu0 > 0.0) == (dmu1 <= 0.0) and extremum_matters(
+            mu0, mu, dmu0, dmu1, h, friction_tolerance(a_i, b_i, ynew[i], ynew[nb + i], rtol, atol)
+        ):
             r_mu = dense_mix(
                 a_i, dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense),
                 b_i, dense_tail(method, nb + i, h, f, k3, k4, k5, k6, fnew, dense),
@@ -565,24 +614,37 @@ def update_cycle(
 
 
 @jit
-def dense_needed(f, fnew, p, nb, A, B):
+def dense_needed(h, y, ynew, f, fnew, p, nb, A, B, turns, rtol, atol):
     """Whether :func:`update_cycle` or the mean ℓ's extremes read the interpolant of the
-    step with slopes ``f`` → ``fnew``: a slope of some ℓ_i, friction μ_i or (several
-    blocks) of the mean ℓ changes sign in it (the same tests, term by term). DOP853
-    computes its interpolant only then (three more stages)."""
+    step of size h from (``y``, slopes ``f``) to (``ynew``, ``fnew``): an extremum of
+    some ℓ_i or friction μ_i in it must be located (the same tests, term by term), or
+    (several blocks) the mean ℓ's slope changes sign. DOP853 computes its interpolant
+    only then (three more stages)."""
     need = False
-    m0 = 0.0
+    m0 = 0.0  # the mean ℓ and its slope before and after the step
     m1 = 0.0
+    dm0 = 0.0
+    dm1 = 0.0
     for i in range(nb):
+        if (f[i] > 0.0) == (fnew[i] <= 0.0):
+            if lnv_extremum_matters(i, h, y, ynew, f, fnew, turns, rtol, atol):
+                need = True
         a_i, b_i = block_friction(p, nb, i, A, B)
+        mu0 = a_i * y[i] + b_i * y[nb + i]
+        mu = a_i * ynew[i] + b_i * ynew[nb + i]
         dmu0 = a_i * f[i] + b_i * f[nb + i]
         dmu1 = a_i * fnew[i] + b_i * fnew[nb + i]
-        if (f[i] > 0.0) == (fnew[i] <= 0.0) or (dmu0 > 0.0) == (dmu1 <= 0.0):
+        if (dmu0 > 0.0) == (dmu1 <= 0.0) and extremum_matters(
+            mu0, mu, dmu0, dmu1, h, friction_tolerance(a_i, b_i, ynew[i], ynew[nb + i], rtol, atol)
+        ):
             need = True
-        m0 += f[i] / nb
-        m1 += fnew[i] / nb
-    if nb > 1 and (m0 > 0.0) == (m1 <= 0.0):
-        need = True
+        m0 += y[i] / nb
+        m1 += ynew[i] / nb
+        dm0 += f[i] / nb
+        dm1 += fnew[i] / nb
+    if nb > 1 and (dm0 > 0.0) == (dm1 <= 0.0):
+        if extremum_matters(m0, m1, dm0, dm1, h, atol + rtol * abs(m1)):
+            need = True
     return need
 
 

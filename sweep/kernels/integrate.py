@@ -47,6 +47,7 @@ from .cycles import (
     dense_needed,
     end_slip_event,
     event_section,
+    extremum_matters,
     history_value,
     simple_cycle_within_spread,
     span_ptp,
@@ -660,7 +661,9 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                         lyapunov_add(ly, t + h, h, growth)
 
                 if method == DOP853:  # its interpolant costs three stages: only where it is read
-                    if n_rec > 0 or dense_needed(f, fnew, p, nb, A, B):
+                    if n_rec > 0 or dense_needed(
+                        h, y, ynew, f, fnew, p, nb, A, B, turns, rtol, atol
+                    ):
                         dense_dop853(
                             y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense
                         )
@@ -687,7 +690,9 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                         m1 += ynew[i] / nb
                         dm0 += f[i] / nb
                         dm1 += fnew[i] / nb
-                    if (dm0 > 0.0) == (dm1 <= 0.0):
+                    if (dm0 > 0.0) == (dm1 <= 0.0) and extremum_matters(
+                        m0, m1, dm0, dm1, h, atol + rtol * abs(m1)
+                    ):
                         r5 = 0.0
                         r6 = 0.0
                         r7 = 0.0
