@@ -32,8 +32,9 @@ from conftest import SUBPROCESS_TIMEOUT
 
 from bit_identity_cases import compute_all, flatten
 
-#: The code every number is compared with: DOP853 by default, without a step cap (issue 24).
-REFERENCE_COMMIT = "9ba53b1a66620731bef6e42432a400f77810cc5e"
+#: The code every number is compared with: extrema within the error scale of a step's ends
+#: not located (issue 24; it moved friction_drop of the inertial case, by less than 1e-8).
+REFERENCE_COMMIT = "7c4563123abf6fb8b293331cb4a7f019c45bc4f1"
 #: That commit's ``sweep/`` and ``tests/bit_identity_cases.py`` (``git archive``).
 REFERENCE_ARCHIVE = Path(__file__).parent / "data" / "bit_identity_reference.tar.gz"
 #: Seconds the reference commit's code may take for the cases (about 100 s cold on two
