@@ -797,10 +797,9 @@ def step_extrema(ratio, t_end):
                         counts = cycles.count_turn(turns.copy(), 0, val, d0 > 0.0, noise)
                         if wanted:
                             cycles.count_turn(turns, 0, val, d0 > 0.0, noise)
-                        elif d0 > 0.0:
-                            turns[cycles.T_HIGH, 0] = max(turns[cycles.T_HIGH, 0], x0, x1)
                         else:
-                            turns[cycles.T_LOW, 0] = min(turns[cycles.T_LOW, 0], x0, x1)
+                            end = max(x0, x1) if d0 > 0.0 else min(x0, x1)
+                            cycles.hold_extreme(turns, 0, end, d0 > 0.0)
                     else:
                         tol = cycles.friction_tolerance(A, B, ynew[0], ynew[1], rtol, atol)
                         wanted = cycles.extremum_matters(x0, x1, d0, d1, h, tol)

@@ -491,14 +491,22 @@ def count_turn(turns, i, val, is_max, noise):
             turns[T_HIGH, i] = val
             turns[T_LAST, i] = 1.0
             return True
-        turns[T_HIGH, i] = max(turns[T_HIGH, i], val)
-        return False
-    if turns[T_LAST, i] >= 0.0 and turns[T_HIGH, i] - val > noise:
+    elif turns[T_LAST, i] >= 0.0 and turns[T_HIGH, i] - val > noise:
         turns[T_LOW, i] = val
         turns[T_LAST, i] = -1.0
         return True
-    turns[T_LOW, i] = min(turns[T_LOW, i], val)
+    hold_extreme(turns, i, val, is_max)
     return False
+
+
+@jit_inline
+def hold_extreme(turns, i, val, is_max):
+    """Fold an extremum of ℓ_i that is no turn, a maximum (``is_max``) or a minimum of
+    value ``val``, into the highest or lowest ℓ_i since the last counted turn."""
+    if is_max:
+        turns[T_HIGH, i] = max(turns[T_HIGH, i], val)
+    else:
+        turns[T_LOW, i] = min(turns[T_LOW, i], val)
 
 
 @jit_inline
@@ -576,10 +584,9 @@ def update_cycle(
                         cs[C_PEAK_VALUE] = val
                     elif i == nb - 1:
                         cs[C_WIN_T_PEAK_LAST] = t + theta * h
-            elif rising:  # below the error scale, no turn: the ends stand for it
-                turns[T_HIGH, i] = max(turns[T_HIGH, i], max(y[i], ynew[i]))
-            else:
-                turns[T_LOW, i] = min(turns[T_LOW, i], min(y[i], ynew[i]))
+            else:  # below the error scale, no turn: the step's ends stand for it
+                end = max(y[i], ynew[i]) if rising else min(y[i], ynew[i])
+                hold_extreme(turns, i, end, rising)
         win[W_LMAX, i] = max(win[W_LMAX, i], ynew[i])
         win[W_LMIN, i] = min(win[W_LMIN, i], ynew[i])
         lnv_max_run = max(lnv_max_run, ynew[i])
@@ -630,14 +637,14 @@ def dense_needed(h, y, ynew, f, fnew, p, nb, A, B, turns, rtol, atol):
             if lnv_extremum_matters(i, h, y, ynew, f, fnew, turns, rtol, atol):
                 need = True
         a_i, b_i = block_friction(p, nb, i, A, B)
-        mu0 = a_i * y[i] + b_i * y[nb + i]
-        mu = a_i * ynew[i] + b_i * ynew[nb + i]
         dmu0 = a_i * f[i] + b_i * f[nb + i]
         dmu1 = a_i * fnew[i] + b_i * fnew[nb + i]
-        if (dmu0 > 0.0) == (dmu1 <= 0.0) and extremum_matters(
-            mu0, mu, dmu0, dmu1, h, friction_tolerance(a_i, b_i, ynew[i], ynew[nb + i], rtol, atol)
-        ):
-            need = True
+        if (dmu0 > 0.0) == (dmu1 <= 0.0):
+            mu0 = a_i * y[i] + b_i * y[nb + i]
+            mu = a_i * ynew[i] + b_i * ynew[nb + i]
+            tol = friction_tolerance(a_i, b_i, ynew[i], ynew[nb + i], rtol, atol)
+            if extremum_matters(mu0, mu, dmu0, dmu1, h, tol):
+                need = True
         m0 += y[i] / nb
         m1 += ynew[i] / nb
         dm0 += f[i] / nb
