@@ -16,8 +16,8 @@ import math
 import numpy as np
 
 from ..accelerate import jit, jit_forceinline, jit_inline
-from .layout import B_A, B_B, N_PARAMS, STEADY, STICK_SLIP
-from .steppers import dense_extremum, dense_mix, dense_tail, dense_value
+from .layout import B_A, B_B, DOP853, N_PARAMS, STEADY, STICK_SLIP
+from .steppers import dense_excursion, dense_extremum, dense_mix, dense_tail, dense_value
 
 # A decaying oscillation is called steady only once it is this small (peak-to-peak
 # ln v/V of every block), i.e. in the linear regime where decay is geometric: see
@@ -33,12 +33,6 @@ NOISE_FACTOR = 10.0
 #: the tolerance, the step size controller takes steps as long as its period and
 #: sustains wiggles of 10–40 × atol (DOPRI5 and DOP853, K/Kc 1.0–1.2: make bench).
 TURN_FACTOR = 100.0
-#: How far the interpolant of a step may stray beyond the step's ends where a slope
-#: changes sign, in units of the ends' difference plus h × their slopes: an extremum
-#: within TURN_FACTOR × the tolerance of the ends by this bound is not located (the
-#: wiggles of a decayed oscillation, :func:`lnv_extremum_matters`). Measured up to 8.4
-#: on such wiggles, where the interpolant's higher terms dominate (test_kernels.py).
-EXCURSION_FACTOR = 10.0
 #: Terms of a sequence the extrapolation uses (:func:`aitken_limit`): a verdict needs
 #: this many completed cycles, per residue class for a cycle of several events.
 TERMS = 4
@@ -510,17 +504,16 @@ def hold_extreme(turns, i, val, is_max):
 
 
 @jit_inline
-def lnv_extremum_matters(i, h, y, ynew, f, fnew, turns, rtol, atol):
+def lnv_extremum_matters(i, span, y, ynew, f, turns, rtol, atol):
     """Whether the extremum of ℓ_i in a step where its slope changes sign must be
-    located with the interpolant. It need not when its excursion bound (the ends'
-    difference plus h × their slopes, × ``EXCURSION_FACTOR``) keeps it within the local
-    error scale (``TURN_FACTOR`` × the tolerance) of the step's ends and, wherever it
-    lies there, it could not count as a turn (:func:`count_turn`): the wiggles of an
-    oscillation decayed below the tolerance, which otherwise cost root searches (and
-    DOP853 three more stages) at almost every step (``docs/performance.md``)."""
+    located with the interpolant. It need not when its excursion bound ``span``
+    (:func:`steppers.dense_excursion`) keeps it within the local error scale
+    (``TURN_FACTOR`` × the tolerance) of the step's ends and, wherever it lies there,
+    it could not count as a turn (:func:`count_turn`): the wiggles of an oscillation
+    decayed below the tolerance, which otherwise cost root searches (and DOP853 three
+    more stages) at almost every step (``docs/performance.md``)."""
     lo = min(y[i], ynew[i])
     hi = max(y[i], ynew[i])
-    span = EXCURSION_FACTOR * ((hi - lo) + h * (abs(f[i]) + abs(fnew[i])))
     least = TURN_FACTOR * (atol + rtol * max(0.0, min(abs(lo), abs(hi)) - span))
     if span > least:
         return True
@@ -530,13 +523,14 @@ def lnv_extremum_matters(i, h, y, ynew, f, fnew, turns, rtol, atol):
 
 
 @jit_inline
-def extremum_matters(x0, x1, d0, d1, h, tol):
+def extremum_matters(method, x0, x1, d0, d1, h, r5, tol):
     """Whether the extremum of a quantity in a step of size h where its slope changes
-    sign (from ``x0``, slope ``d0`` to ``x1``, slope ``d1``) must be located: unless its
-    excursion bound (as in :func:`lnv_extremum_matters`) is within ``TURN_FACTOR`` ×
-    its tolerance ``tol``. For a block's friction and the mean ℓ, whose extremes are
-    kept but never counted as turns."""
-    return EXCURSION_FACTOR * (abs(x1 - x0) + h * (abs(d0) + abs(d1))) > TURN_FACTOR * tol
+    sign (from ``x0``, slope ``d0`` to ``x1``, slope ``d1``; ``r5`` the fifth coefficient
+    of its interpolant, read by DOPRI5) must be located: unless its excursion bound
+    (:func:`steppers.dense_excursion`) is within ``TURN_FACTOR`` × its tolerance ``tol``.
+    For a block's friction and the mean ℓ, whose extremes are kept but never counted
+    as turns."""
+    return dense_excursion(method, x0, x1, d0, d1, h, r5) > TURN_FACTOR * tol
 
 
 @jit_inline
@@ -568,8 +562,9 @@ def update_cycle(
         rising = f[i] > 0.0
         falling_now = fnew[i] <= 0.0
         if rising == falling_now:  # slope changed sign: one extremum in the step
-            if lnv_extremum_matters(i, h, y, ynew, f, fnew, turns, rtol, atol):
-                r = dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense)
+            r = dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense)
+            span = dense_excursion(method, y[i], ynew[i], f[i], fnew[i], h, r[0])
+            if lnv_extremum_matters(i, span, y, ynew, f, turns, rtol, atol):
                 theta = dense_extremum(y[i], ynew[i], f[i], fnew[i], h, r)
                 val = dense_value(y[i], ynew[i], f[i], fnew[i], h, r, theta)
                 win[W_LMAX, i] = max(win[W_LMAX, i], val)
@@ -599,17 +594,17 @@ def update_cycle(
         mu = a_i * ynew[i] + b_i * ynew[nb + i]
         dmu0 = a_i * f[i] + b_i * f[nb + i]
         dmu1 = a_i * fnew[i] + b_i * fnew[nb + i]
-        if (dmu0 > 0.0) == (dmu1 <= 0.0) and extremum_matters(
-            mu0, mu, dmu0, dmu1, h, friction_tolerance(a_i, b_i, ynew[i], ynew[nb + i], rtol, atol)
-        ):
+        if (dmu0 > 0.0) == (dmu1 <= 0.0):
             r_mu = dense_mix(
                 a_i, dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense),
                 b_i, dense_tail(method, nb + i, h, f, k3, k4, k5, k6, fnew, dense),
             )  # fmt: skip
-            theta = dense_extremum(mu0, mu, dmu0, dmu1, h, r_mu)
-            val = dense_value(mu0, mu, dmu0, dmu1, h, r_mu, theta)
-            win[W_MUMAX, i] = max(win[W_MUMAX, i], val)
-            win[W_MUMIN, i] = min(win[W_MUMIN, i], val)
+            tol = friction_tolerance(a_i, b_i, ynew[i], ynew[nb + i], rtol, atol)
+            if extremum_matters(method, mu0, mu, dmu0, dmu1, h, r_mu[0], tol):
+                theta = dense_extremum(mu0, mu, dmu0, dmu1, h, r_mu)
+                val = dense_value(mu0, mu, dmu0, dmu1, h, r_mu, theta)
+                win[W_MUMAX, i] = max(win[W_MUMAX, i], val)
+                win[W_MUMIN, i] = min(win[W_MUMIN, i], val)
         win[W_MUMAX, i] = max(win[W_MUMAX, i], mu)
         win[W_MUMIN, i] = min(win[W_MUMIN, i], mu)
         if i > 0:
@@ -634,7 +629,8 @@ def dense_needed(h, y, ynew, f, fnew, p, nb, A, B, turns, rtol, atol):
     dm1 = 0.0
     for i in range(nb):
         if (f[i] > 0.0) == (fnew[i] <= 0.0):
-            if lnv_extremum_matters(i, h, y, ynew, f, fnew, turns, rtol, atol):
+            span = dense_excursion(DOP853, y[i], ynew[i], f[i], fnew[i], h, 0.0)
+            if lnv_extremum_matters(i, span, y, ynew, f, turns, rtol, atol):
                 need = True
         a_i, b_i = block_friction(p, nb, i, A, B)
         dmu0 = a_i * f[i] + b_i * f[nb + i]
@@ -643,14 +639,14 @@ def dense_needed(h, y, ynew, f, fnew, p, nb, A, B, turns, rtol, atol):
             mu0 = a_i * y[i] + b_i * y[nb + i]
             mu = a_i * ynew[i] + b_i * ynew[nb + i]
             tol = friction_tolerance(a_i, b_i, ynew[i], ynew[nb + i], rtol, atol)
-            if extremum_matters(mu0, mu, dmu0, dmu1, h, tol):
+            if extremum_matters(DOP853, mu0, mu, dmu0, dmu1, h, 0.0, tol):
                 need = True
         m0 += y[i] / nb
         m1 += ynew[i] / nb
         dm0 += f[i] / nb
         dm1 += fnew[i] / nb
     if nb > 1 and (dm0 > 0.0) == (dm1 <= 0.0):
-        if extremum_matters(m0, m1, dm0, dm1, h, atol + rtol * abs(m1)):
+        if extremum_matters(DOP853, m0, m1, dm0, dm1, h, 0.0, atol + rtol * abs(m1)):
             need = True
     return need
 

@@ -690,9 +690,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                         m1 += ynew[i] / nb
                         dm0 += f[i] / nb
                         dm1 += fnew[i] / nb
-                    if (dm0 > 0.0) == (dm1 <= 0.0) and extremum_matters(
-                        m0, m1, dm0, dm1, h, atol + rtol * abs(m1)
-                    ):
+                    if (dm0 > 0.0) == (dm1 <= 0.0):
                         r5 = 0.0
                         r6 = 0.0
                         r7 = 0.0
@@ -703,10 +701,11 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                             r6 += r[1] / nb
                             r7 += r[2] / nb
                             r8 += r[3] / nb
-                        theta = dense_extremum(m0, m1, dm0, dm1, h, (r5, r6, r7, r8))
-                        val = dense_value(m0, m1, dm0, dm1, h, (r5, r6, r7, r8), theta)
-                        cs[C_WIN_MBAR_MAX] = max(cs[C_WIN_MBAR_MAX], val)
-                        cs[C_WIN_MBAR_MIN] = min(cs[C_WIN_MBAR_MIN], val)
+                        if extremum_matters(method, m0, m1, dm0, dm1, h, r5, atol + rtol * abs(m1)):
+                            theta = dense_extremum(m0, m1, dm0, dm1, h, (r5, r6, r7, r8))
+                            val = dense_value(m0, m1, dm0, dm1, h, (r5, r6, r7, r8), theta)
+                            cs[C_WIN_MBAR_MAX] = max(cs[C_WIN_MBAR_MAX], val)
+                            cs[C_WIN_MBAR_MIN] = min(cs[C_WIN_MBAR_MIN], val)
                     cs[C_WIN_MBAR_MAX] = max(cs[C_WIN_MBAR_MAX], m1)
                     cs[C_WIN_MBAR_MIN] = min(cs[C_WIN_MBAR_MIN], m1)
                 if n_rec > 0:
