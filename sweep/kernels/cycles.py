@@ -534,6 +534,14 @@ def extremum_matters(method, x0, x1, d0, d1, h, r5, tol):
 
 
 @jit_inline
+def mean_extremum_matters(method, m0, m1, dm0, dm1, h, r5, rtol, atol):
+    """:func:`extremum_matters` for the mean ℓ of several blocks (from ``m0``, slope
+    ``dm0`` to ``m1``, slope ``dm1``) at its tolerance atol + rtol |m1|: one test for the
+    kernel, which locates the extremum, and :func:`dense_needed`, which must agree."""
+    return extremum_matters(method, m0, m1, dm0, dm1, h, r5, atol + rtol * abs(m1))
+
+
+@jit_inline
 def friction_tolerance(a_i, b_i, lnv, psi, rtol, atol):
     """The tolerance of a block's friction A_i ℓ_i + B_i ψ_i at ℓ_i = ``lnv``, ψ_i = ``psi``."""
     return a_i * (atol + rtol * abs(lnv)) + b_i * (atol + rtol * abs(psi))
@@ -646,7 +654,7 @@ def dense_needed(h, y, ynew, f, fnew, p, nb, A, B, turns, rtol, atol):
         dm0 += f[i] / nb
         dm1 += fnew[i] / nb
     if nb > 1 and (dm0 > 0.0) == (dm1 <= 0.0):
-        if extremum_matters(DOP853, m0, m1, dm0, dm1, h, 0.0, atol + rtol * abs(m1)):
+        if mean_extremum_matters(DOP853, m0, m1, dm0, dm1, h, 0.0, rtol, atol):
             need = True
     return need
 

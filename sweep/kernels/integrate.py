@@ -47,8 +47,8 @@ from .cycles import (
     dense_needed,
     end_slip_event,
     event_section,
-    extremum_matters,
     history_value,
+    mean_extremum_matters,
     simple_cycle_within_spread,
     span_ptp,
     start_cycle,
@@ -701,7 +701,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                             r6 += r[1] / nb
                             r7 += r[2] / nb
                             r8 += r[3] / nb
-                        if extremum_matters(method, m0, m1, dm0, dm1, h, r5, atol + rtol * abs(m1)):
+                        if mean_extremum_matters(method, m0, m1, dm0, dm1, h, r5, rtol, atol):
                             theta = dense_extremum(m0, m1, dm0, dm1, h, (r5, r6, r7, r8))
                             val = dense_value(m0, m1, dm0, dm1, h, (r5, r6, r7, r8), theta)
                             cs[C_WIN_MBAR_MAX] = max(cs[C_WIN_MBAR_MAX], val)
