@@ -166,6 +166,49 @@ def test_kernel_jacobian_with_couplings_and_unequal_blocks(model_name, coupling,
     np.testing.assert_allclose(jac, fd, atol=1e-6 * np.abs(fd).max())  # FD error ~1e-9
 
 
+def kernel_jacobian(y, p, model_name, law, nb, coupling):
+    """The kernels' analytic Jacobian (checked against finite differences above)."""
+    jac = np.empty((y.size, y.size))
+    law_code = layout.AGING if law == "aging" else layout.SLIP
+    equations.jacobian(
+        y, kernel_rhs(y, p, model_name, law, nb, coupling), p, MODEL_CODES[model_name],
+        law_code, COUPLING_CODES[coupling], True, nb, np.empty(nb), jac,
+    )  # fmt: skip
+    return jac
+
+
+@pytest.mark.parametrize("law", ["aging", "slip"])
+@pytest.mark.parametrize("model_name, coupling, nb", CASES)
+def test_directional_derivatives_of_the_rhs(model_name, coupling, nb, law):
+    """equations.rhs_jvp (J u, which carries the tangent for λ1) equals the analytic
+    Jacobian times u, and rhs_curvature (f''[u, w], RODAS4's tangent) equals central
+    differences of the Jacobian along w applied to u, symmetric in u and w; at random
+    states far from steady sliding, with per-block parameters and every coupling."""
+    rng = np.random.default_rng(200 + nb)
+    p, _ = het_row(nb, coupling, rng)
+    n = 3 * nb if model_name == "inertial" else 2 * nb
+    codes = (MODEL_CODES[model_name], layout.AGING if law == "aging" else layout.SLIP,
+             COUPLING_CODES[coupling], True, nb, np.empty(nb))  # fmt: skip
+    for _ in range(3):
+        y, u, w = rng.normal(0.0, 0.8, n), rng.normal(size=n), rng.normal(size=n)
+        jvp = np.empty(n)
+        equations.rhs_jvp(y, u, p, *codes, np.empty(nb), jvp)
+        want = kernel_jacobian(y, p, model_name, law, nb, coupling) @ u
+        # the same products summed in another order: a few ulps of the largest term
+        np.testing.assert_allclose(jvp, want, rtol=1e-12, atol=1e-13 * np.abs(want).max())
+        step = 1e-6
+        up = kernel_jacobian(y + step * w, p, model_name, law, nb, coupling)
+        down = kernel_jacobian(y - step * w, p, model_name, law, nb, coupling)
+        fd = (up - down) @ u / (2 * step)
+        curv_uw, curv_wu = np.empty(n), np.empty(n)
+        equations.rhs_curvature(y, u, w, p, *codes, np.empty((3, nb)), curv_uw)
+        equations.rhs_curvature(y, w, u, p, *codes, np.empty((3, nb)), curv_wu)
+        # central differences: truncation ~ step^2 (fourth derivatives) ~ 1e-12, rounding
+        # ~ 1e-16 / step ~ 1e-10 relative to the largest entry
+        np.testing.assert_allclose(curv_uw, fd, rtol=1e-6, atol=1e-7 * np.abs(fd).max())
+        np.testing.assert_allclose(curv_wu, curv_uw, rtol=1e-12, atol=1e-13 * np.abs(fd).max())
+
+
 @pytest.mark.parametrize("coupling", ["chain", "ring", "all"])
 def test_kernel_rhs_matches_a_laplacian_reference(coupling):
     """equations.rhs with per-block columns against the log form written with the

@@ -1,7 +1,9 @@
 """The largest Lyapunov exponent (``sweep/kernels/tangent.py``): the tangent step is the
-derivative of the run's own step map; λ1 is the linear growth rate at a stable fixed
-point and zero on a limit cycle; carrying the tangent changes nothing else.
-(λ1 against a SciPy Benettin estimate on a chaotic run: ``test_attractors.py``.)"""
+derivative of the run's own step map, in slips and in inertial sticks; λ1 is the linear
+growth rate at a stable fixed point and zero on a limit cycle; carrying the tangent
+changes nothing else.
+(λ1 against independent SciPy estimates on chaotic runs, quasi-static and inertial:
+``test_attractors.py``.)"""
 
 import numpy as np
 import pytest
@@ -13,6 +15,14 @@ from sweep.kernels import equations, layout, steppers, tangent
 from sweep.runner import compute
 from sweep.variables import ATTRACTORS
 
+
+@pytest.fixture(autouse=True)
+def fresh_dispatch(monkeypatch):
+    """Each test starts with no variant switched to its kernel with the tangent
+    (``dispatch.tangent_first``), whatever tests ran before it in this process."""
+    monkeypatch.setattr(dispatch, "_TANGENT_FIRST", {})
+
+
 CODES = {"quasi-static": layout.QUASI_STATIC, "quasi-dynamic": layout.QUASI_DYNAMIC,
          "inertial": layout.INERTIAL}  # fmt: skip
 METHODS = {"dopri5": layout.DOPRI5, "rk4": layout.RK4, "rosenbrock": layout.ROSENBROCK,
@@ -20,67 +30,89 @@ METHODS = {"dopri5": layout.DOPRI5, "rk4": layout.RK4, "rosenbrock": layout.ROSE
 
 
 def take_step(method, y, h, p, model, nb):
-    """The end of one step of ``method`` from ``y`` (the kernels' own steppers)."""
+    """One step of ``method`` from ``y`` (the kernels' own steppers): its end, and the
+    slope at y, the explicit stages, RODAS4's stages and LU factors it leaves."""
     n = y.size
     ev, f, ytmp, ynew, fnew = np.empty(nb), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    k, ros_k = np.empty((15, n)), np.empty((6, n))
+    lu, perm = np.empty((n, n)), np.empty(n, np.int64)
     codes = (model, layout.AGING, layout.CHAIN, False)
     equations.rhs(y, p, *codes, nb, ev, f)
     if method == layout.DOPRI5:
-        steppers.step_dopri5(y, f, h, p, *codes, nb, ev, np.empty((5, n)), ytmp, ynew, fnew,
-                             1e-8, 1e-10)  # fmt: skip
+        steppers.step_dopri5(y, f, h, p, *codes, nb, ev, k, ytmp, ynew, fnew, 1e-8, 1e-10)
     elif method == layout.DOP853:
-        steppers.step_dop853(y, f, h, p, *codes, nb, ev, np.empty((15, n)), ytmp, ynew, fnew,
-                             1e-8, 1e-10)  # fmt: skip
+        steppers.step_dop853(y, f, h, p, *codes, nb, ev, k, ytmp, ynew, fnew, 1e-8, 1e-10)
     elif method == layout.RK4:
-        steppers.step_rk4(y, f, h, p, *codes, nb, ev, np.empty((5, n)), ytmp, ynew)
+        steppers.step_rk4(y, f, h, p, *codes, nb, ev, k, ytmp, ynew)
     else:
-        steppers.step_rosenbrock(y, f, h, p, *codes, nb, ev, np.empty((6, n)), np.empty((n, n)),
-                                 np.empty(n, np.int64), ytmp, ynew, fnew, 1e-8, 1e-10)  # fmt: skip
-    return ynew
+        steppers.step_rosenbrock(y, f, h, p, *codes, nb, ev, ros_k, lu, perm, ytmp, ynew, fnew,
+                                 1e-8, 1e-10)  # fmt: skip
+    return ynew, (f, k, ros_k, lu, perm)
+
+
+def step_jacobian(method, y, h, p, model, nb, steps):
+    """The derivative of the step map by central differences, column j with step
+    ``steps[j]`` (error ~ steps² × third derivatives, plus rounding ~ 1e-16/steps)."""
+    columns = []
+    for j, size in enumerate(steps):
+        e = np.zeros(y.size)
+        e[j] = size
+        up, down = take_step(method, y + e, h, p, model, nb)[0], take_step(method, y - e, h, p,
+                                                                          model, nb)[0]  # fmt: skip
+        columns.append((up - down) / (2 * size))
+    return np.array(columns).T
+
+
+def pair_params(kappa1, kappa2, mass):
+    p = np.zeros(layout.N_PARAMS)
+    p[layout.P_A], p[layout.P_B], p[layout.P_KAPPA1], p[layout.P_KAPPA2] = (
+        PAPER_A, PAPER_B, kappa1, kappa2)  # fmt: skip
+    p[layout.P_MASS] = mass
+    return p
+
+
+#: A slip of two coupled blocks (ℓ, ψ[, z]), and a deep stick of two inertial blocks
+#: (v = e^−25 V, z ~ 1e−12: ℓ' = z e^(−ℓ)/M̂ ~ 1e10 per unit of z), with the steps taken
+#: there and the column steps of the reference differences (z's scaled to its range).
+TANGENT_STATES = {
+    "slip": ([1.2, -0.4, -0.8, 0.3], [0.02, -0.01], 0.05, (0.04, 0.02, 0.5), 1e-5, 1e-5),
+    "stick": ([-25.0, -24.0, 2.0, 1.5], [3e-12, -2e-12], 2.0, (0.006, 0.004, 1.25), 1e-6, 1e-9),
+}
 
 
 @pytest.mark.parametrize(
-    "model, method",  # every method, every model (each pair compiles its own tangent step)
-    [("quasi-static", "dopri5"), ("quasi-static", "rk4"), ("inertial", "dopri5"),
-     ("inertial", "rosenbrock"), ("quasi-dynamic", "dop853")],
+    "model, method, state",  # every method, every model (each pair compiles its own tangent step)
+    [("quasi-static", "dopri5", "slip"), ("quasi-static", "rk4", "slip"),
+     ("inertial", "dopri5", "slip"), ("inertial", "rosenbrock", "slip"),
+     ("quasi-dynamic", "dop853", "slip"), ("inertial", "rosenbrock", "stick")],
 )  # fmt: skip
-def test_tangent_step_is_the_derivative_of_the_step_map(model, method):
-    """``tangent_step`` carries δ by the derivative of the method's step map: against a
-    central difference of the step map (step 1e-5: error ~1e-10) in a slip of two
-    coupled blocks, to 1e-6 (the tangent's own forward difference: ~1e-8)."""
-    nb, m = 2, CODES[model]
-    p = np.zeros(layout.N_PARAMS)
-    p[layout.P_A], p[layout.P_B], p[layout.P_KAPPA1], p[layout.P_KAPPA2] = (
-        PAPER_A,
-        PAPER_B,
-        0.04,
-        0.02,
-    )
-    p[layout.P_MASS] = 0.5
-    y = np.array([1.2, -0.4, -0.8, 0.3] + ([0.02, -0.01] if model == "inertial" else []))
-    n, h = y.size, 0.05
+def test_tangent_step_is_the_derivative_of_the_step_map(model, method, state):
+    """``tangent_step`` carries δ by the derivative of the method's step map, formed from
+    the step's own stages: against central differences of the step map, column by
+    column, to 1e-5 (the differences' own error: ~1e-8 in a slip, ~5e-7 in the stick,
+    where the step crosses the inertial force's decay, rate A e^25/M̂ ~ 2e9, thousands of
+    times). |J δ| (its step cap) against the analytic Jacobian."""
+    nb, m, method = 2, CODES[model], METHODS[method]
+    y_lp, z, h, (kappa1, kappa2, mass), step, z_step = TANGENT_STATES[state]
+    y = np.array(y_lp + (z if model == "inertial" else []))
+    p = pair_params(kappa1, kappa2, mass)
+    n = y.size
     delta = np.linspace(1.0, 2.0, n)
     delta /= np.linalg.norm(delta)
-    expected = np.array([
-        (take_step(METHODS[method], y + 1e-5 * e, h, p, m, nb)
-         - take_step(METHODS[method], y - 1e-5 * e, h, p, m, nb)) / 2e-5
-        for e in np.eye(n)
-    ]).T @ delta  # fmt: skip
-    ynew = take_step(METHODS[method], y, h, p, m, nb)
-    scratch = tangent.tangent_arrays(METHODS[method], n)
-
-    def slope(x):
-        out = np.empty(n)
-        equations.rhs(x, p, m, layout.AGING, layout.CHAIN, False, nb, np.empty(nb), out)
-        return out
-
-    j_delta = (slope(y + 1e-6 * delta) - slope(y - 1e-6 * delta)) / 2e-6
+    steps = [step] * 2 * nb + [z_step] * (n - 2 * nb)
+    expected = step_jacobian(method, y, h, p, m, nb, steps) @ delta
+    _, (f, k, ros_k, lu, perm) = take_step(method, y, h, p, m, nb)
+    d, work, dk, blocks, _ = tangent.tangent_arrays(method, n, nb)
+    d[:] = delta
     growth, rate = tangent.tangent_step(
-        y, slope(y), ynew, h, delta, *scratch[1:6], p, nb, np.empty(nb), 1e-8, 1e-10,
-        m, layout.AGING, METHODS[method], layout.CHAIN, False,
+        y, f, h, k, ros_k, lu, perm, d, work, dk, blocks, p, nb, np.empty(nb),
+        m, layout.AGING, method, layout.CHAIN, False,
     )  # fmt: skip
-    np.testing.assert_allclose(np.exp(growth) * delta, expected, rtol=1e-6, atol=1e-9)
-    assert rate == pytest.approx(np.linalg.norm(j_delta), rel=1e-6)  # |J δ|: its step cap
+    np.testing.assert_allclose(np.exp(growth) * d, expected, rtol=1e-5,
+                               atol=1e-5 * np.abs(expected).max())  # fmt: skip
+    jac = np.empty((n, n))
+    equations.jacobian(y, f, p, m, layout.AGING, layout.CHAIN, False, nb, np.empty(nb), jac)
+    assert rate == pytest.approx(np.linalg.norm(jac @ delta), rel=1e-12)
 
 
 STEADY_CASES = {
@@ -201,7 +233,6 @@ def test_runs_that_need_the_tangent_are_redone_by_its_kernel_number_for_number()
     went_on = direct[0][:, layout.R_TAU_FINAL] > t_end
     assert went_on.sum() >= 3 and handed[went_on].all()
     np.testing.assert_array_equal(plain[~handed], direct[0][~handed])
-    dispatch._TANGENT_FIRST.clear()  # earlier tests may have switched this variant
     split = run_grid(config)
     np.testing.assert_array_equal(split[0], direct[0])
     np.testing.assert_array_equal(split[1], direct[1])

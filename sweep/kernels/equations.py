@@ -150,3 +150,157 @@ def jacobian(y, f, p, model, law, coupling, het, nb, ev, jac):
             for j in range(nb):
                 if j != i:
                     jac[row, j] = kappa2 * ev[j] / denom
+
+
+@jit_inline
+def coupled_sum(coupling, nb, i, x, xi, total):
+    """κ2's coupling term of block ``i`` over per-block values ``x`` (``xi`` = x[i]):
+    Σ over its neighbours of x_j − x_i (chain, ring), or ``total`` − nb x_i with
+    ``total`` = Σ_j x_j (every pair)."""
+    if coupling == CHAIN:
+        out = 0.0
+        if i > 0:
+            out += x[i - 1] - xi
+        if i < nb - 1:
+            out += x[i + 1] - xi
+        return out
+    if coupling == RING:
+        return x[i - 1 if i > 0 else nb - 1] + x[i + 1 if i < nb - 1 else 0] - 2.0 * xi
+    return total - nb * xi
+
+
+@jit
+def rhs_jvp(y, u, p, model, law, coupling, het, nb, ev, work, out):
+    """J(y) u: the derivative of :func:`rhs` at ``y`` along ``u`` (V/D0 per unit of
+    ``u``), into ``out``, without forming J.
+
+    The tangent for λ1 is carried by it (``tangent.py``): a difference of two steps
+    cannot resolve the inertial stick phases, where ℓ' = z e^(−ℓ)/M̂ changes by 1e10 per
+    unit of z (test_tangent.py). ``ev`` and ``work`` are scratch of length nb.
+    """
+    A = p[P_A]
+    B = p[P_B]
+    kappa1 = p[P_KAPPA1]
+    kappa2 = p[P_KAPPA2]
+    total = 0.0  # Σ e^ℓ_j and Σ e^ℓ_j u_ℓj: every pair coupled
+    dtotal = 0.0
+    for i in range(nb):
+        ev[i] = np.exp(y[i])
+        work[i] = ev[i] * u[i]  # the change of e^ℓ_i along u
+        total += ev[i]
+        dtotal += work[i]
+    for i in range(nb):
+        lnv = y[i]
+        psi = y[nb + i]
+        e = ev[i]
+        de = work[i]
+        if law == AGING:
+            ep = np.exp(-psi)
+            dpsi = ep - e
+            d_dpsi = -ep * u[nb + i] - de
+        else:
+            dpsi = -e * (lnv + psi)
+            d_dpsi = -de * (lnv + psi) - e * (u[i] + u[nb + i])
+        if het:
+            A = p[N_PARAMS + B_A * nb + i]
+            B = p[N_PARAMS + B_B * nb + i]
+            kappa1 = p[N_PARAMS + B_KAPPA1 * nb + i]
+            rate = p[N_PARAMS + B_RATE * nb + i]
+            dpsi *= rate
+            d_dpsi *= rate
+        load = kappa1 * (1.0 - e) + kappa2 * coupled_sum(coupling, nb, i, ev, e, total)
+        d_load = -kappa1 * de + kappa2 * coupled_sum(coupling, nb, i, work, de, dtotal)
+        d_num = d_load - B * d_dpsi
+        if model == QUASI_STATIC:
+            d_lnv = d_num / A
+        elif model == QUASI_DYNAMIC:
+            den = A + p[P_ETA] * e
+            d_lnv = (d_num - (load - B * dpsi) / den * p[P_ETA] * de) / den
+        else:
+            em = np.exp(-lnv) / p[P_MASS]
+            d_lnv = (u[2 * nb + i] - y[2 * nb + i] * u[i]) * em
+            out[2 * nb + i] = d_num - A * d_lnv
+        out[i] = d_lnv
+        out[nb + i] = d_dpsi
+
+
+@jit
+def rhs_curvature(y, u, w, p, model, law, coupling, het, nb, ev, work, out):
+    """f''(y)[u, w]: the second derivative of :func:`rhs` at ``y`` along ``u`` and
+    ``w`` (symmetric in them), into ``out``. RODAS4's tangent needs it: its matrix
+    holds J(y), whose change along δ moves every stage (``tangent.py``).
+    ``ev`` is scratch of length nb, ``work`` of (3, nb).
+    """
+    A = p[P_A]
+    B = p[P_B]
+    kappa1 = p[P_KAPPA1]
+    kappa2 = p[P_KAPPA2]
+    du_e, dw_e, d2_e = work[0], work[1], work[2]  # changes of e^ℓ_i along u, w, both
+    tot_u = 0.0
+    tot_w = 0.0
+    tot_uw = 0.0
+    for i in range(nb):
+        ev[i] = np.exp(y[i])
+        du_e[i] = ev[i] * u[i]
+        dw_e[i] = ev[i] * w[i]
+        d2_e[i] = ev[i] * u[i] * w[i]
+        tot_u += du_e[i]
+        tot_w += dw_e[i]
+        tot_uw += d2_e[i]
+    total = 0.0
+    for i in range(nb):
+        total += ev[i]
+    for i in range(nb):
+        lnv = y[i]
+        psi = y[nb + i]
+        e = ev[i]
+        ul, up, wl, wp = u[i], u[nb + i], w[i], w[nb + i]
+        if law == AGING:
+            ep = np.exp(-psi)
+            dpsi = ep - e
+            du_dpsi = -ep * up - du_e[i]
+            dw_dpsi = -ep * wp - dw_e[i]
+            d2_dpsi = ep * up * wp - d2_e[i]
+        else:
+            s = lnv + psi
+            dpsi = -e * s
+            du_dpsi = -e * (ul * (s + 1.0) + up)
+            dw_dpsi = -e * (wl * (s + 1.0) + wp)
+            d2_dpsi = -e * (ul * wl * (s + 2.0) + wl * up + ul * wp)
+        if het:
+            A = p[N_PARAMS + B_A * nb + i]
+            B = p[N_PARAMS + B_B * nb + i]
+            kappa1 = p[N_PARAMS + B_KAPPA1 * nb + i]
+            rate = p[N_PARAMS + B_RATE * nb + i]
+            dpsi *= rate
+            du_dpsi *= rate
+            dw_dpsi *= rate
+            d2_dpsi *= rate
+        d2_load = -kappa1 * d2_e[i] + kappa2 * coupled_sum(coupling, nb, i, d2_e, d2_e[i], tot_uw)
+        d2_num = d2_load - B * d2_dpsi
+        if model == QUASI_STATIC:
+            d2_lnv = d2_num / A
+        elif model == QUASI_DYNAMIC:
+            eta = p[P_ETA]
+            den = A + eta * e
+            lnv_rate = (kappa1 * (1.0 - e) + kappa2 * coupled_sum(coupling, nb, i, ev, e, total)
+                        - B * dpsi) / den  # fmt: skip
+            du_num = -kappa1 * du_e[i] + kappa2 * coupled_sum(
+                coupling, nb, i, du_e, du_e[i], tot_u
+            ) - B * du_dpsi  # fmt: skip
+            dw_num = -kappa1 * dw_e[i] + kappa2 * coupled_sum(
+                coupling, nb, i, dw_e, dw_e[i], tot_w
+            ) - B * dw_dpsi  # fmt: skip
+            du_lnv = (du_num - lnv_rate * eta * du_e[i]) / den
+            dw_lnv = (dw_num - lnv_rate * eta * dw_e[i]) / den
+            d2_lnv = (
+                d2_num - du_lnv * eta * dw_e[i] - dw_lnv * eta * du_e[i]
+                - lnv_rate * eta * d2_e[i]
+            ) / den  # fmt: skip
+        else:
+            em = np.exp(-lnv) / p[P_MASS]
+            uz, wz = u[2 * nb + i], w[2 * nb + i]
+            d2_lnv = (y[2 * nb + i] * ul * wl - uz * wl - wz * ul) * em
+            out[2 * nb + i] = d2_num - A * d2_lnv
+        out[i] = d2_lnv
+        out[nb + i] = d2_dpsi

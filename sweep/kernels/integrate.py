@@ -142,6 +142,8 @@ from .tangent import (
     L_ON,
     L_RATE,
     LYAP_BLOCKS,
+    TANGENT_STAGE_ROWS,
+    TANGENT_STAGE_ROWS_DOP853,
     TANGENT_TURN,
     TANGENT_WORK_ROWS,
     lyapunov_add,
@@ -506,6 +508,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
     k_rows = STAGE_ROWS_DOP853 if method == DOP853 else STAGE_ROWS
     dense_width = n_fixed if method == DOP853 else 0
     ros_rows, ros_n = (ROS_STAGE_ROWS, n_fixed) if method == ROSENBROCK else (0, 0)
+    dk_rows = TANGENT_STAGE_ROWS_DOP853 if method == DOP853 else TANGENT_STAGE_ROWS
 
     def integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y):
         if n_fixed > 0 and y0.shape[0] > 0 and y0.shape[1] != n_fixed:
@@ -557,16 +560,13 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                 y, p, nb, A, B
             )
             # the tangent's scratch (empty without it) and its accumulator
-            delta, work, stages, ros_k, ros_mat, ros_perm, ly = tangent_arrays(
-                method, n if tangent and n_fixed == 0 else 0
-            )
+            t_n = n if tangent and n_fixed == 0 else 0
+            delta, work, dk, t_blocks, ly = tangent_arrays(method, t_n, nb if t_n else 0)
             if n_fixed > 0 and tangent:
                 delta = stack_vector(n_fixed)
                 work = stack_matrix(TANGENT_WORK_ROWS, n_fixed)
-                stages = stack_matrix(k_rows, n_fixed)
-                ros_k = stack_matrix(ros_rows, n_fixed)
-                ros_mat = stack_matrix(ros_n, ros_n)
-                ros_perm = np.empty(ros_n, np.int64)
+                dk = stack_matrix(dk_rows, n_fixed)
+                t_blocks = stack_matrix(3, nb_fixed)
             needs_tangent = False
             if lyap == LYAP_ALWAYS:
                 if tangent:
@@ -654,8 +654,8 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                 if tangent:
                     if ly[L_ON] > 0.0:
                         growth, rate = tangent_step(
-                            y, f, ynew, h, delta, work, stages, ros_k, ros_mat, ros_perm, p, nb, ev,
-                            rtol, atol, model, law, method, coupling, het,
+                            y, f, h, k, k_ros, mat, perm, delta, work, dk, t_blocks, p, nb, ev,
+                            model, law, method, coupling, het,
                         )  # fmt: skip
                         ly[L_RATE] = rate
                         lyapunov_add(ly, t + h, h, growth)

@@ -4,16 +4,19 @@ Benettin et al. (1980). A tangent vector δ follows the linearised dynamics; aft
 every step it is renormalised to length 1 and the logarithm of its growth is added
 to S(t). λ1 is the slope of S(t) (V/D0).
 
-The tangent's step is the derivative of the run's own step map (the stepper's own
-scheme applied to the tangent): the same stepper, with the same step size, from
-y and from y + εδ, differenced (ε = ``TANGENT_EPS`` × max(1, max |y|)). For the
-explicit methods this is, to O(ε), the Runge–Kutta scheme applied to the
-variational equations δ' = J(y) δ; for RODAS4 it includes the change of its
-Jacobian along δ, which an analytic tangent would need second derivatives for.
-One tangent step costs one more step of the method (``make bench``). While the
-tangent is carried, DOPRI5's and DOP853's steps are capped so that they resolve it
-(``TANGENT_TURN``); before it starts, a run with λ1 follows the trajectory of the same
-run without it, number for number.
+The tangent's step is the exact derivative of the run's own step map along δ, formed
+analytically from the step's stages (internal differentiation): for the explicit
+methods the Runge–Kutta scheme applied to the variational equations δ' = J(y) δ, with
+J at each stage's argument (``equations.rhs_jvp``); for RODAS4 the same stages solved
+with the step's own LU factors, plus the change of its matrix J(y) along δ
+(``equations.rhs_curvature``). A difference of two steps from y and y + εδ, used
+before, cannot do this: in an inertial stick phase ℓ' = z e^(−ℓ)/M̂ changes by ~1e10
+per unit of z, so any ε that round-off allows takes the perturbed step far outside the
+linear range, and λ1 of inertial chaos came out 2–4× too large and moved with ε and
+rtol (test_tangent.py, test_attractors.py). One tangent step costs about one step of
+the method (``make bench``). While the tangent is carried, DOPRI5's and DOP853's steps
+are capped so that they resolve it (``TANGENT_TURN``); before it starts, a run with
+λ1 follows the trajectory of the same run without it, number for number.
 
 The slope is fitted by least squares over blocks of equal length: the first block
 is a transient (δ aligning with the most unstable direction) and is left out;
@@ -28,22 +31,23 @@ import numpy as np
 from numba import literally
 
 from ..accelerate import jit
-from .equations import rhs
+from . import tableau_dop853
+from .equations import rhs_curvature, rhs_jvp
 from .layout import DOP853, DOPRI5, ROSENBROCK
 from .steppers import (
+    _A21,
+    _B1,
+    _B3,
+    _B4,
+    _B5,
+    _B6,
+    _DP_A,
+    _RODAS_A,
+    _RODAS_C,
     ROS_STAGE_ROWS,
-    STAGE_ROWS,
-    STAGE_ROWS_DOP853,
-    step_dop853,
-    step_dopri5,
-    step_rk4,
-    step_rosenbrock,
+    lu_solve,
 )
 
-#: Size of the difference that gives the tangent step, relative to max(1, max |y|):
-#: about √(machine epsilon) / 10, so round-off (u |y| / ε ~ 1e-8) and the second-order
-#: term (~ε) both stay far below the accuracy the tests ask of λ1 (1 %).
-TANGENT_EPS = 1e-8
 #: Blocks a Lyapunov window is cut into; the first is the transient.
 LYAP_BLOCKS = 8
 #: While the tangent is carried, a DOPRI5 or DOP853 step turns δ by at most about this
@@ -53,6 +57,27 @@ LYAP_BLOCKS = 8
 #: stable fixed point came out ~0 instead of its growth rate: test_tangent.py). RODAS4
 #: keeps its max_step instead: |J δ| includes the stiff decay it needs not resolve.
 TANGENT_TURN = 0.5
+
+
+def _explicit_tableau(a_rows, b):
+    """Butcher tableau (A, b) of an explicit method with stage 0 = f(y): row s of A holds
+    the coefficients of stages 0 … s − 1 in stage s's argument y + h Σ a_sr K_r."""
+    b = np.asarray(b, float)
+    a = np.zeros((b.size, b.size))
+    for s, row in enumerate(a_rows, start=1):
+        a[s, : len(row)] = row
+    return a, b
+
+
+# The steppers' tableaus in that one form (steppers.py: the stages K_1 … sit in the rows
+# of their scratch ``k``, K_0 is f).
+_DP5_A, _DP5_B = _explicit_tableau([[_A21], *[list(r) for r in _DP_A]],
+                                   [_B1, 0.0, _B3, _B4, _B5, _B6])  # fmt: skip
+_RK4_A, _RK4_B = _explicit_tableau([[0.5], [0.0, 0.5], [0.0, 0.0, 1.0]],
+                                   [1 / 6, 1 / 3, 1 / 3, 1 / 6])  # fmt: skip
+_DOP853_A = np.ascontiguousarray(tableau_dop853.A[: tableau_dop853.N_STAGES,
+                                                  : tableau_dop853.N_STAGES])  # fmt: skip
+_DOP853_B = np.ascontiguousarray(tableau_dop853.B)
 
 # --- entries of the accumulator ``ly`` ----------------------------------------
 (
@@ -79,24 +104,23 @@ TANGENT_TURN = 0.5
 ) = range(20)
 N_LYAP = 20
 #: Rows of the tangent's ``work`` scratch (see :func:`tangent_arrays`).
-TANGENT_WORK_ROWS = 5
+TANGENT_WORK_ROWS = 4
+#: Rows of the tangent's stage scratch: DOP853's 12 stages, else up to 6 (DOPRI5, RODAS4).
+TANGENT_STAGE_ROWS, TANGENT_STAGE_ROWS_DOP853 = ROS_STAGE_ROWS, tableau_dop853.N_STAGES
 
 
 @jit
-def tangent_arrays(method, n):
-    """Scratch of the tangent: δ (n,); the rows of ``work`` (``TANGENT_WORK_ROWS``, n):
-    y + εδ, its slope, a stage argument, the step's end and its slope; the explicit
-    stages (``STAGE_ROWS`` or, for DOP853, ``STAGE_ROWS_DOP853`` rows of n); RODAS4's
-    stages (``ROS_STAGE_ROWS``, n), matrix (n, n) and pivots (n,) (empty for the other
-    methods); the accumulator ``ly`` (``L_*``)."""
-    n_ros = n if method == ROSENBROCK else 0
+def tangent_arrays(method, n, nb):
+    """Scratch of the tangent for a state of ``n`` values, ``nb`` blocks: δ (n,); the rows
+    of ``work`` (``TANGENT_WORK_ROWS``, n): a stage's argument, its direction, and two
+    rows for RODAS4's right-hand side and curvature; the stages' derivatives
+    (``TANGENT_STAGE_ROWS`` or, for DOP853, ``TANGENT_STAGE_ROWS_DOP853`` rows of n);
+    per-block scratch (3, nb); the accumulator ``ly`` (``L_*``)."""
     return (
         np.empty(n),
         np.empty((TANGENT_WORK_ROWS, n)),
-        np.empty((STAGE_ROWS_DOP853 if method == DOP853 else STAGE_ROWS, n)),
-        np.empty((ROS_STAGE_ROWS if n_ros else 0, n)),
-        np.empty((n_ros, n_ros)),
-        np.empty(n_ros, np.int64),
+        np.empty((TANGENT_STAGE_ROWS_DOP853 if method == DOP853 else TANGENT_STAGE_ROWS, n)),
+        np.empty((3, nb)),
         np.zeros(N_LYAP),
     )
 
@@ -124,17 +148,18 @@ def lyapunov_start(ly, delta, t, block):
 
 @jit
 def tangent_step(
-    y, f, ynew, h, delta, work, stages, ros_k, ros_mat, ros_perm, p, nb, ev, rtol, atol,
+    y, f, h, k, ros_k, ros_lu, ros_perm, delta, work, dk, blocks, p, nb, ev,
     model, law, method, coupling, het,
 ):  # fmt: skip
-    """Carry δ (unit length) over the step of size ``h`` from ``y`` (slope ``f``) to
-    ``ynew`` and renormalise it; returns the logarithm of its growth and |J δ| at ``y``
-    (the difference of the slopes, V/D0).
+    """Carry δ (unit length) over the accepted step of size ``h`` from ``y`` (slope
+    ``f``) and renormalise it; returns the logarithm of its growth and |J δ| at ``y``
+    (V/D0).
 
-    The difference of the method's step from y + εδ and from y (see the module
-    docstring); ``work`` (``TANGENT_WORK_ROWS``, n) and ``stages`` are scratch,
-    ``ros_*`` RODAS4's.
-    Compiled per variant (``literally``): its codes are constants of the grid kernel.
+    The derivative of the step along δ (module docstring), from the step's own stages:
+    ``k`` the explicit methods' (K_1 … in its rows), or RODAS4's ``ros_k`` with the LU
+    factors ``ros_lu``/``ros_perm`` of its matrix. ``work``, ``dk`` and ``blocks`` are
+    the scratch of :func:`tangent_arrays`. Compiled per variant (``literally``): its
+    codes are constants of the grid kernel.
     """
     literally(model)
     literally(law)
@@ -142,41 +167,71 @@ def tangent_step(
     literally(coupling)
     literally(het)
     n = y.size
-    y2, f2, ytmp, ynew2, fnew2 = work[0], work[1], work[2], work[3], work[4]
-    big = 1.0
-    for j in range(n):
-        big = max(big, abs(y[j]))
-    eps = TANGENT_EPS * big
-    for j in range(n):
-        y2[j] = y[j] + eps * delta[j]
-    rhs(y2, p, model, law, coupling, het, nb, ev, f2)
+    arg, direction, acc, curv = work[0], work[1], work[2], work[3]
     rate = 0.0
-    for j in range(n):
-        rate += (f2[j] - f[j]) ** 2
-    rate = math.sqrt(rate) / eps
-    if method == DOPRI5:
-        step_dopri5(
-            y2, f2, h, p, model, law, coupling, het, nb, ev, stages, ytmp, ynew2, fnew2, rtol, atol
-        )
-    elif method == DOP853:
-        step_dop853(
-            y2, f2, h, p, model, law, coupling, het, nb, ev, stages, ytmp, ynew2, fnew2, rtol, atol
-        )
-    elif method == ROSENBROCK:
-        step_rosenbrock(
-            y2, f2, h, p, model, law, coupling, het, nb, ev, ros_k, ros_mat, ros_perm, ytmp, ynew2,
-            fnew2, rtol, atol,
-        )  # fmt: skip
+    if method == ROSENBROCK:
+        # (I/(γh) − J) k_s = f(Y_s) + Σ c_sr k_r / h, Y_s = y + Σ a_sr k_r, y1 = Y_5 + k_5:
+        # along δ, (I/(γh) − J) dk_s = J(Y_s) dY_s + Σ c_sr dk_r / h + f''(y)[δ, k_s]
+        stages = ROS_STAGE_ROWS
+        for s in range(stages):
+            for j in range(n):
+                ya = y[j]
+                da = delta[j]
+                for r in range(s):
+                    ya += _RODAS_A[s, r] * ros_k[r, j]
+                    da += _RODAS_A[s, r] * dk[r, j]
+                arg[j] = ya
+                direction[j] = da
+            rhs_jvp(arg, direction, p, model, law, coupling, het, nb, ev, blocks[0], acc)
+            if s == 0:
+                for j in range(n):
+                    rate += acc[j] ** 2
+            rhs_curvature(y, delta, ros_k[s], p, model, law, coupling, het, nb, ev, blocks, curv)
+            for j in range(n):
+                c = 0.0
+                for r in range(s):
+                    c += _RODAS_C[s, r] * dk[r, j]
+                acc[j] += c / h + curv[j]
+            lu_solve(ros_lu, ros_perm, acc, dk[s])
+        last = stages - 1
+        for j in range(n):
+            delta[j] = direction[j] + dk[last, j]
     else:
-        step_rk4(y2, f2, h, p, model, law, coupling, het, nb, ev, stages, ytmp, ynew2)
+        # K_s = f(Y_s), Y_s = y + h Σ a_sr K_r, y1 = y + h Σ b_s K_s: along δ,
+        # dK_s = J(Y_s) (δ + h Σ a_sr dK_r)
+        if method == DOPRI5:
+            a, b = _DP5_A, _DP5_B
+        elif method == DOP853:
+            a, b = _DOP853_A, _DOP853_B
+        else:
+            a, b = _RK4_A, _RK4_B
+        stages = b.size
+        for s in range(stages):
+            for j in range(n):
+                ya = 0.0
+                da = 0.0
+                for r in range(s):
+                    if a[s, r] != 0.0:
+                        ya += a[s, r] * (f[j] if r == 0 else k[r - 1, j])
+                        da += a[s, r] * dk[r, j]
+                arg[j] = y[j] + h * ya
+                direction[j] = delta[j] + h * da
+            rhs_jvp(arg, direction, p, model, law, coupling, het, nb, ev, blocks[0], dk[s])
+            if s == 0:
+                for j in range(n):
+                    rate += dk[0, j] ** 2
+        for j in range(n):
+            acc_j = 0.0
+            for r in range(stages):
+                acc_j += b[r] * dk[r, j]
+            delta[j] += h * acc_j
     norm = 0.0
     for j in range(n):
-        delta[j] = (ynew2[j] - ynew[j]) / eps
         norm += delta[j] ** 2
     norm = math.sqrt(norm)
     for j in range(n):
         delta[j] /= norm
-    return math.log(norm), rate
+    return math.log(norm), math.sqrt(rate)
 
 
 @jit
