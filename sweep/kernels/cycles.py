@@ -263,6 +263,33 @@ def span_ptp(hist, n_cycles, nb, n):
 
 
 @jit
+def envelope_turns(hist, n_cycles, nb, n):
+    """How often the envelope of the last ``n`` cycles turns: the sign changes of the
+    cycle-to-cycle differences of the peak-to-peak ℓ (the largest over blocks of
+    max ℓ_i − min ℓ_i in a cycle). Bounded motion on a torus or a chaotic attractor
+    comes back: its envelope turns again and again; a spiral growing away from an
+    unstable fixed point (or decaying onto a stable one) has a monotone envelope,
+    however slow (one block at 0.9999 Kc: test_classification.py)."""
+    turns = 0
+    d_prev = 0.0
+    a_prev = 0.0
+    for j in range(n):
+        back = n - 1 - j
+        a = 0.0
+        for i in range(nb):
+            a = max(a, history_value(hist, i, n_cycles, back)
+                    - history_value(hist, nb + i, n_cycles, back))  # fmt: skip
+        if j > 0:
+            d = a - a_prev
+            if d * d_prev < 0.0:
+                turns += 1
+            if d != 0.0:
+                d_prev = d
+        a_prev = a
+    return turns
+
+
+@jit
 def recurrence(hist, n_cycles, nb, n, peak_scale):
     """How far the last cycle is from the one ``n`` cycles before it: the change of
     the event's ℓ_0 relative to ``peak_scale`` plus the relative change of the interval."""

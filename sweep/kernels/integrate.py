@@ -46,6 +46,7 @@ from .cycles import (
     cycle_arrays,
     dense_needed,
     end_slip_event,
+    envelope_turns,
     event_section,
     history_value,
     mean_extremum_matters,
@@ -256,18 +257,21 @@ LYAP_MIN_GROWTH = 10.0
 
 
 @jit
-def attractor_verdict(lam, lam_err, span, conv, accuracy, ptp):
-    """What an unsettled bounded run at its end time is, from λ1 (``lam`` ± ``lam_err``
-    over ``span``, V/D0 and D0/V), if it oscillates beyond the linear regime (``ptp``,
-    the peak-to-peak ℓ of its kept cycles, at least ``LINEAR_AMPLITUDE``: a run
-    resting on an unstable fixed point, an uncoupled block started exactly on it, has
-    λ1 > 0 but no oscillation): CHAOTIC where λ1 is positive beyond its error and the
-    growth is real (``LYAP_*``); QUASI_PERIODIC where λ1 is consistent with zero and
-    the event sequence is not closing in on any cycle of up to ``MAX_CYCLE_EVENTS``
-    events (its best convergence ``conv`` is not within ``SEARCH_FACTOR`` ×
-    ``accuracy``); else UNRESOLVED (λ1 negative: still contracting onto a cycle or
+def attractor_verdict(lam, lam_err, span, conv, accuracy, ptp, turns):
+    """What an unsettled run at its end time is, from λ1 (``lam`` ± ``lam_err`` over
+    ``span``, V/D0 and D0/V), if it oscillates beyond the linear regime (``ptp``, the
+    peak-to-peak ℓ of its kept cycles, at least ``LINEAR_AMPLITUDE``: a run resting on
+    an unstable fixed point, an uncoupled block started exactly on it, has λ1 > 0 but
+    no oscillation) within a bounded envelope (one that turns at least twice over the
+    kept cycles, ``turns``: :func:`cycles.envelope_turns`; a spiral growing towards a
+    runaway just below Kc has a small λ1 and no recurrence, and is no attractor):
+    CHAOTIC where λ1 is positive beyond its error and the growth is real (``LYAP_*``);
+    QUASI_PERIODIC where λ1 is consistent with zero and the event sequence is not
+    closing in on any cycle of up to ``MAX_CYCLE_EVENTS`` events (its best
+    convergence ``conv`` is not within ``SEARCH_FACTOR`` × ``accuracy``); else
+    UNRESOLVED (a drifting envelope; λ1 negative: still contracting onto a cycle or
     steady sliding; or no estimate)."""
-    if not (lam == lam and lam_err == lam_err and ptp >= LINEAR_AMPLITUDE):
+    if not (lam == lam and lam_err == lam_err and ptp >= LINEAR_AMPLITUDE and turns >= 2):
         return UNRESOLVED
     if lam > LYAP_SIGMAS * lam_err and lam * span > LYAP_MIN_GROWTH:
         return CHAOTIC
@@ -315,8 +319,10 @@ def final_regime(
                 cs[C_CONV] = conv
                 cs[C_EVENTS] = 1
                 return STICK_SLIP, PERIODIC
-            ptp = span_ptp(hist, n_cycles, nb, min(n_cycles, HISTORY))
-            kind = attractor_verdict(lam, lam_err, span, cs[C_CONV], accuracy, ptp)
+            kept = min(n_cycles, HISTORY)
+            ptp = span_ptp(hist, n_cycles, nb, kept)
+            turns = envelope_turns(hist, n_cycles, nb, kept)
+            kind = attractor_verdict(lam, lam_err, span, cs[C_CONV], accuracy, ptp, turns)
             if kind == UNRESOLVED:
                 return UNDECIDED, UNRESOLVED
             return STICK_SLIP, kind
