@@ -192,3 +192,36 @@ def cycle_features(chain, sol, t_from, dt=0.002, slip_v_over_V=2.0):
         "slip_participation": float(np.mean(events)),
         "psi_amplitude": float(np.abs(psi).max()),
     }
+
+
+def event_states(rhs, y0, t_end, jac=None, **call):
+    """Times (D0_ref/V) and full states at the maxima of ℓ_0 (the events of a cycle of
+    several events: ℓ_0' crossing zero downwards) from ``y0`` to ``t_end``, for any
+    system ``rhs(t, y)`` whose first component is ℓ_0 (a :class:`Chain`'s, or an
+    ``attractor_reference.Blocks``'s with its ``jac``): ``solve_ivp(**RUN_CALL)``
+    unless ``call`` overrides it. Returns ``(times, states)``, one row per event."""
+
+    def falling(t, y):
+        return rhs(t, y)[0]
+
+    falling.direction = -1
+    extra = {} if jac is None else {"jac": jac}
+    sol = solve_ivp(rhs, (0.0, t_end), y0, events=falling, **(RUN_CALL | call), **extra)
+    assert sol.status == 0, sol.message
+    return sol.t_events[0], sol.y_events[0]
+
+
+def first_return(times, states, tol, longest=32):
+    """The minimal period of a cycle from its events (:func:`event_states`): the
+    smallest d ≤ ``longest`` at which the whole state at the last event is within
+    ``tol`` (max norm) of the state d events before. Returns ``(d, period, gaps)``:
+    the time between those events (D0_ref/V) and the state's distance at every
+    d' < d (each should stand clear of ``tol``); ``(None, None, gaps)`` when none
+    returns."""
+    gaps = []
+    for d in range(1, min(longest, len(times) - 1) + 1):
+        gap = float(np.abs(states[-1] - states[-1 - d]).max())
+        if gap <= tol:
+            return d, float(times[-1] - times[-1 - d]), gaps
+        gaps.append(gap)
+    return None, None, gaps

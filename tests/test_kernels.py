@@ -718,6 +718,79 @@ def test_a_drifting_phase_between_blocks_is_no_simple_cycle():
     )
 
 
+def step_grid_rows(count, pattern, max_l1, min_l0=(-1.5, -1.5), l1_event=(0.3, 0.3)):
+    """``count`` two-block cycle rows (max ℓ_0, max ℓ_1, min ℓ_0, min ℓ_1, interval,
+    in-phase amplitude, ℓ_1 at the event) whose event state repeats every 2 events
+    (``pattern``: ℓ_0 at the event and the interval of each; ``min_l0``, ``l1_event``)
+    while block 1's highest ℓ over a cycle, ``max_l1``, repeats with its own pattern:
+    read off the step grid at a cycle's end (``cycles.event_state_row``)."""
+    rows = []
+    for k in range(count):
+        peak, interval = pattern[k % 2]
+        rows.append([peak, max_l1[k % len(max_l1)], min_l0[k % 2], -3.0, interval, 0.5,
+                     l1_event[k % 2]])  # fmt: skip
+    return rows
+
+
+def test_a_cycle_of_two_events_whose_extremes_repeat_every_four_has_two_events():
+    """The issue's ring (issue 36 §3): the state at the event repeats every 2 events, but
+    block 2's highest ℓ over the long cycle is read at the end of the step holding the
+    next event, −0.8506 or −0.8780 as the step grid falls (its value between the events,
+    −1.2221, is the same each time): a cycle of 2 events, not 4 (b68918e, on the ring: 4)."""
+    rows = step_grid_rows(48, [(0.7845, 6.0665), (1.3136, 1.0974)], [-0.8506, 4.95, -0.8780, 4.95])
+    hist, count = history(2, rows)
+    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
+    events, conv = cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)
+    assert (events, conv) == (2, 0.0)
+    # the same cycle with the step grid's reading wandering without a pattern: still 2
+    rng = np.random.default_rng(1)
+    wander = list(-0.86 + 0.02 * rng.uniform(-1, 1, 48))
+    rows = step_grid_rows(48, [(0.7845, 6.0665), (1.3136, 1.0974)], wander)
+    for k in range(1, 48, 2):
+        rows[k][1] = 4.95
+    hist, count = history(2, rows)
+    assert cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 2
+
+
+def test_a_simple_cycle_whose_extremes_alternate_with_the_step_grid_is_simple():
+    """The state at the event the same at every event and block 1's highest ℓ
+    alternating with a step grid that repeats every 2 events: a simple cycle, settled
+    here (``(1, convergence)``), since the simple cycle's own test, which needs that row
+    to converge, never settles it (b68918e: a cycle of 2 events), approached with
+    alternating overshoots so that 2 events are a candidate at all."""
+    limits = np.empty((7, cycles.MAX_CYCLE_EVENTS))
+    for max_l1, events in (([-0.8506, -0.8780], 1), ([-0.86], 0)):
+        rows = step_grid_rows(48, [(1.3, 5.9), (1.3, 5.9)], max_l1)
+        for k, row in enumerate(rows):  # approached with alternating overshoots
+            row[0] += 1e-4 * (-0.9) ** k
+        hist, count = history(2, rows)
+        verdict = cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)
+        # with that row repeating too, it is left to the simple test, as before
+        assert verdict[0] == events and verdict[1] < 1e-3
+
+
+def test_close_to_a_simple_cycle_every_row_must_settle_the_classes():
+    """Event states that differ from one event to the next by less than SEARCH_FACTOR ×
+    accuracy (7e-4 in ℓ_0 at the event, 0.01 in the lowest ℓ_0 at −17, 2.2e-3 in ℓ_1 at
+    the event: configs/route_to_chaos.yaml at K/W = 0.00415 µm⁻¹, a simple cycle whose
+    alternating approach beats slowly, each class steady over its four terms) are no
+    cycle of 2 events while another row does not settle (block 1's lowest ℓ); far from a
+    simple cycle (ℓ_0 at the events 0.78 / 1.31) the event state alone settles it."""
+    rng = np.random.default_rng(2)
+    near = step_grid_rows(48, [(1.29642, 86.134), (1.29570, 86.140)], [1.308],
+                          min_l0=(-16.964, -16.974), l1_event=(-11.0933, -11.0910))  # fmt: skip
+    for row in near:
+        row[3] = -17.58 + 0.05 * rng.uniform(-1, 1)  # block 1's lowest ℓ: not settled
+    hist, count = history(2, near)
+    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
+    assert cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 0
+    far = step_grid_rows(48, [(0.7845, 6.0665), (1.3136, 1.0974)], [1.308])
+    for row in far:
+        row[3] = -17.58 + 0.05 * rng.uniform(-1, 1)
+    hist, count = history(2, far)
+    assert cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 2
+
+
 def test_noise_floor_cycle_is_settled_at_the_end_but_a_slow_drift_is_not():
     """Cycle values that wander within 1e-6 without contracting (noise, a faint
     modulation) settle as a simple cycle at a run's end (simple_cycle_within_spread);

@@ -7,8 +7,9 @@ on run length. After every event the cycle-to-cycle sequence of each observable
 (extremes of every block's ℓ, the interval, the in-phase amplitude) is
 extrapolated: the run has settled on a simple cycle when every observable is
 within ``accuracy`` of its limit, on a cycle of n events when every residue class
-of the sequence mod n is (:func:`multi_event_verdict`), and onto steady sliding
-when the amplitudes extrapolate to zero.
+of the sequence mod n is (:func:`multi_event_verdict`; n the smallest number of
+events after which the state at the event repeats), and onto steady sliding when the
+amplitudes extrapolate to zero.
 """
 
 import math
@@ -319,6 +320,24 @@ def n_observables(nb):
 
 
 @jit
+def event_state_row(k, nb):
+    """Whether row ``k`` of ``hist`` is a function of the state at the event, where the
+    steps fall does not matter: ℓ_0 at the event (row 0, the interpolant's maximum),
+    block 0's lowest ℓ between its maxima (row nb, a minimum inside the cycle), the
+    interval (row 2 nb) and the other blocks' ℓ at the event (rows 2 nb + 2 …). The
+    other blocks' extremes of ℓ over the cycle and the mean ℓ's peak-to-peak (rows
+    1 … nb − 1, nb + 1 … 2 nb − 1, 2 nb + 1) are not: where one lies at an end of the
+    cycle (a block still slowing at the event, or starting to slip), the cycle's window
+    reads it at the end of the step holding the event, up to a step past it, so it
+    changes with the step grid from one passage of the same state to the next (eight
+    unequal blocks in a ring, a cycle of 2 events whose state repeats to 1e-11: block
+    2's highest ℓ over the long cycle, −1.2221 at its closing event, read as −0.8506 and
+    −0.8780; ``tests/test_cycle_periods.py``). A cycle of several events is told by
+    these rows (:func:`multi_event_verdict`)."""
+    return k == 0 or k == nb or k == 2 * nb or k >= 2 * nb + 2
+
+
+@jit
 def section_settled(hist, n_cycles, nb, accuracy, rtol, atol):
     """Whether the other blocks' ℓ at the event (rows 2 nb + 2 …, the return map's
     coordinates that the per-cycle extremes miss) repeat from cycle to cycle: each
@@ -359,7 +378,7 @@ def class_spread(hist, k, n_cycles, n, r, terms):
 
 
 @jit
-def classes_convergence(hist, n_cycles, nb, n, bound, rtol, atol, limits):
+def classes_convergence(hist, n_cycles, nb, n, bound, rtol, atol, limits, every_row):
     """Estimated relative distance of the last ``n`` cycles to a cycle of ``n`` events.
 
     :func:`cycle_convergence` applied to each residue class of the cycle sequence
@@ -368,8 +387,11 @@ def classes_convergence(hist, n_cycles, nb, n, bound, rtol, atol, limits):
     ``limits[k, r]`` (observable k, class of the cycle r cycles before the last).
     Where the extrapolation fails or exceeds ``bound``, a class with at least
     ``STEADY_TERMS`` cycles kept counts as settled to within the spread of all of
-    them if it turns (:func:`class_spread`, limit: its last value). Stops with inf as soon as one
-    class exceeds ``bound``.
+    them if it turns (:func:`class_spread`, limit: its last value). Stops with inf as
+    soon as one class exceeds ``bound``; without ``every_row``, only one of the rows
+    that are functions of the state at the event (:func:`event_state_row`) does: a
+    class of another row beyond ``bound`` gets limit NaN and is left out of the
+    distance (its values depend on the step grid).
     """
     ptp = span_ptp(hist, n_cycles, nb, n)
     terms = min(n_cycles, HISTORY) // n
@@ -390,29 +412,54 @@ def classes_convergence(hist, n_cycles, nb, n, bound, rtol, atol, limits):
                 distance = class_spread(hist, k, n_cycles, n, r, terms) / scale
                 limit = x3
             if not (distance <= bound):
-                return np.inf
+                if every_row or event_state_row(k, nb):
+                    return np.inf
+                limits[k, r] = np.nan
+                continue
             worst = max(worst, distance)
             limits[k, r] = limit
     return worst
 
 
 @jit
-def limit_period(limits, n, nb, ptp, accuracy):
-    """The smallest d dividing ``n`` with which the classes' limits repeat (within
-    twice ``accuracy`` of each observable's scale): the cycle's true number of events."""
-    for d in range(1, n):
-        if n % d != 0:
+def limits_repeat(limits, n, nb, ptp, tol, d, every_row):
+    """Whether the classes' limits (:func:`classes_convergence`) repeat after ``d``
+    events, within ``tol`` × each observable's scale (:func:`class_scale`): of every
+    row, or only of the rows that are functions of the state at the event
+    (:func:`event_state_row`). A NaN limit never repeats."""
+    for k in range(n_observables(nb)):
+        if k == 2 * nb + 1 and nb == 1:
             continue
-        repeats = True
-        for k in range(n_observables(nb)):
-            if k == 2 * nb + 1 and nb == 1:
-                continue
-            for r in range(n):
-                a = limits[k, r]
-                b = limits[k, (r + d) % n]
-                if not (abs(a - b) <= 2.0 * accuracy * class_scale(k, nb, ptp, a)):
-                    repeats = False
-        if repeats:
+        if not (every_row or event_state_row(k, nb)):
+            continue
+        for r in range(n):
+            a = limits[k, r]
+            b = limits[k, (r + d) % n]
+            if not (abs(a - b) <= tol * class_scale(k, nb, ptp, a)):
+                return False
+    return True
+
+
+@jit
+def every_limit_known(limits, n, nb):
+    """Whether every row's classes have a limit (none NaN: every row within the bound
+    of :func:`classes_convergence`, as its ``every_row`` asks)."""
+    for k in range(n_observables(nb)):
+        if k == 2 * nb + 1 and nb == 1:
+            continue
+        for r in range(n):
+            if limits[k, r] != limits[k, r]:
+                return False
+    return True
+
+
+@jit
+def limit_period(limits, n, nb, ptp, accuracy):
+    """The smallest d dividing ``n`` after which the state at the event repeats: the
+    limits of its rows (:func:`event_state_row`) within twice ``accuracy`` of each
+    observable's scale (:func:`limits_repeat`). The cycle's true number of events."""
+    for d in range(1, n):
+        if n % d == 0 and limits_repeat(limits, n, nb, ptp, 2.0 * accuracy, d, False):
             return d
     return n
 
@@ -420,16 +467,34 @@ def limit_period(limits, n, nb, ptp, accuracy):
 @jit
 def multi_event_verdict(hist, n_cycles, nb, accuracy, rtol, atol, limits):
     """The cycle of n ≥ 2 events that the run has settled on: ``(n, convergence)``,
-    or ``(0, the best convergence found)``.
+    or ``(0, the best convergence found)``; ``(1, convergence)`` for a simple cycle
+    that the simple cycle's own test cannot settle.
 
     Candidates are the n up to :data:`MAX_CYCLE_EVENTS` (four cycles of each residue
     class kept) at which the last cycle comes closer to the one n cycles earlier
     than to any nearer one (:func:`recurrence`): a cycle of n events returns to
-    itself after n cycles, not before. The first candidate whose classes are all
-    within ``accuracy`` (:func:`classes_convergence`) settles the run, unless its
-    limits repeat sooner: a simple cycle approached with alternating overshoots is
-    left to the simple cycle's own test (so every simple cycle settles as before), a
-    cycle of 4 events whose limits repeat every 2 is a cycle of 2.
+    itself after n cycles, not before. A candidate whose classes are all within
+    ``accuracy`` (:func:`classes_convergence`) has as many events as it takes the
+    state at the event to repeat (:func:`limit_period`: a cycle of 4 events whose
+    limits repeat every 2 is a cycle of 2), judged on the rows that are functions of
+    that state (:func:`event_state_row`); the other rows' limits, read off the step
+    grid, may differ from class to class.
+
+    The first candidate of more than one event settles the run when every row's
+    classes are within ``accuracy``, or, where only the state's rows are, when the
+    cycle is far from a simple one: some row's limits differ from class to class by
+    more than ``SEARCH_FACTOR`` × ``accuracy`` of its scale (the search's own bound
+    for "close to a simple cycle"). Closer than that, a simple cycle approached with
+    slowly decaying, beating alternation (a Floquet multiplier near −1: route_to_chaos
+    at K/W = 0.00415 µm⁻¹) can look converged in each class over its four terms; the
+    rows that miss it are then needed. A simple cycle approached with alternating
+    overshoots (the state's limits repeating every event) is left to the simple
+    cycle's own test (so it settles as before), unless every row's classes are
+    within ``accuracy`` and some row's limits differ from class to class: that row
+    never converges from cycle to cycle, and the simple test never settles it.
+    ``convergence`` and the best one found are as :func:`classes_convergence` of
+    every row gives them (inf where some row is beyond ``accuracy``), except for a
+    cycle settled by the state's rows alone (theirs).
     """
     longest = min(MAX_CYCLE_EVENTS, n_cycles // TERMS)
     best = np.inf
@@ -442,12 +507,21 @@ def multi_event_verdict(hist, n_cycles, nb, accuracy, rtol, atol, limits):
         if not (distance < closest):
             continue
         closest = distance
-        conv = classes_convergence(hist, n_cycles, nb, n, accuracy, rtol, atol, limits)
-        if conv <= accuracy:
-            events = limit_period(limits, n, nb, span_ptp(hist, n_cycles, nb, n), accuracy)
-            if events > 1:
+        conv = classes_convergence(hist, n_cycles, nb, n, accuracy, rtol, atol, limits, False)
+        if not (conv <= accuracy):
+            best = min(best, conv)
+            continue
+        ptp = span_ptp(hist, n_cycles, nb, n)
+        events = limit_period(limits, n, nb, ptp, accuracy)
+        known = every_limit_known(limits, n, nb)
+        if events > 1:
+            far = not limits_repeat(limits, n, nb, ptp, SEARCH_FACTOR * accuracy, 1, False)
+            if known or far:
                 return events, conv
-        best = min(best, conv)
+        elif known and not limits_repeat(limits, n, nb, ptp, 2.0 * accuracy, 1, True):
+            return 1, conv
+        if known:
+            best = min(best, conv)
     return 0, best
 
 
@@ -460,7 +534,7 @@ def simple_cycle_within_spread(hist, n_cycles, nb, accuracy, rtol, atol, limits)
     their end, so no run that settles by extrapolation changes."""
     if n_cycles < STEADY_TERMS:
         return np.inf
-    return classes_convergence(hist, n_cycles, nb, 1, accuracy, rtol, atol, limits)
+    return classes_convergence(hist, n_cycles, nb, 1, accuracy, rtol, atol, limits, True)
 
 
 @jit_inline
