@@ -506,8 +506,8 @@ def test_two_blocks_anti_phase_start_at_0_995_is_decided_by_rounding():
     follows is amplified rounding. SciPy (LSODA rtol 1e-8 and 1e-10, DOP853 rtol 1e-12)
     desynchronises at τ ≈ 2500 onto an attracting out-of-phase cycle (ptp 1.92098, period
     5.016600, multipliers |0.99797| (pair), 0.7813), converged to 1e-2 only by τ = 10 440
-    (1e-4 by 21 800); the engine (DOPRI5, rtol 1e-8 or 1e-10) stays synchronised and runs
-    away in phase at τ = 2468.2. Both are faithful to the equations up to rounding, so
+    (1e-4 by 21 800); the engine (measured with DOPRI5, rtol 1e-8 or 1e-10) stays
+    synchronised and runs away in phase at τ = 2468.2. Both are faithful to the equations up to rounding, so
     runaway (v did cross the cap) or undecided (not converged by 8000); never steady,
     and stick_slip only with the cycle's features."""
     ref = two_block_cycle(0.995)
