@@ -223,8 +223,8 @@ class Config:
 
     #: The sweep's name (``name:``; default the file's stem, ``sweep`` for a mapping).
     name: str
-    #: Where the config came from: its path, ``"<mapping>"`` or ``"<config>"`` for
-    #: text; error messages and the result's provenance name it.
+    #: Where the config came from (its path, ``"<mapping>"``, or ``"<config>"`` for
+    #: text); error messages and the result's provenance name it.
     source: str
     #: The config as YAML text; stored in every result as ``config_text``.
     text: str
@@ -232,17 +232,17 @@ class Config:
     blocks: int
     #: ``quasi-static``, ``quasi-dynamic`` (radiation damping) or ``inertial``.
     model: str
-    #: Evolution law of the state Φ: ``aging`` (Dieterich) or ``slip`` (Ruina).
+    #: Evolution law of the state Φ, ``aging`` (Dieterich) or ``slip`` (Ruina).
     state_law: str
     #: The fixed (unswept) parameters shared by all blocks, ``((name, value), ...)``.
     parameters: tuple[tuple[str, float], ...]
-    #: The sweep axes, in order: the dimensions of the result.
+    #: The sweep axes, in order (the dimensions of the result).
     axes: tuple[Axis, ...]
     #: The initial perturbation and the initial-condition ensemble (``initial:``).
     initial: Initial
-    #: Integrator settings (``integrator:``): method, tolerances, end time.
+    #: Integrator settings (``integrator:``), e.g. method, tolerances, end time.
     integrator: Integrator
-    #: How a run is labelled (``classification:``): velocity cap, accuracy, events.
+    #: How a run is labelled (``classification:``), e.g. velocity cap, accuracy, events.
     classification: Classification
     #: Result path, ``.nc`` (NetCDF) or ``.zarr`` (default ``results/<name>.nc``).
     output: str

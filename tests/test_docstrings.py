@@ -203,10 +203,11 @@ def raises_problems(name, parts):
 
 
 def documented_fields(cls):
-    """Names of a class's attributes with a ``#:`` doc comment (as autodoc reads them)."""
+    """``{name: text}`` of a class's attributes with a ``#:`` doc comment (as autodoc
+    reads them)."""
     analyzer = ModuleAnalyzer.for_module(cls.__module__)
     docs = analyzer.find_attr_docs()
-    return {attr for (scope, attr), lines in docs.items()
+    return {attr: "\n".join(lines) for (scope, attr), lines in docs.items()
             if scope == cls.__qualname__ and "".join(lines).strip()}  # fmt: skip
 
 
@@ -229,9 +230,14 @@ def problems_of_class(name, cls):
             described.update(n.strip() for n in split_head(head)[0].split(","))
     if dataclasses.is_dataclass(cls):
         fields = {f.name for f in dataclasses.fields(cls)}
-        missing = sorted(fields - described - documented_fields(cls))
+        comments = documented_fields(cls)
+        missing = sorted(fields - described - set(comments))
         if missing:
             found.append(f"{name}: fields without a description: {missing}")
+        for field, text in comments.items():
+            if napoleon_reads_a_type(text):
+                found.append(f"{name}.{field}: its #: comment opens as 'type: text' (napoleon "
+                             "renders it as a type)")  # fmt: skip
         for f in dataclasses.fields(cls):
             if f.type in (object, "object") and f.name not in described:
                 found.append(f"{name}: field {f.name} has neither a type nor an entry")
