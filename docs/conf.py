@@ -28,6 +28,7 @@ extensions = [
     "sweep_citation",
     "sweep_mathml",
     "sweep_landing",
+    "sweep_scraper",
 ]
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}

@@ -18,13 +18,21 @@ from sphinx.util import logging
 logger = logging.getLogger(__name__)
 
 
+#: Operators the converter writes with the default spacing of an infix operator, which
+#: TeX does not give them: a solidus in ``K_c/W`` is set tight.
+TIGHT = {"<mo>/</mo>": '<mo lspace="0" rspace="0">/</mo>'}
+
+
 def to_mathml(latex, node, block):
     """MathML of ``latex``; on a conversion error, a warning and the LaTeX as text."""
     try:
-        return latex2mathml.tex2mathml(latex, as_block=block)
+        mathml = latex2mathml.tex2mathml(latex, as_block=block)
     except MathError as exc:
         logger.warning("cannot typeset %r as MathML: %s", latex, exc, location=node)
         return f'<code class="math-error">{html.escape(latex)}</code>'
+    for loose, tight in TIGHT.items():
+        mathml = mathml.replace(loose, tight)
+    return mathml
 
 
 def visit_math(self, node):
