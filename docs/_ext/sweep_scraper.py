@@ -8,9 +8,9 @@ bound to a name in the example's namespace that it has not saved yet.
 Thumbnails: sphinx-gallery shrinks an example's first figure, whole, to 400 × 280
 pixels, so a two- or three-panel figure becomes unreadable lines. Here the first
 figure of each example is drawn again (a copy) with its first panel about 4.5 by 3
-inches and no titles, cropped to that panel, and written to ``docs/generated/thumbs/``; after the gallery is
-generated, :func:`replace_thumbnails` puts each into the gallery's thumbnail file,
-centred on white.
+inches and no titles, cropped to that panel and written to ``docs/generated/thumbs/``;
+after the gallery is generated, :func:`replace_thumbnails` puts each into the
+gallery's thumbnail file, centred on white.
 """
 
 import pickle
