@@ -391,3 +391,34 @@ def test_the_checks_catch_what_the_site_garbled(func, expected):
 def test_the_checks_catch_a_property_read_as_a_type():
     assert napoleon_reads_a_type(_Properties.shape.__doc__)
     assert any("opens as 'type: text'" in p for p in problems_of_class("P", _Properties))
+
+
+# --- statements beside the code, against the code (issue 40 §6) ---------------------------
+
+
+def test_kernels_package_docstring_names_every_module_and_method():
+    """sweep/kernels/__init__.py lists each module of the package and each integration
+    method (config name and the method's own name); it once listed three of four."""
+    from sweep import kernels
+    from sweep.config import METHODS
+
+    names = {"dop853": "DOP853", "dopri5": "DOPRI5", "rk4": "RK4", "rosenbrock": "RODAS4"}
+    doc = kernels.__doc__
+    modules = {p.stem for p in Path(kernels.__file__).parent.glob("*.py")} - {"__init__"}
+    assert {m for m in modules if f"``{m}``" not in doc} == set()
+    assert set(METHODS) == set(names)
+    assert [m for m in METHODS if f"``{m}``" not in doc or names[m] not in doc] == []
+
+
+def test_output_descriptions_state_the_classifiers_limits():
+    """The numbers in the output schema's descriptions (written into every file) are the
+    classifier's: the longest cycle it recognises and the events it keeps."""
+    from sweep.config import MAX_EVENTS
+    from sweep.kernels import cycles
+    from sweep.variables import BY_NAME
+
+    (longest,) = re.findall(r"no cycle of up to (\d+) events", BY_NAME["attractor"].description)
+    assert int(longest) == cycles.MAX_CYCLE_EVENTS
+    (kept,) = re.findall(r"the last events kept \(up to (\d+)\)",
+                         BY_NAME["lnv_amplitude"].description)  # fmt: skip
+    assert int(kept) == cycles.HISTORY == MAX_EVENTS
