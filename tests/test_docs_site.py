@@ -49,3 +49,40 @@ def test_every_config_key_has_an_entry():
         assert listed or key in GENERATED_SECTIONS, f"no entry for config key {key}"
     for field in dataclasses.fields(Initial):
         assert f"initial.{field.name}" in entries, f"no entry for initial.{field.name}"
+
+
+def float_literals(text):
+    """Every number written in ``text`` (``2e-3``, ``0.002``, ``1e5``), as floats."""
+    return {float(x) for x in re.findall(r"(?<![\w.])\d+(?:\.\d+)?(?:e[-+]?\d+)?(?![\w.])", text)}
+
+
+def stated_tolerances(bullet):
+    """The tolerances a bullet says a test uses: "tested at 1e-4 and 1e-6", "tested at
+    2 %" (as 0.02)."""
+    found = []
+    for phrase in re.findall(r"tested at ((?:[\d.]+(?:e-\d+)?(?: %)?(?:,| and| or)? ?)+)", bullet):
+        for number, percent in re.findall(r"([\d.]+(?:e-\d+)?)( %)?", phrase):
+            found.append(float(number) / 100 if percent else float(number))
+    return found
+
+
+def test_internals_tolerances_are_the_tests():
+    """Each "tested at …" tolerance of docs/internals.md's test list is written in one of
+    the test modules its bullet names, so a tolerance changed in a test cannot leave
+    the page behind (the page quoted tolerances that had moved, issue 40)."""
+    text = (DOCS / "internals.md").read_text()
+    tests = text[text.index("## Tests") : text.index("## Numerical choices")]
+    bullets = re.split(r"\n- ", tests)[1:]
+    checked = 0
+    for bullet in bullets:
+        bullet = " ".join(bullet.split())
+        files = set(re.findall(r"tests/(\w+\.py)", bullet))
+        literals = set()
+        for name in files:
+            literals |= float_literals((ROOT / "tests" / name).read_text())
+        for value in stated_tolerances(bullet):
+            assert any(abs(value - x) <= 1e-12 * value for x in literals), (
+                f"internals.md says a test in {sorted(files)} uses {value:g}: not in the tests"
+            )
+            checked += 1
+    assert checked >= 10  # the page still states them
