@@ -20,7 +20,10 @@ logger = logging.getLogger(__name__)
 
 #: Operators the converter writes with the default spacing of an infix operator, which
 #: TeX does not give them: a solidus in ``K_c/W`` is set tight.
-TIGHT = {"<mo>/</mo>": '<mo lspace="0" rspace="0">/</mo>'}
+TIGHT = {
+    "<mo>/</mo>": '<mo lspace="0" rspace="0">/</mo>',
+    '<mo stretchy="false">/</mo>': '<mo stretchy="false" lspace="0" rspace="0">/</mo>',
+}
 
 
 def to_mathml(latex, node, block):
