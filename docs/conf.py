@@ -46,6 +46,8 @@ autodoc_typehints = "signature"
 autodoc_typehints_format = "short"
 python_maximum_signature_line_length = 88
 autodoc_member_order = "bysource"
+# {func} links name the function only: the guide writes the arguments after them
+add_function_parentheses = False
 napoleon_numpy_docstring = True
 napoleon_google_docstring = False
 
