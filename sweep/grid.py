@@ -18,27 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import heterogeneity, linear, physics
+from . import codes, heterogeneity, linear, physics
 from .kernels import layout
-
-MODEL_CODES = {
-    "quasi-static": layout.QUASI_STATIC,
-    "quasi-dynamic": layout.QUASI_DYNAMIC,
-    "inertial": layout.INERTIAL,
-}
-LAW_CODES = {"aging": layout.AGING, "slip": layout.SLIP}
-COUPLING_CODES = {"chain": layout.CHAIN, "ring": layout.RING, "all": layout.ALL}
-METHOD_CODES = {
-    "dopri5": layout.DOPRI5,
-    "rk4": layout.RK4,
-    "rosenbrock": layout.ROSENBROCK,
-    "dop853": layout.DOP853,
-}
-LYAPUNOV_CODES = {
-    "never": layout.LYAP_NEVER,
-    "unsettled": layout.LYAP_UNSETTLED,
-    "always": layout.LYAP_ALWAYS,
-}
 
 
 def physical_parameters(config):
@@ -71,9 +52,9 @@ def settings_array(config):
     """The kernels' settings array (``layout.S_*``), shared by all systems."""
     s = np.zeros(layout.N_SETTINGS)
     integ, cls = config.integrator, config.classification
-    s[layout.S_MODEL] = MODEL_CODES[config.model]
-    s[layout.S_LAW] = LAW_CODES[config.state_law]
-    s[layout.S_METHOD] = METHOD_CODES[integ.method]
+    s[layout.S_MODEL] = codes.code(codes.MODELS, config.model)
+    s[layout.S_LAW] = codes.code(codes.STATE_LAWS, config.state_law)
+    s[layout.S_METHOD] = codes.code(codes.METHODS, integ.method)
     s[layout.S_NBLOCKS] = config.blocks
     s[layout.S_RTOL] = integ.rtol
     s[layout.S_ATOL] = integ.atol
@@ -84,8 +65,8 @@ def settings_array(config):
     s[layout.S_CONFIRM_CYCLES] = cls.confirm_cycles
     s[layout.S_EARLY_EXIT] = 1.0 if cls.early_exit else 0.0
     s[layout.S_SLIP_LNV] = math.log(cls.slip_v_over_V)
-    s[layout.S_COUPLING] = COUPLING_CODES[config.coupling]
-    s[layout.S_LYAPUNOV] = LYAPUNOV_CODES[cls.lyapunov]
+    s[layout.S_COUPLING] = codes.code(codes.COUPLINGS, config.coupling)
+    s[layout.S_LYAPUNOV] = codes.code(codes.LYAPUNOV_MODES, cls.lyapunov)
     s[layout.S_EVENTS] = cls.events
     return s
 
@@ -181,7 +162,7 @@ def block_parameters(config, phys):
 
 def state_size(config):
     """State variables per system: ℓ and ψ per block, and z per block (inertial model)."""
-    return config.blocks * layout.values_per_block(MODEL_CODES[config.model])
+    return config.blocks * layout.values_per_block(codes.code(codes.MODELS, config.model))
 
 
 def initial_state(config, n_systems):

@@ -13,12 +13,9 @@ dimension; ``per_event``: a trailing ``event`` dimension (the last events of eac
 
 from dataclasses import dataclass
 
-#: Regime names in code order (``kernels.layout.STEADY`` … ``UNDECIDED``; the CF flag_values /
-#: flag_meanings of ``regime``). Output vocabulary, so it lives here, not with the kernels.
-REGIMES = ("steady", "stick_slip", "runaway", "undecided")
-#: What a run settled on, in code order (``kernels.layout.FIXED_POINT`` … ``UNBOUNDED``;
-#: the flag_values / flag_meanings of ``attractor``).
-ATTRACTORS = ("fixed_point", "periodic", "quasi_periodic", "chaotic", "unresolved", "unbounded")
+#: The regime and attractor names in code order (the flag_values / flag_meanings of
+#: ``regime`` and ``attractor``): the code tables of ``sweep/codes.py``.
+from .codes import ATTRACTORS, REGIMES  # noqa: F401
 
 
 @dataclass(frozen=True)

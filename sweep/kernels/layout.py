@@ -2,24 +2,52 @@
 
 Plain Python (no numba): the grid builder, the Dataset constructor and the tests
 read results with these names without compiling anything. In the kernels they are
-compile-time constants.
+compile-time constants. The codes are those of the tables in ``sweep/codes.py``.
 
 State of one system with ``nb`` blocks: ``y[i] = ℓ_i`` (ln v/V), ``y[nb+i] = ψ_i``
 (ln VΦ/D0) and, for the inertial model, ``y[2nb+i] = z_i`` (inertial force
 m dv/dt per unit normal load). Time τ is in units of D0/V.
 """
 
-# --- codes -------------------------------------------------------------------
-QUASI_STATIC, QUASI_DYNAMIC, INERTIAL = 0, 1, 2
-AGING, SLIP = 0, 1
-DOPRI5, RK4, ROSENBROCK, DOP853 = 0, 1, 2, 3
-STEADY, STICK_SLIP, RUNAWAY, UNDECIDED = 0, 1, 2, 3
-CHAIN, RING, ALL = 0, 1, 2  # coupling springs: neighbours of a chain, of a ring, every pair
-# what a run settled on (R_ATTRACTOR); names in sweep/variables.py
-FIXED_POINT, PERIODIC, QUASI_PERIODIC, CHAOTIC, UNRESOLVED, UNBOUNDED = range(6)
-# when the tangent for λ1 is carried (S_LYAPUNOV): never, from t_end for runs not settled
-# by then, or over every whole run
-LYAP_NEVER, LYAP_UNSETTLED, LYAP_ALWAYS = range(3)
+from ..codes import (
+    ATTRACTORS,
+    COUPLINGS,
+    LYAPUNOV_MODES,
+    METHODS,
+    MODELS,
+    REGIMES,
+    STATE_LAWS,
+    code,
+)
+
+# --- codes: each name of the tables of sweep/codes.py, as the kernels take it --------
+QUASI_STATIC = code(MODELS, "quasi-static")
+QUASI_DYNAMIC = code(MODELS, "quasi-dynamic")
+INERTIAL = code(MODELS, "inertial")
+AGING = code(STATE_LAWS, "aging")
+SLIP = code(STATE_LAWS, "slip")
+DOPRI5 = code(METHODS, "dopri5")
+RK4 = code(METHODS, "rk4")
+ROSENBROCK = code(METHODS, "rosenbrock")
+DOP853 = code(METHODS, "dop853")
+CHAIN = code(COUPLINGS, "chain")
+RING = code(COUPLINGS, "ring")
+ALL = code(COUPLINGS, "all")
+# when the tangent for λ1 is carried (S_LYAPUNOV)
+LYAP_NEVER = code(LYAPUNOV_MODES, "never")
+LYAP_UNSETTLED = code(LYAPUNOV_MODES, "unsettled")
+LYAP_ALWAYS = code(LYAPUNOV_MODES, "always")
+STEADY = code(REGIMES, "steady")
+STICK_SLIP = code(REGIMES, "stick_slip")
+RUNAWAY = code(REGIMES, "runaway")
+UNDECIDED = code(REGIMES, "undecided")
+# what a run settled on (R_ATTRACTOR)
+FIXED_POINT = code(ATTRACTORS, "fixed_point")
+PERIODIC = code(ATTRACTORS, "periodic")
+QUASI_PERIODIC = code(ATTRACTORS, "quasi_periodic")
+CHAOTIC = code(ATTRACTORS, "chaotic")
+UNRESOLVED = code(ATTRACTORS, "unresolved")
+UNBOUNDED = code(ATTRACTORS, "unbounded")
 
 
 def values_per_block(model):
