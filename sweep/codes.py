@@ -19,8 +19,15 @@ COUPLINGS = ("chain", "ring", "all")
 #: When the largest Lyapunov exponent is computed (``classification.lyapunov``): never;
 #: from t_end on, for runs not settled by then; or over every whole run.
 LYAPUNOV_MODES = ("never", "unsettled", "always")
-#: The integration methods (``integrator.method``).
-METHODS = ("dopri5", "rk4", "rosenbrock", "dop853")
+#: The integration methods (``integrator.method``), each name with its module in
+#: ``sweep/kernels/methods``: the registry of the methods. Adding a method is its
+#: module and a line here.
+METHODS = {
+    "dopri5": "dopri5",
+    "rk4": "rk4",
+    "rosenbrock": "rodas4",
+    "dop853": "dop853",
+}
 #: Regimes (the ``regime`` variable's flag meanings).
 REGIMES = ("steady", "stick_slip", "runaway", "undecided")
 #: What a run settled on (the ``attractor`` variable's flag meanings).

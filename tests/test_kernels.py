@@ -16,7 +16,10 @@ from conftest import (
 from scipy.integrate import solve_ivp
 
 from sweep import physics
-from sweep.kernels import cycles, equations, layout, steppers
+from sweep.kernels import cycles, equations, layout
+from sweep.kernels import step as interpolant
+from sweep.kernels.control import next_step_size
+from sweep.kernels.methods import dop853, dopri5
 from sweep.physics import log_form_rhs
 
 A, B = PAPER_A, PAPER_B
@@ -372,12 +375,12 @@ def test_hermite_interpolant_is_exact_for_cubics():
     y0, y1, d0, d1 = cubic(0.2), cubic(0.2 + h), slope(0.2), slope(0.2 + h)
     none = (0.0, 0.0, 0.0, 0.0)
     for theta in (0.0, 0.3, 0.5, 1.0):
-        value = steppers.dense_value(y0, y1, d0, d1, h, none, theta)
+        value = interpolant.dense_value(y0, y1, d0, d1, h, none, theta)
         assert value == pytest.approx(cubic(0.2 + theta * h), abs=1e-15)
-    theta = steppers.dense_extremum(y0, y1, d0, d1, h, none)
+    theta = interpolant.dense_extremum(y0, y1, d0, d1, h, none)
     assert 0.2 + theta * h == pytest.approx((0.6 + math.sqrt(0.21)) / 3, abs=1e-12)
     level = cubic(0.8)
-    theta = steppers.dense_crossing(
+    theta = interpolant.dense_crossing(
         cubic(0.6), cubic(0.9), slope(0.6), slope(0.9), 0.3, none, level
     )
     assert 0.6 + theta * 0.3 == pytest.approx(0.8, abs=1e-12)
@@ -399,20 +402,20 @@ def test_dopri5_dense_output_is_fourth_order():
 
     def step(y, h):
         k, ytmp, ynew, fnew = np.empty((5, 2)), np.empty(2), np.empty(2), np.empty(2)
-        steppers.step_dopri5(
-            y, rhs(y), h, p, *CODES, 1, np.empty(1), k, ytmp, ynew, fnew, 1.0, 1.0
-        )  # fmt: skip
-        return ynew, fnew, (k[1], k[2], k[3], k[4])
+        f, dense = rhs(y), np.zeros((4, 2))
+        dopri5.step(y, f, h, p, *CODES, 1, np.empty(1), k, None, None, ytmp, ynew, fnew, 1.0, 1.0)
+        dopri5.dense(y, f, h, p, *CODES, 1, np.empty(1), k, ytmp, fnew, dense)
+        return ynew, fnew, dense
 
     def mid_errors(h, j):
-        y1, f1, (k3, k4, k5, k6) = step(y0, h)
+        y1, f1, dense = step(y0, h)
         f0 = rhs(y0)
         ref = y0.copy()
         for _ in range(64):
             ref = step(ref, h / 128)[0]
-        r = steppers.dense_tail(layout.DOPRI5, j, h, f0, k3, k4, k5, k6, f1, np.empty((4, 0)))
-        dense = steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, 0.5)
-        hermite = steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, (0.0,) * 4, 0.5)
+        r = tuple(dense[:, j])
+        dense = interpolant.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, 0.5)
+        hermite = interpolant.dense_value(y0[j], y1[j], f0[j], f1[j], h, (0.0,) * 4, 0.5)
         return abs(dense - ref[j]), abs(hermite - ref[j])
 
     for j in (0, 1):
@@ -428,10 +431,10 @@ def dop853_step(y, h, p):
     """One step of the kernels' DOP853 from ``y`` (one quasi-static block): the new state,
     its slope, the interpolant's coefficients r5 … r8 (4, 2) and the error norm."""
     ev, f, ytmp, ynew, fnew = np.empty(1), np.empty(2), np.empty(2), np.empty(2), np.empty(2)
-    k, dense = np.empty((steppers.STAGE_ROWS_DOP853, 2)), np.empty((4, 2))
+    k, dense = np.empty((dop853.STAGE_ROWS, 2)), np.empty((4, 2))
     equations.rhs(y, p, *CODES, 1, ev, f)
-    err = steppers.step_dop853(y, f, h, p, *CODES, 1, ev, k, ytmp, ynew, fnew, 1e-8, 1e-10)
-    steppers.dense_dop853(y, f, h, p, *CODES, 1, ev, k, ytmp, fnew, dense)
+    err = dop853.step(y, f, h, p, *CODES, 1, ev, k, None, None, ytmp, ynew, fnew, 1e-8, 1e-10)
+    dop853.dense(y, f, h, p, *CODES, 1, ev, k, ytmp, fnew, dense)
     return ynew, fnew, dense, err
 
 
@@ -473,9 +476,9 @@ def test_dop853_dense_output_is_seventh_order():
         for _ in range(64):
             ref = dop853_step(ref, h / 128, p)[0]
         r = tuple(dense[:, j])
-        ends = [steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, t) for t in (0.0, 1.0)]
+        ends = [interpolant.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, t) for t in (0.0, 1.0)]
         assert ends == [y0[j], pytest.approx(y1[j], abs=1e-15)]
-        return abs(steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, 0.5) - ref[j])
+        return abs(interpolant.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, 0.5) - ref[j])
 
     for j in (0, 1):
         assert mid_error(0.8, j) / mid_error(0.4, j) > 150
@@ -523,10 +526,10 @@ def test_dense_extremum_brackets_a_zero_of_the_slope():
         r = tuple(rng.normal(size=4) * rng.choice([0.0, 0.1, 1.0]))
         d0, d1 = (abs(rng.normal()) * 10 ** rng.uniform(-12, 1) for _ in range(2))
         d0, d1 = (d0, -d1) if rng.random() < 0.5 else (-d0, d1)
-        theta = steppers.dense_extremum(y0, y1, d0, d1, h, r)
+        theta = interpolant.dense_extremum(y0, y1, d0, d1, h, r)
         assert 0.0 <= theta <= 1.0
         lo, hi = max(theta - 1e-10, 0.0), min(theta + 1e-10, 1.0)
-        slopes = [steppers.dense_slope(y0, y1, d0, d1, h, r, x) for x in (lo, theta, hi)]
+        slopes = [interpolant.dense_slope(y0, y1, d0, d1, h, r, x) for x in (lo, theta, hi)]
         assert slopes[0] * slopes[2] <= 0.0 or slopes[1] == 0.0
 
 
@@ -535,9 +538,9 @@ def test_dense_slope_is_the_derivative_of_the_interpolant():
     form (r5 only) and DOP853's (r5 … r8): against a central difference."""
     for r in ((0.3, 0.0, 0.0, 0.0), (0.3, -0.2, 0.15, 0.05)):
         for theta in (0.1, 0.5, 0.9):
-            value = [steppers.dense_value(0.2, 0.5, 1.1, -0.4, 0.7, r, theta + s * 1e-6)
+            value = [interpolant.dense_value(0.2, 0.5, 1.1, -0.4, 0.7, r, theta + s * 1e-6)
                      for s in (-1, 1)]  # fmt: skip
-            slope = steppers.dense_slope(0.2, 0.5, 1.1, -0.4, 0.7, r, theta)
+            slope = interpolant.dense_slope(0.2, 0.5, 1.1, -0.4, 0.7, r, theta)
             assert slope == pytest.approx((value[1] - value[0]) / 2e-6, rel=1e-7)
 
 
@@ -844,11 +847,8 @@ def dopri5_step(y, h, p):
     ev, f, ytmp, ynew, fnew = np.empty(1), np.empty(2), np.empty(2), np.empty(2), np.empty(2)
     k, dense = np.empty((5, 2)), np.zeros((4, 2))
     equations.rhs(y, p, *CODES, 1, ev, f)
-    err = steppers.step_dopri5(y, f, h, p, *CODES, 1, ev, k, ytmp, ynew, fnew, 1e-8, 1e-10)
-    for j in (0, 1):
-        dense[:, j] = steppers.dense_tail(
-            layout.DOPRI5, j, h, f, k[1], k[2], k[3], k[4], fnew, np.empty((4, 0))
-        )  # fmt: skip
+    err = dopri5.step(y, f, h, p, *CODES, 1, ev, k, None, None, ytmp, ynew, fnew, 1e-8, 1e-10)
+    dopri5.dense(y, f, h, p, *CODES, 1, ev, k, ytmp, fnew, dense)
     return ynew, fnew, dense, err
 
 
@@ -857,12 +857,12 @@ def step_extrema(method, ratio, t_end):
     run of one block with ``method`` (the kernels' stepper, interpolant and step size
     control, rtol 1e-8, atol 1e-10) from ℓ = ln 1.05, ψ = 0 to ``t_end`` D0/V or the cap
     v = 1e6 V: per step where a slope changes sign, (its excursion bound
-    :func:`steppers.dense_excursion`, how far the located extremum lies beyond the
+    :func:`step.excursion`, how far the located extremum lies beyond the
     step's ends, the tolerance ``tol`` of :func:`cycles.extremum_matters`, whether the
     kernels locate it (:func:`cycles.lnv_extremum_matters`, the turns fed as the kernel
     does) and whether it counts as a turn (ℓ only))."""
-    steppings = {"dop853": (layout.DOP853, dop853_step), "dopri5": (layout.DOPRI5, dopri5_step)}
-    code, step = steppings[method]
+    steppings = {"dop853": (dop853, dop853_step), "dopri5": (dopri5, dopri5_step)}
+    module, step = steppings[method]
     p = one_block_params(ratio * KAPPA_C)
     rtol, atol = 1e-8, 1e-10
     y = np.array([math.log(1.05), 0.0])
@@ -873,18 +873,18 @@ def step_extrema(method, ratio, t_end):
     while t < t_end and y[0] < math.log(1e6):
         h = min(h, t_end - t)
         ynew, fnew, dense, err = step(y, h, p)
-        h_next = steppers.next_step_size(code, h, err, math.inf)
+        h_next = next_step_size(module.EXPONENT, h, err, math.inf)
         if err <= 1.0:
             for name, c in (("lnv", (1.0, 0.0)), ("mu", (A, B))):
                 x0, x1 = c[0] * y[0] + c[1] * y[1], c[0] * ynew[0] + c[1] * ynew[1]
                 d0, d1 = c[0] * f[0] + c[1] * f[1], c[0] * fnew[0] + c[1] * fnew[1]
                 if (d0 > 0.0) != (d1 > 0.0):
                     r = tuple(c[0] * dense[:, 0] + c[1] * dense[:, 1])
-                    val = steppers.dense_value(
-                        x0, x1, d0, d1, h, r, steppers.dense_extremum(x0, x1, d0, d1, h, r)
+                    val = interpolant.dense_value(
+                        x0, x1, d0, d1, h, r, interpolant.dense_extremum(x0, x1, d0, d1, h, r)
                     )  # fmt: skip
                     beyond = max(val - max(x0, x1), min(x0, x1) - val, 0.0)
-                    span = steppers.dense_excursion(code, x0, x1, d0, d1, h, r[0])
+                    span = interpolant.excursion(module.EXCURSION, x0, x1, d0, d1, h, r[0])
                     if name == "lnv":
                         tol = atol + rtol * abs(x1)
                         wanted = cycles.lnv_extremum_matters(0, span, y, ynew, f, turns, rtol, atol)
@@ -897,7 +897,9 @@ def step_extrema(method, ratio, t_end):
                             cycles.hold_extreme(turns, 0, end, d0 > 0.0)
                     else:
                         tol = cycles.friction_tolerance(A, B, ynew[0], ynew[1], rtol, atol)
-                        wanted = cycles.extremum_matters(code, x0, x1, d0, d1, h, r[0], tol)
+                        wanted = cycles.extremum_matters(
+                            module.EXCURSION, x0, x1, d0, d1, h, r[0], tol
+                        )
                         counts = False
                     out[name].append((span, beyond, tol, wanted, counts))
             t, y, f = t + h, ynew, fnew
@@ -910,7 +912,7 @@ def step_extrema(method, ratio, t_end):
 def test_an_extremum_strays_from_the_step_ends_by_less_than_its_bound(method, ratio, t_end):
     """The kernels locate an extremum in a step only where it can stray from the step's
     ends by more than ``TURN_FACTOR`` × the tolerance or count as a turn. The bound they
-    judge by (:func:`steppers.dense_excursion`) holds for every extremum of ℓ and
+    judge by (:func:`step.excursion`) holds for every extremum of ℓ and
     friction of a run with slip events up to v = 1e6 V (K/Kc 0.97) and of one that
     decays below the tolerance (1.1), where it spares most extrema (the wiggles) and
     none that counts as a turn. DOP853's bound is measured (without its factor
@@ -933,7 +935,7 @@ def test_an_extremum_strays_from_the_step_ends_by_less_than_its_bound(method, ra
 def test_dopri5s_excursion_bound_holds_and_is_sharp():
     """Over random steps whose slope changes sign (ends, slopes and r5 of every scale,
     r5 = 0 for a quarter of them) the extremum of DOPRI5's interpolant lies within
-    :func:`steppers.dense_excursion` of the step's ends, and the bound is close to sharp
+    :func:`step.excursion` of the step's ends, and the bound is close to sharp
     (the worst case reaches 90 % of it)."""
     rng = np.random.default_rng(7)
     worst = 0.0
@@ -947,9 +949,9 @@ def test_dopri5s_excursion_bound_holds_and_is_sharp():
             d0, d1 = -d0, -d1
         r5 = rng.standard_normal() * scale[3] if rng.random() < 0.75 else 0.0
         h = 10.0 ** rng.uniform(-3, 1)
-        values = steppers.dense_value(y0, y1, d0, d1, h, (r5, 0.0, 0.0, 0.0), theta)
+        values = interpolant.dense_value(y0, y1, d0, d1, h, (r5, 0.0, 0.0, 0.0), theta)
         beyond = max(values.max() - max(y0, y1), min(y0, y1) - values.min(), 0.0)
-        bound = steppers.dense_excursion(layout.DOPRI5, y0, y1, d0, d1, h, r5)
+        bound = interpolant.excursion(interpolant.PROVED, y0, y1, d0, d1, h, r5)
         assert beyond <= bound * (1.0 + 1e-12) + 1e-15 * max(abs(y0), abs(y1))
         worst = max(worst, beyond / bound)
     assert worst > 0.9
@@ -964,8 +966,8 @@ def test_an_extremum_that_could_count_as_a_turn_is_located():
 
     def wanted(low, last, h=1e-3, slope=1.0):
         turns = np.array([[low], [low], [last]])
-        span = steppers.dense_excursion(
-            layout.DOP853, y[0], ynew[0], slope * f[0], slope * fnew[0], h, 0.0
+        span = interpolant.excursion(
+            interpolant.MEASURED, y[0], ynew[0], slope * f[0], slope * fnew[0], h, 0.0
         )  # fmt: skip
         return cycles.lnv_extremum_matters(0, span, y, ynew, slope * f, turns, 1e-8, 1e-10)
 

@@ -4,10 +4,12 @@
   what the grid builder writes and the Dataset constructor reads.
 - ``equations``: the log-form right-hand side, its analytic Jacobian, and the
   Jacobian's products the tangent needs.
-- ``steppers``: the four methods' steps (RK4, DOPRI5, DOP853 and RODAS4,
-  ``integrator.method`` ``rk4``, ``dopri5``, ``dop853`` and ``rosenbrock``) and their
-  dense output.
-- ``tableau_dop853``: DOP853's coefficients (Hairer's ``dop853.f``).
+- ``methods``: the integration methods, one module each (``rk4``: RK4, ``dopri5``:
+  DOPRI5, ``dop853``: DOP853 with its coefficients in ``tableau_dop853``,
+  ``rosenbrock``: RODAS4), and the registry of their modules.
+- ``step``: the step record the loop hands on and the interpolant read from it.
+- ``control``: the step-size controller of the adaptive methods.
+- ``linalg``: LU factors and solves of the implicit method.
 - ``cycles``: the cycle classifier (per-cycle statistics, return-map verdicts).
 - ``tangent``: the tangent vector and the largest Lyapunov exponent (Benettin et al.).
 - ``integrate``: the integration loop of one system and the per-variant grid kernel.

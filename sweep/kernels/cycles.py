@@ -17,8 +17,8 @@ import math
 import numpy as np
 
 from ..accelerate import jit, jit_forceinline, jit_inline
-from .layout import B_A, B_B, DOP853, N_PARAMS, STEADY, STICK_SLIP
-from .steppers import dense_excursion, dense_extremum, dense_mix, dense_tail, dense_value
+from .layout import B_A, B_B, N_PARAMS, STEADY, STICK_SLIP
+from .step import MEASURED, dense_extremum, dense_mix, dense_tail, dense_value, excursion
 
 # A decaying oscillation is called steady only once it is this small (peak-to-peak
 # ln v/V of every block), i.e. in the linear regime where decay is geometric: see
@@ -608,7 +608,7 @@ def hold_extreme(turns, i, val, is_max):
 def lnv_extremum_matters(i, span, y, ynew, f, turns, rtol, atol):
     """Whether the extremum of ℓ_i in a step where its slope changes sign must be
     located with the interpolant. It need not when its excursion bound ``span``
-    (:func:`steppers.dense_excursion`) keeps it within the local error scale
+    (:func:`step.excursion`) keeps it within the local error scale
     (``TURN_FACTOR`` × the tolerance) of the step's ends and, wherever it lies there,
     it could not count as a turn (:func:`count_turn`): the wiggles of an oscillation
     decayed below the tolerance, which otherwise cost root searches (and DOP853 three
@@ -624,22 +624,21 @@ def lnv_extremum_matters(i, span, y, ynew, f, turns, rtol, atol):
 
 
 @jit_inline
-def extremum_matters(method, x0, x1, d0, d1, h, r5, tol):
+def extremum_matters(bound, x0, x1, d0, d1, h, r5, tol):
     """Whether the extremum of a quantity in a step of size h where its slope changes
     sign (from ``x0``, slope ``d0`` to ``x1``, slope ``d1``; ``r5`` the fifth coefficient
-    of its interpolant, read by DOPRI5) must be located: unless its excursion bound
-    (:func:`steppers.dense_excursion`) is within ``TURN_FACTOR`` × its tolerance ``tol``.
-    For a block's friction and the mean ℓ, whose extremes are kept but never counted
-    as turns."""
-    return dense_excursion(method, x0, x1, d0, d1, h, r5) > TURN_FACTOR * tol
+    of its interpolant) must be located: unless its excursion bound (:func:`step.excursion`
+    of kind ``bound``) is within ``TURN_FACTOR`` × its tolerance ``tol``. For a block's
+    friction and the mean ℓ, whose extremes are kept but never counted as turns."""
+    return excursion(bound, x0, x1, d0, d1, h, r5) > TURN_FACTOR * tol
 
 
 @jit_inline
-def mean_extremum_matters(method, m0, m1, dm0, dm1, h, r5, rtol, atol):
+def mean_extremum_matters(bound, m0, m1, dm0, dm1, h, r5, rtol, atol):
     """:func:`extremum_matters` for the mean ℓ of several blocks (from ``m0``, slope
     ``dm0`` to ``m1``, slope ``dm1``) at its tolerance atol + rtol |m1|: one test for the
     kernel, which locates the extremum, and :func:`dense_needed`, which must agree."""
-    return extremum_matters(method, m0, m1, dm0, dm1, h, r5, atol + rtol * abs(m1))
+    return extremum_matters(bound, m0, m1, dm0, dm1, h, r5, atol + rtol * abs(m1))
 
 
 @jit_inline
@@ -649,19 +648,18 @@ def friction_tolerance(a_i, b_i, lnv, psi, rtol, atol):
 
 
 @jit_forceinline
-def update_cycle(
-    method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, p, nb, A, B, win, cs, slipped,
-    slip_lnv, turns, rtol, atol,
-):  # fmt: skip
-    """Fold the step from ``t`` to ``t + h`` into the current cycle's statistics.
+def update_cycle(s, t, h, p, nb, A, B, win, cs, slipped, slip_lnv, turns, rtol, atol):
+    """Fold the step ``s`` (``step.Step``) from ``t`` to ``t + h`` into the current cycle's
+    statistics.
 
     Extremes of every block's ℓ and friction are located inside the step with
-    the dense output. Blocks with ℓ_i > ``slip_lnv`` after the step are marked in
+    its interpolant. Blocks with ℓ_i > ``slip_lnv`` after the step are marked in
     ``slipped`` (``cs[C_SLIPPING]``: whether any is). Returns ``(new_peak, theta)``:
     whether ℓ_0 had a maximum in the step that counts as a turn (:func:`count_turn`
     with tolerances ``rtol``, ``atol``; its value goes to ``cs[C_PEAK_VALUE]``) and
     where, as a fraction of the step.
     """
+    y, ynew, f, fnew = s.y, s.ynew, s.f, s.fnew
     new_peak = False
     theta_peak = 0.0
     lnv_max_run = cs[C_LNV_MAX_RUN]
@@ -671,8 +669,8 @@ def update_cycle(
         rising = f[i] > 0.0
         falling_now = fnew[i] <= 0.0
         if rising == falling_now:  # slope changed sign: one extremum in the step
-            r = dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense)
-            span = dense_excursion(method, y[i], ynew[i], f[i], fnew[i], h, r[0])
+            r = dense_tail(s, i)
+            span = excursion(s.bound, y[i], ynew[i], f[i], fnew[i], h, r[0])
             if lnv_extremum_matters(i, span, y, ynew, f, turns, rtol, atol):
                 theta = dense_extremum(y[i], ynew[i], f[i], fnew[i], h, r)
                 val = dense_value(y[i], ynew[i], f[i], fnew[i], h, r, theta)
@@ -704,12 +702,9 @@ def update_cycle(
         dmu0 = a_i * f[i] + b_i * f[nb + i]
         dmu1 = a_i * fnew[i] + b_i * fnew[nb + i]
         if (dmu0 > 0.0) == (dmu1 <= 0.0):
-            r_mu = dense_mix(
-                a_i, dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense),
-                b_i, dense_tail(method, nb + i, h, f, k3, k4, k5, k6, fnew, dense),
-            )  # fmt: skip
+            r_mu = dense_mix(a_i, dense_tail(s, i), b_i, dense_tail(s, nb + i))
             tol = friction_tolerance(a_i, b_i, ynew[i], ynew[nb + i], rtol, atol)
-            if extremum_matters(method, mu0, mu, dmu0, dmu1, h, r_mu[0], tol):
+            if extremum_matters(s.bound, mu0, mu, dmu0, dmu1, h, r_mu[0], tol):
                 theta = dense_extremum(mu0, mu, dmu0, dmu1, h, r_mu)
                 val = dense_value(mu0, mu, dmu0, dmu1, h, r_mu, theta)
                 win[W_MUMAX, i] = max(win[W_MUMAX, i], val)
@@ -725,12 +720,13 @@ def update_cycle(
 
 
 @jit
-def dense_needed(h, y, ynew, f, fnew, p, nb, A, B, turns, rtol, atol):
+def dense_needed(s, h, p, nb, A, B, turns, rtol, atol):
     """Whether :func:`update_cycle` or the mean ℓ's extremes read the interpolant of the
-    step of size h from (``y``, slopes ``f``) to (``ynew``, ``fnew``): an extremum of
-    some ℓ_i or friction μ_i in it must be located (the same tests, term by term), or
-    (several blocks) the mean ℓ's slope changes sign. DOP853 computes its interpolant
-    only then (three more stages)."""
+    step ``s`` of size h: an extremum of some ℓ_i or friction μ_i in it must be located
+    (the same tests, term by term, with the excursion bound that reads no coefficient,
+    ``step.MEASURED``), or (several blocks) the mean ℓ's slope changes sign. A method
+    whose coefficients cost stages (DOP853: three) computes them only then."""
+    y, ynew, f, fnew = s.y, s.ynew, s.f, s.fnew
     need = False
     m0 = 0.0  # the mean ℓ and its slope before and after the step
     m1 = 0.0
@@ -738,7 +734,7 @@ def dense_needed(h, y, ynew, f, fnew, p, nb, A, B, turns, rtol, atol):
     dm1 = 0.0
     for i in range(nb):
         if (f[i] > 0.0) == (fnew[i] <= 0.0):
-            span = dense_excursion(DOP853, y[i], ynew[i], f[i], fnew[i], h, 0.0)
+            span = excursion(MEASURED, y[i], ynew[i], f[i], fnew[i], h, 0.0)
             if lnv_extremum_matters(i, span, y, ynew, f, turns, rtol, atol):
                 need = True
         a_i, b_i = block_friction(p, nb, i, A, B)
@@ -748,14 +744,14 @@ def dense_needed(h, y, ynew, f, fnew, p, nb, A, B, turns, rtol, atol):
             mu0 = a_i * y[i] + b_i * y[nb + i]
             mu = a_i * ynew[i] + b_i * ynew[nb + i]
             tol = friction_tolerance(a_i, b_i, ynew[i], ynew[nb + i], rtol, atol)
-            if extremum_matters(DOP853, mu0, mu, dmu0, dmu1, h, 0.0, tol):
+            if extremum_matters(MEASURED, mu0, mu, dmu0, dmu1, h, 0.0, tol):
                 need = True
         m0 += y[i] / nb
         m1 += ynew[i] / nb
         dm0 += f[i] / nb
         dm1 += fnew[i] / nb
     if nb > 1 and (dm0 > 0.0) == (dm1 <= 0.0):
-        if mean_extremum_matters(DOP853, m0, m1, dm0, dm1, h, 0.0, rtol, atol):
+        if mean_extremum_matters(MEASURED, m0, m1, dm0, dm1, h, 0.0, rtol, atol):
             need = True
     return need
 
@@ -788,11 +784,12 @@ def kuramoto_order(t_peak_blocks, t_peak, period, nb):
 
 
 @jit
-def event_section(method, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, nb, theta, section):
-    """Every block's ℓ at the event at fraction ``theta`` of the step (dense output)."""
+def event_section(s, h, nb, theta, section):
+    """Every block's ℓ at the event at fraction ``theta`` of the step ``s`` of size h
+    (its interpolant)."""
     for i in range(nb):
-        r = dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense)
-        section[i] = dense_value(y[i], ynew[i], f[i], fnew[i], h, r, theta)
+        r = dense_tail(s, i)
+        section[i] = dense_value(s.y[i], s.ynew[i], s.f[i], s.fnew[i], h, r, theta)
 
 
 @jit

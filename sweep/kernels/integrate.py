@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from ..accelerate import jit, jit_inline
+from .control import next_step_size
 from .cycles import (
     C_CONV,
     C_EVENTS,
@@ -59,8 +60,6 @@ from .cycles import (
 from .equations import rhs
 from .layout import (
     CHAOTIC,
-    DOP853,
-    DOPRI5,
     FIXED_POINT,
     LYAP_ALWAYS,
     LYAP_UNSETTLED,
@@ -98,8 +97,6 @@ from .layout import (
     R_SYNC_ORDER,
     R_TAU_FINAL,
     R_TAU_RUNAWAY,
-    RK4,
-    ROSENBROCK,
     RUNAWAY,
     S_ACCURACY,
     S_ATOL,
@@ -121,37 +118,19 @@ from .layout import (
     UNRESOLVED,
     values_per_block,
 )
+from .methods import MODULES
 from .stack import stack_matrix, stack_vector
-from .steppers import (
-    ROS_STAGE_ROWS,
-    STAGE_ROWS,
-    STAGE_ROWS_DOP853,
-    dense_crossing,
-    dense_dop853,
-    dense_extremum,
-    dense_tail,
-    dense_value,
-    next_step_size,
-    rosenbrock_scratch,
-    step_dop853,
-    step_dopri5,
-    step_rk4,
-    step_rosenbrock,
-    step_scratch,
-)
+from .step import DENSE_ROWS, Step, dense_crossing, dense_extremum, dense_tail, dense_value
 from .tangent import (
     L_ON,
     L_RATE,
     LYAP_BLOCKS,
-    TANGENT_STAGE_ROWS,
-    TANGENT_STAGE_ROWS_DOP853,
     TANGENT_TURN,
     TANGENT_WORK_ROWS,
     lyapunov_add,
     lyapunov_estimate,
     lyapunov_start,
     tangent_arrays,
-    tangent_step,
 )
 
 
@@ -197,15 +176,17 @@ def runaway_index(ynew, fnew, nb, lnv_cap):
 
 
 @jit
-def record_step(method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, rec_dt, rec_t, rec_y, n_rec):
-    """Record the state at the multiples of ``rec_dt`` inside the step (dense output)
-    while the buffers have room (the last slot is kept for the end). Returns the count."""
+def record_step(s, t, h, rec_dt, rec_t, rec_y, n_rec):
+    """Record the state at the multiples of ``rec_dt`` inside the step ``s`` from ``t`` to
+    ``t + h`` (its interpolant) while the buffers have room (the last slot is kept for
+    the end). Returns the count."""
     rec_cap = rec_t.size
+    y, ynew, f, fnew = s.y, s.ynew, s.f, s.fnew
     while n_rec < rec_cap - 1 and n_rec * rec_dt <= t + h and rec_dt > 0.0:
         theta = (n_rec * rec_dt - t) / h
         rec_t[n_rec] = n_rec * rec_dt
         for j in range(y.size):
-            r = dense_tail(method, j, h, f, k3, k4, k5, k6, fnew, dense)
+            r = dense_tail(s, j)
             rec_y[n_rec, j] = dense_value(y[j], ynew[j], f[j], fnew[j], h, r, theta)
         n_rec += 1
     return n_rec
@@ -234,12 +215,13 @@ def record_end(t, y, rec_t, rec_y, n_rec):
 
 
 @jit
-def cap_crossing(method, i, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, nb, lnv_cap, win, cs):
-    """End a run whose block ``i`` crossed ``lnv_cap`` in the step from ``t`` to
+def cap_crossing(s, i, t, h, nb, lnv_cap, win, cs):
+    """End a run whose block ``i`` crossed ``lnv_cap`` in the step ``s`` from ``t`` to
     ``t + h``: keep the step (``y`` becomes ``ynew``, the extremes include it) and
     return the time of the crossing (D0/V, interpolated)."""
-    r = dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense)
-    theta = dense_crossing(y[i], ynew[i], f[i], fnew[i], h, r, lnv_cap)
+    y, ynew = s.y, s.ynew
+    r = dense_tail(s, i)
+    theta = dense_crossing(y[i], ynew[i], s.f[i], s.fnew[i], h, r, lnv_cap)
     tau = t + (0.0 if y[i] > lnv_cap else theta) * h
     for j in range(nb):
         win[W_LMAX, j] = max(win[W_LMAX, j], ynew[j])
@@ -444,6 +426,19 @@ def write_result(
     write_events(result, hist, nb, n_cycles, n_events, events)
 
 
+@jit
+def heap_scratch(n, k_rows, matrix):
+    """Scratch of a step for a state of ``n`` values on the heap: f, ynew, fnew, ytmp, the
+    stages as the rows of one array (``k_rows`` of n), the matrix and pivots of an
+    implicit method (n × n and n where ``matrix``, else empty) and the interpolant's
+    coefficients (``step.DENSE_ROWS`` of n, zero)."""
+    mat_n = n if matrix else 0
+    return (
+        np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty((k_rows, n)),
+        np.empty((mat_n, mat_n)), np.empty(mat_n, np.int64), np.zeros((DENSE_ROWS, n)),
+    )  # fmt: skip
+
+
 @jit_inline
 def read_settings(settings):
     """The settings array (``S_*``) as typed values: blocks, rtol, atol, step budget,
@@ -496,8 +491,9 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
     other kernel stopped it.
 
     Built and compiled on first use, one per variant. The codes are constants of the
-    closure, so numba prunes the other variants' branches before it inlines the
-    helpers: the other methods' steppers are never compiled. The loop is written
+    closure, and the method's module (``methods``) is picked here, so numba prunes the
+    other variants' branches before it inlines the helpers and compiles no other
+    method. The loop is written
     here, not in an inlined function of its own: numba copies an inlined body once
     per basic block with its whole scope, which took 10 of a 27 s compile. The
     helpers are still prepared for inlining with every branch (their codes are
@@ -509,12 +505,13 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
     is named after its codes, so its cache files are its own.
     """
 
-    # the shapes of step_scratch, rosenbrock_scratch and tangent_arrays, for size n_fixed
+    m = MODULES[method]  # the method's module: its step, interpolant, controller, scratch
+    adaptive, exponent, bound = m.ADAPTIVE, m.EXPONENT, m.EXCURSION
+    dense_rows, dense_stages, tangent_cap = m.DENSE_ROWS, m.DENSE_STAGES, m.TANGENT_CAP
+    # the shapes of the scratch (heap_scratch, tangent_arrays), for size n_fixed
     nb_fixed = n_fixed // values_per_block(model)
-    k_rows = STAGE_ROWS_DOP853 if method == DOP853 else STAGE_ROWS
-    dense_width = n_fixed if method == DOP853 else 0
-    ros_rows, ros_n = (ROS_STAGE_ROWS, n_fixed) if method == ROSENBROCK else (0, 0)
-    dk_rows = TANGENT_STAGE_ROWS_DOP853 if method == DOP853 else TANGENT_STAGE_ROWS
+    k_rows, matrix, dk_rows = m.STAGE_ROWS, m.MATRIX, m.TANGENT_ROWS
+    mat_n = n_fixed if matrix else 0
 
     def integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y):
         if n_fixed > 0 and y0.shape[0] > 0 and y0.shape[1] != n_fixed:
@@ -546,28 +543,24 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                 fnew = stack_vector(n_fixed)
                 ytmp = stack_vector(n_fixed)
                 k = stack_matrix(k_rows, n_fixed)
-                dense = stack_matrix(4, dense_width)
+                mat = stack_matrix(mat_n, mat_n)
+                perm = np.empty(mat_n, np.int64)
+                dense = stack_matrix(DENSE_ROWS, n_fixed)
                 dense[:, :] = 0.0
                 ev = stack_vector(nb_fixed)
                 for j in range(n):
                     y[j] = y0[s, j]
             else:
                 y = y0[s].copy()
-                f, ynew, fnew, ytmp, k, dense = step_scratch(method, n)
+                f, ynew, fnew, ytmp, k, mat, perm, dense = heap_scratch(n, k_rows, matrix)
                 ev = np.empty(nb)
-            k3, k4, k5, k6 = k[1], k[2], k[3], k[4]  # the stages DOPRI5's dense output needs
-            if n_fixed > 0:  # RODAS4's stages and matrix (empty for the other methods)
-                k_ros = stack_matrix(ros_rows, n_fixed)
-                mat = stack_matrix(ros_n, ros_n)
-                perm = np.empty(ros_n, np.int64)
-            else:
-                k_ros, mat, perm = rosenbrock_scratch(method, n)
+            step = Step(y, ynew, f, fnew, dense, bound)
             win, past, past_cs, hist, limits, section, cs, slipped, turns = cycle_arrays(
                 y, p, nb, A, B
             )
             # the tangent's scratch (empty without it) and its accumulator
             t_n = n if tangent and n_fixed == 0 else 0
-            delta, work, dk, t_blocks, ly = tangent_arrays(method, t_n, nb if t_n else 0)
+            delta, work, dk, t_blocks, ly = tangent_arrays(dk_rows, t_n, nb if t_n else 0)
             if n_fixed > 0 and tangent:
                 delta = stack_vector(n_fixed)
                 work = stack_matrix(TANGENT_WORK_ROWS, n_fixed)
@@ -587,7 +580,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
 
             rhs(y, p, model, law, coupling, het, nb, ev, f)
             t = 0.0
-            h = p[P_DT] if method == RK4 else min(1e-3, max_step, tau_end)
+            h = min(1e-3, max_step, tau_end) if adaptive else p[P_DT]
             n_steps = 0
             n_rejected = 0
             regime = -1
@@ -608,29 +601,13 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                 if n_steps + n_rejected >= max_steps:
                     break
                 h = min(h, tau_stop - t)
-                if tangent:
-                    if (method == DOPRI5 or method == DOP853) and ly[L_RATE] > 0.0:  # TANGENT_TURN
-                        h = min(h, TANGENT_TURN / ly[L_RATE])
-                err = 0.0  # RK4: every step is accepted
-                if method == DOPRI5:
-                    err = step_dopri5(
-                        y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp,
-                        ynew, fnew, rtol, atol,
-                    )  # fmt: skip
-                elif method == DOP853:
-                    err = step_dop853(
-                        y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp,
-                        ynew, fnew, rtol, atol,
-                    )  # fmt: skip
-                elif method == ROSENBROCK:
-                    err = step_rosenbrock(
-                        y, f, h, p, model, law, coupling, het, nb, ev, k_ros, mat, perm, ytmp, ynew,
-                        fnew, rtol, atol,
-                    )  # fmt: skip
-                else:
-                    step_rk4(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, ynew)
-                    rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
-                h_next = next_step_size(method, h, err, max_step)
+                if tangent and tangent_cap and ly[L_RATE] > 0.0:  # TANGENT_TURN
+                    h = min(h, TANGENT_TURN / ly[L_RATE])
+                err = m.step(
+                    y, f, h, p, model, law, coupling, het, nb, ev, k, mat, perm, ytmp, ynew, fnew,
+                    rtol, atol,
+                )  # fmt: skip
+                h_next = next_step_size(exponent, h, err, max_step) if adaptive else h
                 if not (err <= 1.0):
                     n_rejected += 1
                     h = h_next
@@ -646,41 +623,34 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                     regime = RUNAWAY
                     tau_runaway = t + h
                     if crossed >= 0:  # the step is kept: the run ends after it
-                        if method == DOP853:
-                            dense_dop853(
-                                y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense
-                            )
-                        tau_runaway = cap_crossing(
-                            method, crossed, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, nb,
-                            lnv_cap, win, cs,
-                        )  # fmt: skip
+                        if dense_rows > 0:
+                            m.dense(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew,
+                                    dense)  # fmt: skip
+                        tau_runaway = cap_crossing(step, crossed, t, h, nb, lnv_cap, win, cs)
                         t += h
                     break
 
                 if tangent:
                     if ly[L_ON] > 0.0:
-                        growth, rate = tangent_step(
-                            y, f, h, k, k_ros, mat, perm, delta, work, dk, t_blocks, p, nb, ev,
-                            model, law, method, coupling, het,
+                        growth, rate = m.tangent_step(
+                            y, f, h, k, mat, perm, delta, work, dk, t_blocks, p, nb, ev, model,
+                            law, coupling, het,
                         )  # fmt: skip
                         ly[L_RATE] = rate
                         lyapunov_add(ly, t + h, h, growth)
 
-                if method == DOP853:  # its interpolant costs three stages: only where it is read
-                    if n_rec > 0 or dense_needed(
-                        h, y, ynew, f, fnew, p, nb, A, B, turns, rtol, atol
-                    ):
-                        dense_dop853(
-                            y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense
-                        )
+                # the interpolant's coefficients; where they cost stages, only where read
+                if dense_rows > 0 and (
+                    dense_stages == 0
+                    or n_rec > 0
+                    or dense_needed(step, h, p, nb, A, B, turns, rtol, atol)
+                ):
+                    m.dense(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense)
                 new_peak, theta_peak = update_cycle(
-                    method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, p, nb, A, B, win, cs,
-                    slipped, slip_lnv, turns, rtol, atol,
-                )  # fmt: skip
+                    step, t, h, p, nb, A, B, win, cs, slipped, slip_lnv, turns, rtol, atol
+                )
                 if new_peak and nb > 1:
-                    event_section(
-                        method, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, nb, theta_peak, section
-                    )
+                    event_section(step, h, nb, theta_peak, section)
                 if cs[C_SLIPPING] > 0.0:
                     cs[C_IN_EVENT] = 1.0
                 elif cs[C_IN_EVENT] > 0.0:
@@ -702,12 +672,12 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                         r7 = 0.0
                         r8 = 0.0
                         for i in range(nb):
-                            r = dense_tail(method, i, h, f, k3, k4, k5, k6, fnew, dense)
+                            r = dense_tail(step, i)
                             r5 += r[0] / nb
                             r6 += r[1] / nb
                             r7 += r[2] / nb
                             r8 += r[3] / nb
-                        if mean_extremum_matters(method, m0, m1, dm0, dm1, h, r5, rtol, atol):
+                        if mean_extremum_matters(bound, m0, m1, dm0, dm1, h, r5, rtol, atol):
                             theta = dense_extremum(m0, m1, dm0, dm1, h, (r5, r6, r7, r8))
                             val = dense_value(m0, m1, dm0, dm1, h, (r5, r6, r7, r8), theta)
                             cs[C_WIN_MBAR_MAX] = max(cs[C_WIN_MBAR_MAX], val)
@@ -715,10 +685,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                     cs[C_WIN_MBAR_MAX] = max(cs[C_WIN_MBAR_MAX], m1)
                     cs[C_WIN_MBAR_MIN] = min(cs[C_WIN_MBAR_MIN], m1)
                 if n_rec > 0:
-                    n_rec = record_step(
-                        method, t, h, y, ynew, f, fnew, k3, k4, k5, k6, dense, rec_dt,
-                        rec_t, rec_y, n_rec,
-                    )  # fmt: skip
+                    n_rec = record_step(step, t, h, rec_dt, rec_t, rec_y, n_rec)
                 t_new_peak = t + theta_peak * h
                 t += h
                 for j in range(n):
