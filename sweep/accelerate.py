@@ -46,7 +46,7 @@ are in the changelog of the documentation, ``docs/changelog.md``):
   loop around one call of the right-hand side.
 * The classifier's per-step update (``update_cycle``) is inlined by LLVM instead
   (``jit_forceinline``: numba's ``forceinline``, LLVM's ``alwaysinline``): compiled on
-  its own, cached and shared by the variants of its method, it no longer has its body
+  its own, cached and shared by every variant, it no longer has its body
   and scope copied into the kernel by numba's inliner, and it runs as fast per step
   (measured with DOPRI5, DOP853 and RODAS4, heap and stack scratch). DOP853's step
   inlined that way was 2-3 % slower per step and compiled no faster, so it is not.

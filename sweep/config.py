@@ -38,7 +38,7 @@ DEFAULT_METHODS = {"inertial": "rosenbrock"}
 DEFAULT_MAX_STEPS = {"rosenbrock": 0.5}
 TIME_UNITS = ("D0/V", "s")
 #: Most events whose maxima a run can report: the cycles the classifier keeps
-#: (``kernels.cycles.HISTORY``; a test checks the two agree).
+#: (``kernels.classify.state.HISTORY``; a test checks the two agree).
 MAX_EVENTS = 128
 TOP_LEVEL_KEYS = (
     "name",
@@ -160,7 +160,7 @@ class Integrator:
     dt: float = setting(0.01, "fixed step of rk4", "(0, inf)", "D0/V")
     # Largest step of the adaptive methods. DOPRI5 and DOP853 need none: their dense
     # output is as accurate as their steps, and extrema that do not stand out of the
-    # error scale count as no events (kernels/cycles.py, TURN_FACTOR). RODAS4 keeps
+    # error scale count as no events (kernels/classify/extrema.py, TURN_FACTOR). RODAS4 keeps
     # 0.5 D0/V (DEFAULT_MAX_STEPS; docs/changelog.md, "max_step").
     max_step: float = setting(math.inf, "largest step of the adaptive methods (.inf: no cap; "
                               "rosenbrock's default: 0.5)", "(0, inf)", "D0/V")  # fmt: skip

@@ -12,11 +12,13 @@ import pytest
 from conftest import python_stdout
 
 from sweep import accelerate
-from sweep.kernels import control, cycles, equations, integrate, layout, linalg, step, tangent
+from sweep.kernels import control, equations, integrate, layout, linalg, record, step, tangent
+from sweep.kernels.classify import cycle, extrema, result, sequences, state, verdicts
 from sweep.kernels.methods import MODULES as METHOD_MODULES
 
 #: The modules of the kernel package that hold jitted functions.
-MODULES = (equations, step, control, linalg, *METHOD_MODULES, cycles, tangent, integrate)
+CLASSIFY = (state, sequences, extrema, cycle, verdicts, result)
+MODULES = (equations, step, control, linalg, tangent, *METHOD_MODULES, *CLASSIFY, record, integrate)
 #: The plain-Python functions of the kernels: the one that builds the grid kernel of a
 #: variant, and the one that puts an explicit method's tableau in the tangent's form
 #: when its module is imported.
@@ -38,7 +40,7 @@ def kernel_functions():
 KERNELS = sorted(kernel_functions())
 #: Helpers of the grid kernels' loop, one per integrator and the classifier's: the
 #: discovery must find at least these (a guard against discovering nothing).
-ENTRY_POINTS = {"cycles.update_cycle", "rk4.step", "dopri5.step", "dop853.step", "rodas4.step"}
+ENTRY_POINTS = {"extrema.update_cycle", "rk4.step", "dopri5.step", "dop853.step", "rodas4.step"}
 #: Model, law, method, coupling codes and unequal blocks of one variant (quasi-static,
 #: aging, DOPRI5, chain, equal blocks).
 ROOT = Path(__file__).resolve().parents[1]
@@ -88,7 +90,8 @@ from sweep import dispatch
 from sweep.config import load_config, with_changes
 from sweep.grid import build_grid
 from numba.core import types
-from sweep.kernels import cycles, tangent
+from sweep.kernels import tangent
+from sweep.kernels.classify import extrema, state
 from sweep.kernels.methods import dop853, rodas4
 config = with_changes(load_config(CONFIG), {"integrator": {"method": "dopri5"}})
 grid = build_grid(config)
@@ -98,9 +101,9 @@ others = {"dop853.dense": dop853.dense, "rodas4.step": rodas4.step,
           "explicit_tangent_step": tangent.explicit_tangent_step}
 report = {name: len(f.signatures) for name, f in others.items()}
 literal = {name: sorted({str(a) for s in f.signatures for a in s if isinstance(a, types.Literal)})
-           for name, f in {"history_value": cycles.history_value,
-                           "update_cycle": cycles.update_cycle}.items()}
-report.update(history_value=len(cycles.history_value.signatures), literal=literal)
+           for name, f in {"history_value": state.history_value,
+                           "update_cycle": extrema.update_cycle}.items()}
+report.update(history_value=len(state.history_value.signatures), literal=literal)
 print(json.dumps(report))
 """
 
@@ -135,7 +138,7 @@ def test_a_variant_compiles_only_its_own_parts():
         "dopri5.dense",
         "step.dense_tail",
         "step.dense_value",
-        "cycles.cycle_arrays",
+        "state.cycle_arrays",
     ],
 )
 def test_rhs_and_explicit_steps_are_inlined(name):
@@ -148,13 +151,13 @@ def test_rhs_and_explicit_steps_are_inlined(name):
 def test_the_classifier_update_is_inlined_by_llvm():
     """accelerate.py: the classifier's per-step update is compiled on its own (cached,
     not copied into the kernel by numba's inliner) and inlined by LLVM."""
-    options = cycles.update_cycle.targetoptions
+    options = extrema.update_cycle.targetoptions
     assert options["forceinline"] is True
     assert options.get("inline", "never") == "never"
 
 
 @NO_JIT
-@pytest.mark.parametrize("name", ["dop853.dense", "cycles.dense_needed"])
+@pytest.mark.parametrize("name", ["dop853.dense", "extrema.dense_needed"])
 def test_dop853_parts_are_plain_calls(name):
     """accelerate.py: DOP853's interpolant and the test for where it is read are plain
     calls, typed only in DOP853's kernels, so no other kernel compiles them."""
@@ -167,11 +170,13 @@ def test_dop853_parts_are_plain_calls(name):
 # whether it is inlined.
 CACHE_PROBE = """
 import json
-from sweep.kernels import control, cycles, equations, integrate, linalg, step, tangent
+from sweep.kernels import control, equations, integrate, linalg, record, step, tangent
+from sweep.kernels.classify import cycle, extrema, result, sequences, state, verdicts
 from sweep.kernels.methods import MODULES
 report = {f"{module.__name__.rsplit('.', 1)[-1]}.{name}":
           [type(obj._cache).__name__, obj.targetoptions.get("inline") == "always"]
-          for module in (equations, step, control, linalg, *MODULES, cycles, tangent, integrate)
+          for module in (equations, step, control, linalg, tangent, *MODULES, state, sequences,
+                         extrema, cycle, verdicts, result, record, integrate)
           for name, obj in vars(module).items()
           if getattr(obj, "__module__", None) == module.__name__
           and name not in ("grid_kernel", "explicit_tableau")
@@ -234,14 +239,14 @@ CACHED_RUN = """
 import json, sweep
 from sweep.dispatch import grid_kernel
 from sweep.grid import build_grid
-from sweep.kernels.cycles import close_cycle
+from sweep.kernels.classify.cycle import new_event
 config = sweep.load_config(CONFIG)
 if MODEL:
     config = sweep.with_changes(config, {"model": MODEL, "parameters": {"eta_W": 0.1}})
 ds = sweep.run(config, progress=False)
 g = build_grid(config)
 report = {"n_steps": ds["n_steps"].values.tolist()}
-for name, f in (("kernel", grid_kernel(g.params, g.settings)), ("helper", close_cycle)):
+for name, f in (("kernel", grid_kernel(g.params, g.settings)), ("helper", new_event)):
     report[name] = [sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
 print(json.dumps(report))
 """

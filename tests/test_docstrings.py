@@ -414,11 +414,11 @@ def test_output_descriptions_state_the_classifiers_limits():
     """The numbers in the output schema's descriptions (written into every file) are the
     classifier's: the longest cycle it recognises and the events it keeps."""
     from sweep.config import MAX_EVENTS
-    from sweep.kernels import cycles
+    from sweep.kernels.classify import state
     from sweep.variables import BY_NAME
 
     (longest,) = re.findall(r"no cycle of up to (\d+) events", BY_NAME["attractor"].description)
-    assert int(longest) == cycles.MAX_CYCLE_EVENTS
+    assert int(longest) == state.MAX_CYCLE_EVENTS
     (kept,) = re.findall(r"the last events kept \(up to (\d+)\)",
                          BY_NAME["lnv_amplitude"].description)  # fmt: skip
-    assert int(kept) == cycles.HISTORY == MAX_EVENTS
+    assert int(kept) == state.HISTORY == MAX_EVENTS

@@ -16,8 +16,9 @@ from conftest import (
 from scipy.integrate import solve_ivp
 
 from sweep import physics
-from sweep.kernels import cycles, equations, layout
+from sweep.kernels import equations, layout
 from sweep.kernels import step as interpolant
+from sweep.kernels.classify import extrema, sequences, state
 from sweep.kernels.control import next_step_size
 from sweep.kernels.methods import dop853, dopri5
 from sweep.physics import log_form_rhs
@@ -550,14 +551,14 @@ def test_aitken_limit_is_exact_for_geometric_sequences(q):
     limit from one term to the next is zero (both to round-off, 1e-12)."""
     L, c = 0.7, 0.05
     x = [L + c * q**n for n in range(4)]
-    limit, error = cycles.aitken_limit(*x, 0.0)
+    limit, error = sequences.aitken_limit(*x, 0.0)
     assert limit == pytest.approx(L, abs=1e-12)
     assert error < 1e-12
 
 
 def test_aitken_limit_refuses_sequences_that_do_not_contract():
     """Growing differences (|ratio| ≥ 1) have no limit: infinite error estimate."""
-    limit, error = cycles.aitken_limit(1.0, 1.1, 1.3, 1.7, 0.0)
+    limit, error = sequences.aitken_limit(1.0, 1.1, 1.3, 1.7, 0.0)
     assert math.isinf(error)
 
 
@@ -565,9 +566,9 @@ def history(nb, rows):
     """Cycle history as the kernel keeps it from a list of per-cycle rows
     (max ℓ_i …, min ℓ_i …, period, peak-to-peak of mean ℓ, then ℓ_i at the event of
     blocks 1 … nb − 1; rows without those get zeros)."""
-    hist = np.zeros((cycles.n_observables(nb), cycles.HISTORY))
+    hist = np.zeros((state.n_observables(nb), state.HISTORY))
     for n, row in enumerate(rows):
-        hist[: len(row), n % cycles.HISTORY] = row
+        hist[: len(row), n % state.HISTORY] = row
     return hist, len(rows)
 
 
@@ -580,8 +581,8 @@ def test_decay_is_steady_only_where_steady_sliding_is_linearly_stable():
     rate and never with a positive one (an unstable fixed point is no attractor)."""
     hist, n = history(1, decaying_cycles(0.9))
     args = (hist, n, 1, 1e-3, 1e-6)
-    assert cycles.cycle_verdict(*args, -0.01, 1e-8, 1e-10)[0] == layout.STEADY
-    assert cycles.cycle_verdict(*args, +0.01, 1e-8, 1e-10)[0] != layout.STEADY
+    assert sequences.cycle_verdict(*args, -0.01, 1e-8, 1e-10)[0] == layout.STEADY
+    assert sequences.cycle_verdict(*args, +0.01, 1e-8, 1e-10)[0] != layout.STEADY
 
 
 def test_approach_to_a_small_cycle_is_not_steady():
@@ -590,11 +591,11 @@ def test_approach_to_a_small_cycle_is_not_steady():
     the last cycle is within the accuracy of the limit."""
     far = [[0.045 + 0.02 * 0.8**k, -0.045 - 0.02 * 0.8**k, 4.9, 0.0] for k in range(4)]
     hist, n = history(1, far)
-    verdict, conv = cycles.cycle_verdict(hist, n, 1, 1e-3, 1e-6, -0.01, 1e-8, 1e-10)
+    verdict, conv = sequences.cycle_verdict(hist, n, 1, 1e-3, 1e-6, -0.01, 1e-8, 1e-10)
     assert verdict == -1 and conv > 1e-3
     near = [[0.045 + 1e-6 * 0.8**k, -0.045 - 1e-6 * 0.8**k, 4.9, 0.0] for k in range(4)]
     hist, n = history(1, near)
-    verdict, conv = cycles.cycle_verdict(hist, n, 1, 1e-3, 1e-6, +0.01, 1e-8, 1e-10)
+    verdict, conv = sequences.cycle_verdict(hist, n, 1, 1e-3, 1e-6, +0.01, 1e-8, 1e-10)
     assert verdict == layout.STICK_SLIP and conv < 1e-3
 
 
@@ -646,7 +647,7 @@ def test_early_exit_never_changes_a_settled_regime():
         assert not np.any(regimes[0] == layout.UNDECIDED)
 
 
-# --- cycles of several events (cycles.multi_event_verdict) --------------------------
+# --- cycles of several events (sequences.multi_event_verdict) --------------------------
 
 
 def period_n_cycles(peaks, intervals, count, q=0.7, offset=0.02):
@@ -667,8 +668,8 @@ def test_a_cycle_of_n_events_is_found_with_its_n(n):
     rng = np.random.default_rng(n)
     peaks, intervals = 1.0 + rng.uniform(0, 1, n), 20 + 200 * rng.uniform(0, 1, n)
     hist, count = history(1, period_n_cycles(peaks, intervals, 4 * n + 8, q=0.5, offset=1e-3))
-    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
-    events, conv = cycles.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
+    limits = np.empty((hist.shape[0], state.MAX_CYCLE_EVENTS))
+    events, conv = sequences.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
     assert events == n and conv <= 1e-3
 
 
@@ -678,8 +679,8 @@ def test_a_simple_cycle_approached_in_alternation_is_left_to_the_simple_test():
     so every simple cycle keeps its numbers)."""
     rows = [[1.0 + 0.01 * (-0.95) ** k, -1.0, 30.0, 0.0] for k in range(40)]
     hist, count = history(1, rows)
-    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
-    events, _ = cycles.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
+    limits = np.empty((hist.shape[0], state.MAX_CYCLE_EVENTS))
+    events, _ = sequences.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
     assert events == 0
 
 
@@ -691,8 +692,8 @@ def test_a_cycle_whose_limits_repeat_sooner_is_the_shorter_cycle():
         d = 0.01 * 0.6 ** (k // 4) * (1 if k % 4 < 2 else -1)
         rows.append([(1.2, 1.5)[k % 2] + d, -1.0, (30.0, 90.0)[k % 2], 0.0])
     hist, count = history(1, rows)
-    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
-    events, _ = cycles.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
+    limits = np.empty((hist.shape[0], state.MAX_CYCLE_EVENTS))
+    events, _ = sequences.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
     assert events == 2
 
 
@@ -703,8 +704,8 @@ def test_an_irregular_sequence_has_no_cycle():
         x = 4 * x * (1 - x)
         rows.append([1.0 + x, -1.0, 30.0 + 10 * x, 0.0])
     hist, count = history(1, rows)
-    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
-    events, conv = cycles.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
+    limits = np.empty((hist.shape[0], state.MAX_CYCLE_EVENTS))
+    events, conv = sequences.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
     assert events == 0 and not conv <= 1e-3
 
 
@@ -720,10 +721,10 @@ def test_a_drifting_phase_between_blocks_is_no_simple_cycle():
     periods) are not on a simple cycle; with the phase repeating they are."""
     wandering = two_block_rows(np.sin(0.7 * np.arange(12)))
     hist, count = history(2, wandering)
-    assert cycles.cycle_verdict(hist, count, 2, 1e-3, 1e-6, 0.01, 1e-8, 1e-10)[0] == -1
+    assert sequences.cycle_verdict(hist, count, 2, 1e-3, 1e-6, 0.01, 1e-8, 1e-10)[0] == -1
     locked = two_block_rows(np.full(12, 0.3))
     hist, count = history(2, locked)
-    assert cycles.cycle_verdict(hist, count, 2, 1e-3, 1e-6, 0.01, 1e-8, 1e-10)[0] == (
+    assert sequences.cycle_verdict(hist, count, 2, 1e-3, 1e-6, 0.01, 1e-8, 1e-10)[0] == (
         layout.STICK_SLIP
     )
 
@@ -733,7 +734,7 @@ def step_grid_rows(count, pattern, max_l1, min_l0=(-1.5, -1.5), l1_event=(0.3, 0
     in-phase amplitude, ℓ_1 at the event) whose event state repeats every 2 events
     (``pattern``: ℓ_0 at the event and the interval of each; ``min_l0``, ``l1_event``)
     while block 1's highest ℓ over a cycle, ``max_l1``, repeats with its own pattern:
-    read off the step grid at a cycle's end (``cycles.event_state_row``)."""
+    read off the step grid at a cycle's end (``state.event_state_row``)."""
     rows = []
     for k in range(count):
         peak, interval = pattern[k % 2]
@@ -749,8 +750,8 @@ def test_a_cycle_of_two_events_whose_extremes_repeat_every_four_has_two_events()
     −1.2221, is the same each time): a cycle of 2 events, not 4 (b68918e, on the ring: 4)."""
     rows = step_grid_rows(48, [(0.7845, 6.0665), (1.3136, 1.0974)], [-0.8506, 4.95, -0.8780, 4.95])
     hist, count = history(2, rows)
-    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
-    events, conv = cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)
+    limits = np.empty((hist.shape[0], state.MAX_CYCLE_EVENTS))
+    events, conv = sequences.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)
     assert (events, conv) == (2, 0.0)
     # the same cycle with the step grid's reading wandering without a pattern: still 2
     rng = np.random.default_rng(1)
@@ -759,7 +760,7 @@ def test_a_cycle_of_two_events_whose_extremes_repeat_every_four_has_two_events()
     for k in range(1, 48, 2):
         rows[k][1] = 4.95
     hist, count = history(2, rows)
-    assert cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 2
+    assert sequences.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 2
 
 
 def test_a_simple_cycle_whose_extremes_alternate_with_the_step_grid_is_simple():
@@ -768,13 +769,13 @@ def test_a_simple_cycle_whose_extremes_alternate_with_the_step_grid_is_simple():
     here (``(1, convergence)``), since the simple cycle's own test, which needs that row
     to converge, never settles it (b68918e: a cycle of 2 events), approached with
     alternating overshoots so that 2 events are a candidate at all."""
-    limits = np.empty((7, cycles.MAX_CYCLE_EVENTS))
+    limits = np.empty((7, state.MAX_CYCLE_EVENTS))
     for max_l1, events in (([-0.8506, -0.8780], 1), ([-0.86], 0)):
         rows = step_grid_rows(48, [(1.3, 5.9), (1.3, 5.9)], max_l1)
         for k, row in enumerate(rows):  # approached with alternating overshoots
             row[0] += 1e-4 * (-0.9) ** k
         hist, count = history(2, rows)
-        verdict = cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)
+        verdict = sequences.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)
         # with that row repeating too, it is left to the simple test, as before
         assert verdict[0] == events and verdict[1] < 1e-3
 
@@ -792,13 +793,13 @@ def test_close_to_a_simple_cycle_every_row_must_settle_the_classes():
     for row in near:
         row[3] = -17.58 + 0.05 * rng.uniform(-1, 1)  # block 1's lowest ℓ: not settled
     hist, count = history(2, near)
-    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
-    assert cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 0
+    limits = np.empty((hist.shape[0], state.MAX_CYCLE_EVENTS))
+    assert sequences.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 0
     far = step_grid_rows(48, [(0.7845, 6.0665), (1.3136, 1.0974)], [1.308])
     for row in far:
         row[3] = -17.58 + 0.05 * rng.uniform(-1, 1)
     hist, count = history(2, far)
-    assert cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 2
+    assert sequences.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 2
 
 
 def test_noise_floor_cycle_is_settled_at_the_end_but_a_slow_drift_is_not():
@@ -809,11 +810,11 @@ def test_noise_floor_cycle_is_settled_at_the_end_but_a_slow_drift_is_not():
     rng = np.random.default_rng(0)
     noisy = [[1.0 + 1e-6 * rng.standard_normal(), -1.0, 30.0, 0.0] for _ in range(40)]
     hist, count = history(1, noisy)
-    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
-    assert cycles.simple_cycle_within_spread(hist, count, 1, 1e-3, 1e-8, 1e-10, limits) < 1e-3
+    limits = np.empty((hist.shape[0], state.MAX_CYCLE_EVENTS))
+    assert sequences.simple_cycle_within_spread(hist, count, 1, 1e-3, 1e-8, 1e-10, limits) < 1e-3
     drift = [[1.0 + 1e-6 * k, -1.0 - 1e-6 * k, 30.0, 0.0] for k in range(40)]
     hist, count = history(1, drift)
-    assert np.isinf(cycles.simple_cycle_within_spread(hist, count, 1, 1e-3, 1e-8, 1e-10, limits))
+    assert np.isinf(sequences.simple_cycle_within_spread(hist, count, 1, 1e-3, 1e-8, 1e-10, limits))
 
 
 # --- turning points: extrema must stand out of the local error scale ---------------
@@ -821,9 +822,9 @@ def test_noise_floor_cycle_is_settled_at_the_end_but_a_slow_drift_is_not():
 
 def count_turns(values, noise, start=0.0):
     """Alternating extrema (max, min, max, … starting with a maximum) through
-    :func:`cycles.count_turn` → which of them counted."""
+    :func:`extrema.count_turn` → which of them counted."""
     turns = np.array([[start], [start], [0.0]])
-    return [bool(cycles.count_turn(turns, 0, v, k % 2 == 0, noise)) for k, v in enumerate(values)]
+    return [bool(extrema.count_turn(turns, 0, v, k % 2 == 0, noise)) for k, v in enumerate(values)]
 
 
 def test_extrema_within_the_error_scale_are_not_turns():
@@ -858,8 +859,8 @@ def step_extrema(method, ratio, t_end):
     control, rtol 1e-8, atol 1e-10) from ℓ = ln 1.05, ψ = 0 to ``t_end`` D0/V or the cap
     v = 1e6 V: per step where a slope changes sign, (its excursion bound
     :func:`step.excursion`, how far the located extremum lies beyond the
-    step's ends, the tolerance ``tol`` of :func:`cycles.extremum_matters`, whether the
-    kernels locate it (:func:`cycles.lnv_extremum_matters`, the turns fed as the kernel
+    step's ends, the tolerance ``tol`` of :func:`extrema.extremum_matters`, whether the
+    kernels locate it (:func:`extrema.lnv_extremum_matters`, the turns fed as the kernel
     does) and whether it counts as a turn (ℓ only))."""
     steppings = {"dop853": (dop853, dop853_step), "dopri5": (dopri5, dopri5_step)}
     module, step = steppings[method]
@@ -887,17 +888,19 @@ def step_extrema(method, ratio, t_end):
                     span = interpolant.excursion(module.EXCURSION, x0, x1, d0, d1, h, r[0])
                     if name == "lnv":
                         tol = atol + rtol * abs(x1)
-                        wanted = cycles.lnv_extremum_matters(0, span, y, ynew, f, turns, rtol, atol)
-                        noise = cycles.TURN_FACTOR * (atol + rtol * abs(val))
-                        counts = cycles.count_turn(turns.copy(), 0, val, d0 > 0.0, noise)
+                        wanted = extrema.lnv_extremum_matters(
+                            0, span, y, ynew, f, turns, rtol, atol
+                        )
+                        noise = extrema.TURN_FACTOR * (atol + rtol * abs(val))
+                        counts = extrema.count_turn(turns.copy(), 0, val, d0 > 0.0, noise)
                         if wanted:
-                            cycles.count_turn(turns, 0, val, d0 > 0.0, noise)
+                            extrema.count_turn(turns, 0, val, d0 > 0.0, noise)
                         else:
                             end = max(x0, x1) if d0 > 0.0 else min(x0, x1)
-                            cycles.hold_extreme(turns, 0, end, d0 > 0.0)
+                            extrema.hold_extreme(turns, 0, end, d0 > 0.0)
                     else:
-                        tol = cycles.friction_tolerance(A, B, ynew[0], ynew[1], rtol, atol)
-                        wanted = cycles.extremum_matters(
+                        tol = extrema.friction_tolerance(A, B, ynew[0], ynew[1], rtol, atol)
+                        wanted = extrema.extremum_matters(
                             module.EXCURSION, x0, x1, d0, d1, h, r[0], tol
                         )
                         counts = False
@@ -917,19 +920,19 @@ def test_an_extremum_strays_from_the_step_ends_by_less_than_its_bound(method, ra
     decays below the tolerance (1.1), where it spares most extrema (the wiggles) and
     none that counts as a turn. DOP853's bound is measured (without its factor
     ``EXCURSION_FACTOR`` it fails on the wiggles, by up to 8.4×), DOPRI5's proved."""
-    extrema = step_extrema(method, ratio, t_end)
-    for name, rows in extrema.items():
+    found = step_extrema(method, ratio, t_end)
+    for name, rows in found.items():
         span, beyond, tol, wanted, counts = rows.T
         spared = ~wanted.astype(bool)
         assert len(rows) > 20, name
         assert (beyond <= span).all(), name
-        assert (beyond[spared] <= cycles.TURN_FACTOR * tol[spared]).all(), name
+        assert (beyond[spared] <= extrema.TURN_FACTOR * tol[spared]).all(), name
         assert not counts[spared].any(), name
     if ratio < 1.0:  # growing oscillation: every extremum of ℓ is located
-        assert extrema["lnv"][:, 3].all()
-        assert extrema["mu"][:, 3].mean() > 0.95
+        assert found["lnv"][:, 3].all()
+        assert found["mu"][:, 3].mean() > 0.95
     else:
-        assert extrema["lnv"][:, 3].mean() < 0.5 and extrema["mu"][:, 3].mean() < 0.5
+        assert found["lnv"][:, 3].mean() < 0.5 and found["mu"][:, 3].mean() < 0.5
 
 
 def test_dopri5s_excursion_bound_holds_and_is_sharp():
@@ -969,7 +972,7 @@ def test_an_extremum_that_could_count_as_a_turn_is_located():
         span = interpolant.excursion(
             interpolant.MEASURED, y[0], ynew[0], slope * f[0], slope * fnew[0], h, 0.0
         )  # fmt: skip
-        return cycles.lnv_extremum_matters(0, span, y, ynew, slope * f, turns, 1e-8, 1e-10)
+        return extrema.lnv_extremum_matters(0, span, y, ynew, slope * f, turns, 1e-8, 1e-10)
 
     assert wanted(-1.0, -1.0)
     assert not wanted(-1.0, 1.0)

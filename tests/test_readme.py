@@ -482,11 +482,11 @@ def test_stated_event_counts_are_the_codes():
     run (large sweeps), the longest cycle the classifier recognises (internals), and
     the events a chaotic run's amplitude spans (outputs), against the code."""
     from sweep.config import MAX_EVENTS
-    from sweep.kernels import cycles
+    from sweep.kernels.classify import state
 
     (kept,) = doc_numbers(r"half of it the (\d+) event maxima and intervals kept per run")
     assert int(kept) == Classification().events
     (longest,) = doc_numbers(r"return-map verdicts for cycles of 1 to (\d+) events")
-    assert int(longest) == cycles.MAX_CYCLE_EVENTS
+    assert int(longest) == state.MAX_CYCLE_EVENTS
     (spanned,) = doc_numbers(r"the last kept events \(up to (\d+)\) of chaotic")
-    assert int(spanned) == cycles.HISTORY == MAX_EVENTS
+    assert int(spanned) == state.HISTORY == MAX_EVENTS

@@ -2,18 +2,20 @@
 
 - ``layout``: codes and the columns of the kernels' arrays (plain Python, no numba):
   what the grid builder writes and the Dataset constructor reads.
+- ``stack``: fixed-size scratch arrays on the stack, for kernels of one small state size.
 - ``equations``: the log-form right-hand side, its analytic Jacobian, and the
   Jacobian's products the tangent needs.
-- ``methods``: the integration methods, one module each (``rk4``: RK4, ``dopri5``:
-  DOPRI5, ``dop853``: DOP853 with its coefficients in ``tableau_dop853``,
-  ``rosenbrock``: RODAS4), and the registry of their modules.
+- ``linalg``: LU factors and solves of the implicit method.
 - ``step``: the step record the loop hands on and the interpolant read from it.
 - ``control``: the step-size controller of the adaptive methods.
-- ``linalg``: LU factors and solves of the implicit method.
-- ``cycles``: the cycle classifier (per-cycle statistics, return-map verdicts).
 - ``tangent``: the tangent vector and the largest Lyapunov exponent (Benettin et al.).
-- ``integrate``: the integration loop of one system and the per-variant grid kernel.
-- ``stack``: fixed-size scratch arrays on the stack, for kernels of one small state size.
+- ``methods``: the integration methods, one module each, and the registry mapping the
+  config's names to them (``rk4``: RK4, ``dopri5``: DOPRI5, ``dop853``: DOP853 with its
+  coefficients in ``tableau_dop853``, ``rosenbrock``: RODAS4).
+- ``classify``: the cycle classifier, split by job (its state, the per-step extrema,
+  the per-cycle and end-of-run verdicts, the result row).
+- ``record``: the recorder of traces.
+- ``integrate``: the per-variant grid kernel, the integration loop.
 
 (``tests/test_docstrings.py`` checks that this list names every module and method.)
 

@@ -120,6 +120,13 @@ def lyapunov_start(ly, delta, t, block):
     ly[L_T_LAST] = t
 
 
+@jit_inline
+def turn_step(ly):
+    """The longest step while the tangent is carried (D0/V): ``TANGENT_TURN`` / |J δ| at
+    the last step (``ly[L_RATE]``), unbounded before one is known."""
+    return TANGENT_TURN / ly[L_RATE] if ly[L_RATE] > 0.0 else math.inf
+
+
 @jit
 def explicit_tangent_step(
     a, b, y, f, h, k, delta, work, dk, blocks, p, nb, ev, model, law, coupling, het

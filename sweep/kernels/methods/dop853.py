@@ -21,7 +21,7 @@ EXPONENT = -0.125  # the blended error estimate, of order 7
 STAGE_ROWS = 15
 MATRIX = False
 #: The interpolant's coefficients r5 … r8 cost three more stages (K_13 … K_15): the loop
-#: computes them only where they are read (``cycles.dense_needed``).
+#: computes them only where they are read (``classify.extrema.dense_needed``).
 DENSE_ROWS, DENSE_STAGES = 4, 3
 #: Measured (``step.EXCURSION_FACTOR``): its r6 … r8 would cost the three stages to bound.
 EXCURSION = MEASURED
