@@ -10,8 +10,7 @@
 - ``control``: the step-size controller of the adaptive methods.
 - ``tangent``: the tangent vector and the largest Lyapunov exponent (Benettin et al.).
 - ``methods``: the integration methods, one module each, and the registry mapping the
-  config's names to them (``rk4``: RK4, ``dopri5``: DOPRI5, ``dop853``: DOP853 with its
-  coefficients in ``tableau_dop853``, ``rosenbrock``: RODAS4).
+  config's names (``sweep/codes.py``, ``METHODS``) to them.
 - ``classify``: the cycle classifier, split by job (its state, the per-step extrema,
   the per-cycle and end-of-run verdicts, the result row).
 - ``record``: the recorder of traces.
