@@ -27,6 +27,7 @@ METHODS = {
     "rk4": "rk4",
     "rosenbrock": "rodas4",
     "dop853": "dop853",
+    "bs23": "bs23",
 }
 #: Regimes (the ``regime`` variable's flag meanings).
 REGIMES = ("steady", "stick_slip", "runaway", "undecided")

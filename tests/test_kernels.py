@@ -20,7 +20,7 @@ from sweep.kernels import equations, layout
 from sweep.kernels import step as interpolant
 from sweep.kernels.classify import extrema, sequences, state
 from sweep.kernels.control import next_step_size
-from sweep.kernels.methods import dop853, dopri5
+from sweep.kernels.methods import bs23, dop853, dopri5
 from sweep.physics import log_form_rhs
 
 A, B = PAPER_A, PAPER_B
@@ -483,6 +483,47 @@ def test_dop853_dense_output_is_seventh_order():
 
     for j in (0, 1):
         assert mid_error(0.8, j) / mid_error(0.4, j) > 150
+
+
+def test_bs23_is_third_order(nonlinear_reference):
+    """Fixed steps of the BS23 step (``methods/bs23.py``) over the first 8 D0/V of the
+    nonlinear run (no slip yet): global error ≈ 2³ = 8 times smaller per halving of the
+    step (fitted order 2.8-3.2)."""
+    p = one_block_params(0.9 * KAPPA_C)
+    exact = nonlinear_reference.sol(8.0)
+    steps = np.array([0.2, 0.1, 0.05])
+    errors = []
+    for h in steps:
+        y, ev, f = np.array([math.log(1.05), 0.0]), np.empty(1), np.empty(2)
+        k, ytmp, ynew, fnew = np.empty((bs23.STAGE_ROWS, 2)), np.empty(2), np.empty(2), np.empty(2)
+        for _ in range(round(8.0 / h)):
+            equations.rhs(y, p, *CODES, 1, ev, f)
+            bs23.step(y, f, h, p, *CODES, 1, ev, k, None, None, ytmp, ynew, fnew, 1.0, 1.0)
+            y = ynew.copy()
+        errors.append(np.max(np.abs(y - exact)))
+    order = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert 2.8 <= order <= 3.2, errors
+
+
+def test_bs23_classifies_as_dopri5_away_from_kc():
+    """A method added as one module and one registry line (BS23) runs through the grid
+    kernel: the labels of DOPRI5 at K/Kc 0.8, 0.9 (runaway), 1.1 and 1.2 (steady), the
+    runaway times and the last periods to 1e-6 (order 3 at rtol 1e-8: about 15 times
+    DOPRI5's steps)."""
+    runs = {}
+    for method in ("dopri5", "bs23"):
+        config = make_config(
+            sweep={"K_W": k_values(0.8, 0.9, 1.1, 1.2)},
+            integrator={"method": method, "t_end": 600.0},
+            classification={"lyapunov": "never"},
+        )
+        runs[method] = run_grid(config)[0]
+    a, b = runs["dopri5"], runs["bs23"]
+    regimes = [layout.RUNAWAY, layout.RUNAWAY, layout.STEADY, layout.STEADY]
+    np.testing.assert_array_equal(a[:, layout.R_REGIME], regimes)
+    np.testing.assert_array_equal(b[:, layout.R_REGIME], regimes)
+    for column in (layout.R_TAU_RUNAWAY, layout.R_PERIOD):
+        np.testing.assert_allclose(b[:, column], a[:, column], rtol=1e-6)
 
 
 @pytest.mark.parametrize(

@@ -10,6 +10,8 @@ import pytest
 from conftest import KC_W, PAPER_A, PAPER_B, kc_w, make_config, run_grid
 
 from sweep import dispatch
+from sweep.codes import METHODS as CODE_TABLE
+from sweep.codes import code
 from sweep.grid import build_grid
 from sweep.kernels import equations, layout, tangent
 from sweep.kernels.methods import MODULES
@@ -26,8 +28,7 @@ def fresh_dispatch(monkeypatch):
 
 CODES = {"quasi-static": layout.QUASI_STATIC, "quasi-dynamic": layout.QUASI_DYNAMIC,
          "inertial": layout.INERTIAL}  # fmt: skip
-METHODS = {"dopri5": layout.DOPRI5, "rk4": layout.RK4, "rosenbrock": layout.ROSENBROCK,
-           "dop853": layout.DOP853}  # fmt: skip
+METHODS = {name: code(CODE_TABLE, name) for name in CODE_TABLE}
 
 
 def take_step(method, y, h, p, model, nb):
@@ -77,7 +78,8 @@ TANGENT_STATES = {
     "model, method, state",  # every method, every model (each pair compiles its own tangent step)
     [("quasi-static", "dopri5", "slip"), ("quasi-static", "rk4", "slip"),
      ("inertial", "dopri5", "slip"), ("inertial", "rosenbrock", "slip"),
-     ("quasi-dynamic", "dop853", "slip"), ("inertial", "rosenbrock", "stick")],
+     ("quasi-dynamic", "dop853", "slip"), ("inertial", "rosenbrock", "stick"),
+     ("quasi-static", "bs23", "slip")],
 )  # fmt: skip
 def test_tangent_step_is_the_derivative_of_the_step_map(model, method, state):
     """A method's ``tangent_step`` carries δ by the derivative of the method's step map, formed from
