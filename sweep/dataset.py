@@ -86,7 +86,7 @@ def derived_fields(grid, results, y_final):
         fields["sync_order"] = r[:, layout.R_SYNC_ORDER]
         fields["slip_participation"] = r[:, layout.R_SLIP_PARTICIPATION]
     if config.heterogeneous:
-        for name, values in heterogeneity.block_values(config, phys).items():
+        for name, values in grid.blocks.items():
             fields[f"{name}_block"] = values
     return fields
 

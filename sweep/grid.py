@@ -77,14 +77,17 @@ class Grid:
 
     ``physical``: name → 1-D array per system (physical units, see
     :func:`physical_parameters`); ``dimensionless``: ``physics.dimensionless`` of
-    those (``time_unit`` = D0/V in s per system); ``linear``: ``linear.theory``
-    per system; ``params`` (n, N_PARAMS [+ N_BLOCK_PARAMS × blocks]), ``y0``
-    (n, n_vars) and ``settings`` (N_SETTINGS,): the kernels' arrays.
+    those (``time_unit`` = D0/V in s per system); ``blocks``: A, B, D0 and K_W of every
+    block, (n, blocks) each (``heterogeneity.block_values``; empty where the blocks
+    are equal by config); ``linear``: ``linear.theory`` per system; ``params`` (n,
+    N_PARAMS [+ N_BLOCK_PARAMS × blocks]), ``y0`` (n, n_vars) and ``settings``
+    (N_SETTINGS,): the kernels' arrays.
     """
 
     config: object
     physical: dict
     dimensionless: dict
+    blocks: dict
     linear: dict
     params: np.ndarray
     y0: np.ndarray
@@ -107,6 +110,7 @@ class Grid:
             self.config,
             pick,
             {name: values[index] for name, values in self.dimensionless.items()},
+            {name: values[index] for name, values in self.blocks.items()},
             {name: values[index] for name, values in self.linear.items()},
             np.ascontiguousarray(self.params[index]),
             np.ascontiguousarray(self.y0[index]),
@@ -125,6 +129,7 @@ def build_grid(config):
         phys["A"], phys["B"], phys["D0"], phys["V"], phys["K_W"], phys["k2_W"],
         phys["eta_W"], phys["m_W"],
     )  # fmt: skip
+    blocks = heterogeneity.block_values(config, phys) if config.heterogeneous else {}
     n = phys["A"].size
     nb = config.blocks
     integ = config.integrator
@@ -144,18 +149,19 @@ def build_grid(config):
     max_t_end = 10.0 * integ.t_end if max_t_end is None else max_t_end
     params[:, layout.P_TAU_MAX] = max_t_end * to_tau
     if config.heterogeneous:
-        for k, values in enumerate(block_parameters(config, phys)):
+        for k, values in enumerate(block_parameters(blocks, phys)):
             start = layout.N_PARAMS + k * nb
             params[:, start : start + nb] = values
-    lin = linear.theory(config, phys)
+    lin = linear.theory(config, phys, dl, blocks)
     params[:, layout.P_LIN_GROWTH] = lin["growth_rate"]
-    return Grid(config, phys, dl, lin, params, initial_state(config, n), settings_array(config))
+    y0 = initial_state(config, n)
+    return Grid(config, phys, dl, blocks, lin, params, y0, settings_array(config))
 
 
-def block_parameters(config, phys):
+def block_parameters(values, phys):
     """Dimensionless per-block columns: (A_i, B_i, κ1_i, D0/D0_i), each (n, blocks),
-    in the order of ``layout.B_*``."""
-    values = heterogeneity.block_values(config, phys)
+    in the order of ``layout.B_*``, from the blocks' ``values``
+    (``heterogeneity.block_values``) and the common ``phys``."""
     D0 = phys["D0"][:, None]
     return (values["A"], values["B"], values["K_W"] * D0, D0 / values["D0"])
 
