@@ -56,6 +56,7 @@ def values_per_block(model):
 
 
 # --- columns of the per-system parameter array (all dimensionless) ----------
+N_PARAMS = 11
 (
     P_A,  # direct effect
     P_B,  # evolution effect
@@ -68,20 +69,20 @@ def values_per_block(model):
     P_MAX_STEP,  # largest adaptive step (D0/V)
     P_TAU_MAX,  # unsettled runs continue up to this time (D0/V), ≥ P_TAU_END
     P_LIN_GROWTH,  # max Re λ of the linearisation at steady sliding (V/D0)
-) = range(11)
-N_PARAMS = 11
+) = range(N_PARAMS)
 # Rows whose blocks differ have N_BLOCK_PARAMS × nb more columns after N_PARAMS:
 # column N_PARAMS + k nb + i holds quantity k of block i (B_* below). Without them
 # (p.size == N_PARAMS) every block takes P_A, P_B, P_KAPPA1 and rate factor 1.
+N_BLOCK_PARAMS = 4
 (
     B_A,  # direct effect of block i
     B_B,  # evolution effect of block i
     B_KAPPA1,  # driving stiffness K_i D0/W (D0: the reference D0)
     B_RATE,  # state-rate factor D0/D0_i
-) = range(4)
-N_BLOCK_PARAMS = 4
+) = range(N_BLOCK_PARAMS)
 
 # --- entries of the settings array, shared by all systems of a sweep --------
+N_SETTINGS = 16
 (
     S_MODEL,  # QUASI_STATIC | QUASI_DYNAMIC | INERTIAL
     S_LAW,  # AGING | SLIP
@@ -99,10 +100,10 @@ N_BLOCK_PARAMS = 4
     S_COUPLING,  # CHAIN | RING | ALL
     S_LYAPUNOV,  # LYAP_NEVER | LYAP_UNSETTLED | LYAP_ALWAYS
     S_EVENTS,  # events whose ℓ_0 maxima and intervals each run reports (columns after R_*)
-) = range(16)
-N_SETTINGS = 16
+) = range(N_SETTINGS)
 
 # --- columns of the per-system statistics array -----------------------------
+N_RESULTS = 22
 (
     R_REGIME,  # STEADY | STICK_SLIP | RUNAWAY | UNDECIDED
     R_TAU_FINAL,  # time the run stopped (D0/V)
@@ -126,8 +127,7 @@ N_SETTINGS = 16
     R_CYCLE_EVENTS,  # events (maxima of ℓ_0) per cycle of a periodic run, else 0
     R_LYAPUNOV,  # largest Lyapunov exponent (V/D0); NaN where the tangent was not carried
     R_LYAPUNOV_ERROR,  # its standard error (V/D0)
-) = range(22)
-N_RESULTS = 22
+) = range(N_RESULTS)
 # After the R_* columns: the last S_EVENTS events' maxima of ℓ_0, then their intervals
 # from the event before (D0/V), oldest first, NaN before the first.
 

@@ -56,6 +56,7 @@ def explicit_tableau(a_rows, b):
 
 
 # --- entries of the accumulator ``ly`` ----------------------------------------
+N_LYAP = 20
 (
     L_ON,  # 1 while the tangent is carried
     L_T0,  # start of the window (D0/V)
@@ -77,8 +78,7 @@ def explicit_tableau(a_rows, b):
     L_BWTS,
     L_T_LAST,  # time of the last sample (D0/V)
     L_RATE,  # |J δ| at the start of the last tangent step (V/D0; 0: none yet)
-) = range(20)
-N_LYAP = 20
+) = range(N_LYAP)
 #: Rows of the tangent's ``work`` scratch (see :func:`tangent_arrays`).
 TANGENT_WORK_ROWS = 4
 

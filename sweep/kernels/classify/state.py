@@ -27,14 +27,15 @@ T_LOW = 1  # lowest ℓ_i since its last counted maximum (or the start)
 T_LAST = 2  # the last counted turn: +1 a maximum, −1 a minimum, 0 none yet
 N_TURNS = 3
 # --- columns of the scalars kept for each completed cycle (``past_cs``) ------
+N_PAST_CS = 3
 (
     X_SYNC,  # max |ℓ_i − ℓ_0| in the cycle
     X_SLIP_SUM,  # Σ fractions of slipping blocks of the slip events ended in the cycle
     X_SLIP_EVENTS,  # number of those events
-) = range(3)
-N_PAST_CS = 3
+) = range(N_PAST_CS)
 
 # --- entries of the scalar cycle state ``cs`` of the grid kernel -----------
+N_CYCLE_STATE = 22
 (
     C_N_PEAKS,  # maxima of ℓ_0 seen
     C_T_PEAK,  # time of the last maximum of ℓ_0 (D0/V)
@@ -58,8 +59,7 @@ N_PAST_CS = 3
     C_IN_EVENT,  # 1 while a slip event lasts
     C_SLIP_SUM,  # Σ fractions of slipping blocks of the events ended in the current cycle
     C_SLIP_EVENTS,  # number of those events
-) = range(22)
-N_CYCLE_STATE = 22
+) = range(N_CYCLE_STATE)
 
 
 @jit
