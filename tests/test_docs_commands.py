@@ -216,8 +216,9 @@ def write_small_configs(folder):
     (folder / "configs").mkdir()
     (folder / "results").mkdir()
     for path in sorted((ROOT / "configs").glob("*.yaml")):
-        raw = config_mapping(load_config(path))
-        raw["sweep"] = {name: [values[0], values[-1]] for name, values in raw["sweep"].items()}
+        config = load_config(path)
+        raw = config_mapping(config)
+        raw["sweep"] = {a.name: [a.values[0], a.values[-1]] for a in config.axes}
         if raw.get("initial", {}).get("ensemble"):
             raw["initial"]["ensemble"] = 2
         raw.pop("output", None)
