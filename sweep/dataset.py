@@ -175,13 +175,15 @@ def without_coordinate_fill(ds):
     return ds
 
 
-def data_variables(config, fields, shape=None):
+def data_variables(config, fields, shape=None, dims=None):
     """The data variables ``{name: (dims, data, attrs)}``, in the schema's dtypes, from the
     flat ``fields`` (as from :func:`derived_fields`) of the grid points of a block of
-    ``shape`` (default: the whole grid), every ensemble member of each included."""
+    ``shape`` (default: the whole grid), every ensemble member of each included.
+    ``dims``: the dimensions of those points (default: the sweep axes; a refinement's
+    points lie along one, ``("point",)``)."""
     shape = config.shape if shape is None else tuple(shape)
     run_shape = shape + config.run_shape[len(config.shape) :]
-    dims = tuple(a.name for a in config.axes)
+    dims = tuple(a.name for a in config.axes) if dims is None else tuple(dims)
     ensemble = config.initial.ensemble > 0
     run_dims = dims + (("member",) if ensemble else ())
     data_vars = {}
