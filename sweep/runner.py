@@ -82,7 +82,8 @@ class SweepResult:
 
     ``dataset``: the result (``None`` for a shard); ``path``: the NetCDF file
     written, or for a shard its parts folder; ``elapsed``: wall time (s);
-    ``computed`` / ``reused``: runs integrated now / read back from parts.
+    ``computed`` / ``reused``: runs integrated now / read back from parts;
+    ``timings``: for a refinement, wall time (s) by activity (``sweep/refine_runner.py``).
     """
 
     dataset: object
@@ -90,6 +91,7 @@ class SweepResult:
     elapsed: float
     computed: int = 0
     reused: int = 0
+    timings: dict = None
 
 
 def default_chunk_size(n_systems, n_threads=1, dask_threads=0):
@@ -171,6 +173,10 @@ def compute(config, threads=None, chunk_size=None, show_progress=True, client=No
     ``threads``: local threads (default: all cores), or ``client``: an open Dask client.
     ``command``: what is running it, for the file's ``history`` (``dataset.provenance``).
     """
+    if config.refine is not None:
+        from .refine_runner import compute_refined
+
+        return compute_refined(config, threads, chunk_size, show_progress, client, command)
     grid = build_grid(config)
     backend = LocalThreads(threads) if client is None else DaskTasks(client)
     # compiled here, not first in integrate_in_memory: before the progress clock
@@ -216,8 +222,15 @@ def run_sweep(config, out=None, *, resources=None, chunk_size=None, resume=False
 
     Raises ``InputError`` for an output that cannot be written, ``RunError``
     when the disk or the cluster fails and ``Interrupted`` after a stop; in
-    every case an earlier result file is left as it was.
+    every case an earlier result file is left as it was. A config with a ``refine``
+    section runs level by level (``sweep/refine_runner.py``).
     """
+    if config.refine is not None:
+        from .refine_runner import run_refined
+
+        return run_refined(config, out, resources=resources, chunk_size=chunk_size,
+                           resume=resume, shard=shard, show_progress=show_progress,
+                           stop=stop)  # fmt: skip
     start_time = time.perf_counter()
     path = Path(out or config.output)
     key = "output" if out is None else "--out"
@@ -278,12 +291,13 @@ def run_sweep(config, out=None, *, resources=None, chunk_size=None, resume=False
 
 
 class _PartStore:
-    """The result arrays of a run and the parts folder each finished chunk is saved to."""
+    """The result arrays of a run and the parts folder each finished chunk is saved to;
+    parts are named by ``chash`` (default: the config's hash)."""
 
-    def __init__(self, folder, config, n, n_vars):
+    def __init__(self, folder, config, n, n_vars, chash=None):
         self.folder = folder
         self.config = config
-        self.chash = store.config_hash(config)
+        self.chash = chash or store.config_hash(config)
         self.n = n
         self.results = np.empty((n, result_width(settings_array(config))))
         self.y_final = np.empty((n, n_vars))
@@ -425,6 +439,11 @@ def _merge_locked(paths, out):
     groups = store.group(files)
     if not groups:
         raise InputError("merge", [f"no part files in {', '.join(map(str, paths))}"])
+    refined = next((c for c in map(_part_config, groups.values()) if c and c.refine), None)
+    if refined is not None:  # the parts of a refinement's levels: replayed level by level
+        from .refine_runner import merge_refined
+
+        return merge_refined(refined, groups, paths, out)
     problems = []
     for chash, entries in groups.items():
         config = _part_config(entries)
@@ -449,15 +468,21 @@ def _merge_locked(paths, out):
             log.warning("%s", problem)
         ds = build_dataset(build_grid(config), results, y_final, "merge")
         _write_result(ds, out, "the parts")
-        for f in used:
-            f.unlink()
-        for folder in {Path(p) for p in paths if Path(p).is_dir()}:
-            for f in store.stale_temp_files(folder):
-                f.unlink(missing_ok=True)
-            if not any(folder.iterdir()):
-                folder.rmdir()
+        remove_merged(used, paths)
         return ds
     raise RunError("cannot merge: " + "; ".join(problems))
+
+
+def remove_merged(used, paths):
+    """After a merge: remove the parts ``used``, then in the folders of ``paths`` the
+    temporary files of killed writers, then those folders if empty."""
+    for f in used:
+        f.unlink()
+    for folder in {Path(p) for p in paths if Path(p).is_dir()}:
+        for f in store.stale_temp_files(folder):
+            f.unlink(missing_ok=True)
+        if not any(folder.iterdir()):
+            folder.rmdir()
 
 
 def _part_config(entries):
