@@ -111,11 +111,14 @@ def to_grid(ds, level=0):
     """A refined result on the regular grid of ``level``: a Dataset like a grid sweep's.
 
     Every grid point takes the values of the run at it where there is one, else of the
-    nearest run of the finest level around it (per axis the nearer neighbour, the lower
-    one at a tie): the corner of the unsplit cell it lies in, whose corners agree in
-    the refine outputs. The dimensions are the sweep axes at the level's values; the
-    coordinate ``level`` gives the level of each value's run and ``exact`` whether it was
-    run right there. At level 0 this is the grid of the config, run for run.
+    first run found by rounding it to the lattice of each level from ``level`` down to 0
+    (per axis the nearer point, the lower at a tie): a run on the closed unsplit cell
+    that holds it, at most half that cell's step away (a corner, or a point on its side
+    run by a finer neighbour), so that where the cell's corners agree in the refine
+    outputs the grid point has their values of them. The dimensions are the sweep axes
+    at the level's values; the coordinate ``level`` gives the level of each value's run
+    and ``exact`` whether it was run right there. At level 0 this is the grid of the
+    config, run for run.
 
     Parameters
     ----------
