@@ -4,11 +4,13 @@ Thin functions over the same pieces the CLI uses; nothing here writes a file.
 ``sweep.load_config`` and ``sweep.with_changes`` come from ``sweep/config.py``.
 """
 
-from .config import load_config
+from collections.abc import Mapping
+
+from .config import load_config, with_changes
 from .errors import InputError
 
 
-def run(config, *, threads=None, client=None, progress=True):
+def run(config, *, threads=None, client=None, progress=True, refine=None):
     """Run a sweep and return its result; nothing is written.
 
     Parameters
@@ -26,6 +28,12 @@ def run(config, *, threads=None, client=None, progress=True):
     progress : bool
         Show progress: a widget bar in a notebook (with ipywidgets), a bar on a
         terminal, plain lines in pipes and logs.
+    refine : int, Mapping or bool, optional
+        Refine the sweep where its labels change (the config's ``refine`` section,
+        ``sweep/refine.py``): a number of levels, a mapping like the section (e.g.
+        ``{"levels": 8, "max_runs": 20000}``, merged into the config's), True for the
+        config's section or the defaults, False for the grid only. Default: as the
+        config says.
 
     Returns
     -------
@@ -34,7 +42,9 @@ def run(config, *, threads=None, client=None, progress=True):
         the sweep axes, fixed parameters as scalar coordinates, CF attributes);
         its ``history`` says it was made by ``sweep.run()`` and from which config
         (``<mapping>`` for a mapping). Save it with ``sweep.dataset.write_netcdf``
-        (atomic) or ``ds.to_netcdf``.
+        (atomic) or ``ds.to_netcdf``. A refined sweep's runs lie along one dimension,
+        ``point`` (``sweep.to_grid`` puts them on a grid, ``sweep.boundaries`` gives the
+        boundaries between labels).
 
     Raises ``ConfigError`` for a bad config, ``InputError`` for bad arguments and ``RunError`` when
     Dask is missing or the cluster cannot be reached.
@@ -43,7 +53,7 @@ def run(config, *, threads=None, client=None, progress=True):
 
     from .runner import compute
 
-    config = load_config(config)
+    config = with_refine(load_config(config), refine)
     if client is not None and threads is not None:
         raise InputError(config.source, ["threads is for local threads; Dask workers own theirs"])
     _check_threads(config.source, threads)
@@ -57,6 +67,27 @@ def run(config, *, threads=None, client=None, progress=True):
         return compute(
             config, threads, show_progress=progress, client=dask_client, command="sweep.run"
         )
+
+
+def with_refine(config, refine):
+    """``config`` with its ``refine`` section set by ``refine`` (see :func:`run`): levels
+    (an int), a mapping merged into the section, True (the section, or the defaults),
+    False (none) or None (unchanged). Validated like a file (``ConfigError``)."""
+    if refine is None or (refine is True and config.refine is not None):
+        return config
+    if refine is False:
+        changes = {"refine": None}
+    elif refine is True:
+        changes = {"refine": {}}
+    elif isinstance(refine, int):
+        changes = {"refine": {"levels": refine}}
+    elif isinstance(refine, Mapping):
+        changes = {"refine": dict(refine)}
+    else:
+        problem = (f"refine must be a number of levels, a mapping like the config's refine "
+                   f"section, or a bool; got {refine!r}")  # fmt: skip
+        raise InputError(config.source, [problem])
+    return with_changes(config, changes)
 
 
 def compile_kernels(*configs, processes=None):
