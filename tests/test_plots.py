@@ -429,3 +429,65 @@ def test_orbit_diagram_plots_each_runs_events_by_attractor(one_d, two_d, tmp_pat
     capsys.readouterr()
     assert main(["plot", str(path), "--orbit", "--var", "period"]) == 2
     assert "give --var or --orbit" in capsys.readouterr().err
+
+
+# --- refined results ---------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def refined_two_d():
+    config = small(
+        CONFIGS / "twoblock.yaml",
+        "twoblock_refined",
+        sweep={"K_W": {"start": 0.0303, "stop": 0.0703, "num": 5}, "k2_W": [0.0, 0.1, 0.2]},
+        refine={"levels": 4},
+    )
+    return compute(config, show_progress=False)
+
+
+def test_a_refined_map_draws_its_cells_at_their_level_and_its_boundaries(refined_two_d,
+                                                                          tmp_path):  # fmt: skip
+    """Left: every unsplit cell coloured by its runs' attractor (a mixed cell by quarters),
+    the boundary on top; right: each cell's level. The cells tile the map."""
+    from matplotlib.collections import PolyCollection
+
+    from sweep.refine import Lattice, cell_tree
+    from sweep.refined_dataset import lattice_index, refined_config
+
+    fig = plot_result(refined_two_d, "a caption")
+    assert_png(saved(fig, tmp_path / "refined.png"))
+    cells_ax, levels_ax = fig.axes[:2]
+    (cells,) = [c for c in cells_ax.collections if isinstance(c, PolyCollection)]
+    (levels,) = [c for c in levels_ax.collections if isinstance(c, PolyCollection)]
+    area = sum(abs(np.prod(np.ptp(p.vertices[:4], axis=0))) for p in cells.get_paths())
+    assert area == pytest.approx(0.04 * 0.2, rel=1e-9)  # no gap, no overlap
+    lattice = Lattice(refined_config(refined_two_d))
+    tree = cell_tree(lattice, lattice_index(refined_two_d, lattice))
+    assert len(levels.get_paths()) == sum(int((~split).sum()) for _, split in tree)
+    assert sorted(set(levels.get_array().tolist())) == list(range(5))
+    boundary_lines = [line for line in cells_ax.get_lines() if line.get_linestyle() == "-"]
+    assert boundary_lines  # the steady/runaway boundary
+    assert "refined 4 levels" in fig._suptitle.get_text()
+
+
+def test_a_refined_result_draws_on_a_given_axes_and_as_a_variable(refined_two_d, tmp_path):
+    from matplotlib.figure import Figure
+
+    fig = Figure()
+    ax = fig.subplots()
+    assert plot_result(refined_two_d, ax=ax) is fig and len(fig.axes) == 1
+    fig = plot_variable(refined_two_d, "t_final")
+    assert_png(saved(fig, tmp_path / "t_final.png"), min_bytes=5000)
+
+
+def test_a_refined_axis_is_drawn_along_its_runs(tmp_path):
+    """One refined axis: the runs sorted along it, the boundaries' cells shaded."""
+    config = small(CONFIGS / "quick.yaml", "quick_refined", refine={"levels": 5})
+    ds = compute(config, show_progress=False)
+    fig = plot_result(ds)
+    assert_png(saved(fig, tmp_path / "line.png"))
+    x = np.sort(ds["K_W"].values)
+    for ax in fig.axes:
+        assert len(ax.patches) >= 2  # a shaded cell per boundary
+        points = np.concatenate([c.get_offsets() for c in ax.collections])
+        assert len(points) == len(x) and np.isin(points[:, 0], x).all()
