@@ -4,7 +4,9 @@ Every system is derived from ``configs/paper.yaml`` (the paper's one-block
 system, read with D0 = 1 µm: erratum 1) and integrated as a trace
 (``sweep/trace.py``); the phase diagram and bifurcation diagram come from
 ordinary sweeps (``configs/twoblock.yaml``, ``configs/bifurcation_*.yaml``), the orbit
-diagram of two unequal inertial blocks from ``configs/route_to_chaos.yaml``.
+diagram of two unequal inertial blocks from ``configs/route_to_chaos.yaml``, and the
+refined map of two unequal radiation-damped blocks from ``configs/unequal_qd.yaml``
+(:func:`figure_refined`).
 
 Where the paper's quasi-static model runs away (K < Kc has no stick-slip limit
 cycle), the figures show the runaway and, beside it, the same system with a
@@ -262,6 +264,23 @@ def figure_nblock(nblock="nblock", heterogeneous="heterogeneous", threads=None):
     return plot_nblock(sizes, spread, coupling, caption)
 
 
+def figure_refined(config, threads=None):
+    """The refined map of ``config`` (a config with a ``refine`` section): its cells at
+    their level and the boundaries between its labels (``plots.plot_refined``), the runs
+    it took beside those of the uniform grid of its finest cells; returns the Figure."""
+    from .plots import plot_result
+    from .runner import compute
+
+    ds = compute(config, threads=threads, show_progress=False)
+    levels = config.refine.levels
+    uniform = np.prod([(len(a.values) - 1) * 2**levels + 1 for a in config.axes])
+    caption = (
+        f"{int(ds['regime'].size)} runs where the uniform grid of the finest cells (1/{2**levels}"
+        f" of a grid step) would take {uniform:,}: {100 * ds['regime'].size / uniform:.2g} %"
+    )
+    return plot_result(ds, caption)
+
+
 def make_figures(
     paper="paper",
     twoblock="twoblock",
@@ -272,11 +291,13 @@ def make_figures(
     threads=None,
     suffix=".png",
     dpi=DPI,
+    refined="unequal_qd",
 ):
     """Regenerate every paper figure into ``out_dir``; returns the file paths.
 
     Configs are paths or names of packaged examples (``sweep/examples.py``), so
-    this works from any folder; ``route``: the 1-D sweep whose orbit diagram is drawn.
+    this works from any folder; ``route``: the 1-D sweep whose orbit diagram is drawn;
+    ``refined``: the refined sweep whose cells and boundaries are drawn.
     ``suffix``: ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
     """
     from .dispatch import load_kernels
@@ -291,10 +312,12 @@ def make_figures(
     bifurcation_configs = [load_config(p) for p in bifurcation]
     nblock_configs = [load_config(path) for path in nblock]
     route_config = load_config(route)
+    refined_config = load_config(refined)
     check_writable(out_dir / f"fig1_one_block{suffix}", str(out_dir), "--out-dir", suffix)
     rows = (*ONE_BLOCK_ROWS, *((label, {**c, "k2_W": K2_W}) for label, c in TWO_BLOCK_ROWS))
     trace_configs = [variant(config, f"{config.name}_{r}", **c) for r, (_, c) in enumerate(rows)]
-    every = [*trace_configs, phase_config, *bifurcation_configs, *nblock_configs, route_config]
+    every = [*trace_configs, phase_config, *bifurcation_configs, *nblock_configs, route_config,
+             refined_config]  # fmt: skip
     # side by side; each variant here also has runs that need the tangent for λ1
     grids = [build_grid(c) for c in every]
     load_kernels([(g.params, g.settings, t) for g in grids for t in (None, True)], threads)
@@ -322,4 +345,6 @@ def make_figures(
     route = compute(route_config, threads=threads, show_progress=False)
     fig = plot_orbit_diagram(route, caption=caption, lnv_range=(0.5, 2.5))
     paths.append(save_figure(fig, out_dir / f"route_to_chaos{suffix}", dpi))
+    fig = figure_refined(refined_config, threads)
+    paths.append(save_figure(fig, out_dir / f"refined_{refined_config.name}{suffix}", dpi))
     return paths

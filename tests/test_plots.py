@@ -28,7 +28,8 @@ ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 PAPER_FIGURES = (
-    "fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation", "nblock", "route_to_chaos"
+    "fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation", "nblock",
+    "route_to_chaos", "refined_unequal_qd",
 )  # fmt: skip
 
 
@@ -272,14 +273,16 @@ def test_make_figures_on_small_configs(tmp_path):
     nblock, heterogeneous = small_nblock_configs()
     route = small(CONFIGS / "route_to_chaos.yaml", "route_small",
                   sweep={"K_W": [0.0042, 0.005]}, classification={"max_t_end": 3000.0})  # fmt: skip
+    refined = small(CONFIGS / "unequal_qd.yaml", "unequal_qd", refine={"levels": 2},
+                    sweep={"K_W": [0.05, 0.07], "k2_W": [0.005, 0.02]})  # fmt: skip
     paths = []
-    for config in (paper, twoblock, qs, nblock, heterogeneous, route):
+    for config in (paper, twoblock, qs, nblock, heterogeneous, route, refined):
         path = tmp_path / f"{config.name}.yaml"
         path.write_text(config.text)
         paths.append(path)
     out = make_figures(
         paths[0], paths[1], (paths[2],), nblock=paths[3:5], route=paths[5],
-        out_dir=tmp_path / "figures", threads=1,
+        out_dir=tmp_path / "figures", threads=1, refined=paths[6],
     )  # fmt: skip
     assert [p.stem for p in out] == list(PAPER_FIGURES)
     for path in out:
