@@ -17,7 +17,10 @@ Prints and writes ``results/bench.json``:
   tangent against a plain step (DOPRI5, RODAS4);
 * ``configs/twoblock.yaml`` wall time on 1 and 2 threads (JIT cache warm) and
   the 2-thread speed-up; JIT compile time measured separately, in a fresh
-  process with the cache off and on.
+  process with the cache off and on;
+* a refinement by label (``configs/unequal_qd.yaml``, 5 levels): its runs against the
+  uniform grid of its finest cells, and its time beyond the integration (planning,
+  bookkeeping, the file) against the integration's.
 
 Timings are not asserted anywhere; ``--quick`` shrinks every size and
 ``--smoke`` makes them tiny (``tests/test_bench.py`` runs every code path so). The
@@ -41,13 +44,13 @@ import numpy as np
 import yaml
 
 from sweep import physics
-from sweep.backends import DaskTasks, LocalThreads
+from sweep.backends import DaskTasks, LocalThreads, Resources
 from sweep.config import load_config, parse_config, with_changes
 from sweep.dispatch import load_kernel
 from sweep.distributed import connect
 from sweep.grid import build_grid
 from sweep.kernels import layout
-from sweep.runner import compute, integrate_in_memory
+from sweep.runner import compute, integrate_in_memory, run_sweep
 from sweep.variables import REGIMES
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -676,6 +679,41 @@ def bench_dask(config_path, workers=2):
     return times
 
 
+def bench_refine(config_path, levels, threads=2):
+    """A refinement of ``config_path`` to ``levels`` levels on ``threads`` threads, written
+    to a file (kernels compiled beforehand): its runs against the uniform grid of its
+    finest cells, and what is not integration (planning and labelling each level,
+    bookkeeping, writing the file) against the integration's wall time."""
+    config = with_changes(load_config(config_path), {"refine": {"levels": levels}})
+    with tempfile.TemporaryDirectory() as folder:
+        # warm-up: the grid alone (level 0), which compiles and loads the NetCDF writer
+        grid_only = with_changes(config, {"refine": {"levels": 0}})
+        run_sweep(grid_only, Path(folder) / "grid.nc", resources=Resources(threads),
+                  show_progress=False)  # fmt: skip
+        start = time.perf_counter()
+        result = run_sweep(config, Path(folder) / "refined.nc", resources=Resources(threads),
+                           show_progress=False)  # fmt: skip
+        seconds = time.perf_counter() - start
+    runs = int(result.dataset["regime"].size)
+    uniform = math.prod((len(a.values) - 1) * 2**levels + 1 for a in config.axes)
+    uniform *= config.members
+    t = result.timings
+    return {
+        "config": os.path.relpath(config_path, ROOT),
+        "levels": levels,
+        "threads": threads,
+        "runs": runs,
+        "runs_per_level": [int(r) for r in result.dataset.attrs["refine_runs"]],
+        "uniform_runs": uniform,
+        "runs_over_uniform": runs / uniform,
+        "seconds": seconds,
+        "integration_seconds": t["integration"],
+        "planning_seconds": t["planning"],
+        "file_seconds": t["file"],
+        "overhead_over_integration": (seconds - t["integration"]) / t["integration"],
+    }
+
+
 #: Problem sizes: the figures of the README (``full``), a quicker look (``quick``) and
 #: the smallest that still runs every code path (``smoke``, for the test suite).
 SIZES = {
@@ -683,17 +721,20 @@ SIZES = {
              "attractors": (201, 2000),
              "threads_large": (10_000, 2000), "throughput": (16, 500), "rk4": 2_000_000,
              "block_scaling": (8, 500),
-             "configs": ("oneblock", "twoblock"), "dask": "twoblock", "compile": "twoblock"},
+             "configs": ("oneblock", "twoblock"), "dask": "twoblock", "compile": "twoblock",
+             "refine": ("unequal_qd", 5)},
     "quick": {"scipy": (6, 300), "single_purpose": (21, 300), "scipy_hard": (5, 2000),
               "attractors": (21, 300),
               "threads_large": (200, 2000), "throughput": (2, 50), "rk4": 10_000,
               "block_scaling": (2, 50),
-              "configs": ("quick", "quick"), "dask": "quick", "compile": "quick"},
+              "configs": ("quick", "quick"), "dask": "quick", "compile": "quick",
+              "refine": ("unequal_qd", 2)},
     "smoke": {"scipy": (3, 100), "single_purpose": (3, 100), "scipy_hard": (2, 100),
               "attractors": (3, 100),
               "threads_large": (4, 100), "throughput": (1, 10), "rk4": 1_000,
               "block_scaling": (1, 10),
-              "configs": ("quick",), "dask": "quick", "compile": "quick"},
+              "configs": ("quick",), "dask": "quick", "compile": "quick",
+              "refine": ("quick", 2)},
 }  # fmt: skip
 
 
@@ -769,6 +810,14 @@ def main(argv=None):
         f"JIT compile {c['compile_seconds']:.1f} s (fresh process: {c['cold_seconds']:.1f} s "
         f"with an empty cache, {c['cache_warm_seconds']:.1f} s with a warm cache); a further "
         f"variant (another model), shared helpers cached: {c['further_compile_seconds']:.1f} s"
+    )
+    figures["refine"] = rf = bench_refine(repo_config(size["refine"][0]), size["refine"][1])
+    print(
+        f"{rf['config']} refined {rf['levels']} levels: {rf['runs']} runs, "
+        f"{100 * rf['runs_over_uniform']:.2g} % of the {rf['uniform_runs']} of a uniform grid "
+        f"of the finest cells; {rf['seconds']:.1f} s on {rf['threads']} threads, of which "
+        f"{100 * rf['overhead_over_integration']:.1f} % beyond the integration (planning "
+        f"{rf['planning_seconds']:.2f} s, file {rf['file_seconds']:.2f} s)"
     )
     if "twoblock" in figures:
         _print_targets(figures)
