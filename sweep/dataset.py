@@ -353,6 +353,11 @@ def stored_config(ds, source):
         config = parse_config(ds.attrs["config_text"], f"{source} (config_text)")
     except ConfigError as exc:
         raise ConfigError(source, [f"stored config_text: {p}" for p in exc.problems]) from None
+    if "point" in ds["regime"].dims and config.refine is not None:
+        raise InputError(
+            source, ["a refined result (its runs along point) is not a grid: extend and audit "
+                     "take grid results; sweep.to_grid(ds, level) gives one"]
+        )  # fmt: skip
     dims = tuple(a.name for a in config.axes) + (("member",) if config.initial.ensemble else ())
     if ds["regime"].dims != dims or ds["regime"].shape != config.run_shape:
         raise InputError(

@@ -164,3 +164,13 @@ def test_to_grid_refuses_what_it_cannot_do(refined, quick, monkeypatch):
     with pytest.raises(InputError, match="not a refined result"):
         to_grid(runner.compute(quick, show_progress=False), 0)
     assert refined_config(ds).refine.levels == 4
+
+
+def test_extend_and_audit_say_a_refined_result_is_not_a_grid(refined, tmp_path, capsys):
+    from sweep.cli import main
+
+    _, ds = refined
+    path = write_netcdf(ds, tmp_path / "refined.nc")
+    for command in ("extend", "audit"):
+        assert main([command, str(path)]) == 2
+        assert "a refined result (its runs along point) is not a grid" in capsys.readouterr().err
