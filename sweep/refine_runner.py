@@ -152,6 +152,10 @@ def run_refined(config, out=None, *, resources=None, chunk_size=None, resume=Fal
         _write_result(ds, path, f"{folder} (use --resume)")
         store.remove_parts(folder)
         timings["file"] = time.perf_counter() - clock
+        log.info(
+            "%s: %.1f s running, %.2f s planning and labelling, %.2f s writing the file",
+            config.name, timings["integration"], timings["planning"], timings["file"],
+        )  # fmt: skip
         return SweepResult(ds, path, time.perf_counter() - start_time, counts["computed"],
                            counts["reused"], timings)  # fmt: skip
 
