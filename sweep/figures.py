@@ -16,6 +16,7 @@ true stick-slip cycle. Its critical stiffness is Kc/W = (B − A − η̂)/D0 =
 move Kc/W to 0.040 µm⁻¹ and make K/W = 0.046 µm⁻¹ steady.
 """
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -264,19 +265,21 @@ def figure_nblock(nblock="nblock", heterogeneous="heterogeneous", threads=None):
     return plot_nblock(sizes, spread, coupling, caption)
 
 
-def figure_refined(config, threads=None):
-    """The refined map of ``config`` (a config with a ``refine`` section): its cells at
-    their level and the boundaries between its labels (``plots.plot_refined``), the runs
-    it took beside those of the uniform grid of its finest cells; returns the Figure."""
+def figure_refined(ds):
+    """The refined map ``ds`` (a refined result): its cells at their level and the
+    boundaries between its labels (``plots.plot_refined``), with the runs it took beside
+    those of the uniform grid of its finest cells; returns the Figure."""
     from .plots import plot_result
-    from .runner import compute
+    from .refined_dataset import refined_config
 
-    ds = compute(config, threads=threads, show_progress=False)
+    config = refined_config(ds)
     levels = config.refine.levels
-    uniform = np.prod([(len(a.values) - 1) * 2**levels + 1 for a in config.axes])
+    runs = int(ds["regime"].size)
+    uniform = math.prod((len(a.values) - 1) * 2**levels + 1 for a in config.axes)
+    uniform *= config.members
     caption = (
-        f"{int(ds['regime'].size)} runs where the uniform grid of the finest cells (1/{2**levels}"
-        f" of a grid step) would take {uniform:,}: {100 * ds['regime'].size / uniform:.2g} %"
+        f"{runs} runs where the uniform grid of the finest cells (1/{2**levels} of a grid "
+        f"step) would take {uniform:,}: {100 * runs / uniform:.2g} %"
     )
     return plot_result(ds, caption)
 
@@ -345,6 +348,6 @@ def make_figures(
     route = compute(route_config, threads=threads, show_progress=False)
     fig = plot_orbit_diagram(route, caption=caption, lnv_range=(0.5, 2.5))
     paths.append(save_figure(fig, out_dir / f"route_to_chaos{suffix}", dpi))
-    fig = figure_refined(refined_config, threads)
+    fig = figure_refined(compute(refined_config, threads=threads, show_progress=False))
     paths.append(save_figure(fig, out_dir / f"refined_{refined_config.name}{suffix}", dpi))
     return paths
