@@ -150,6 +150,10 @@ MAPPED = {
         "no scheduler at host:8786: the same Dask client path through a local scheduler",
         ["python -m sweep run configs/twoblock.yaml --dask-local 1"],
     ),
+    "python -m sweep run configs/unequal_qd.yaml": (
+        "its 8 levels refine the whole map from one cell of the small config (minutes): 2",
+        ["python -m sweep run configs/unequal_qd.yaml --refine 2"],
+    ),
     "python -m sweep run configs/twoblock.yaml --dask-local 4": (
         "four worker processes would compete with the suite for two cores: one worker",
         ["python -m sweep run configs/twoblock.yaml --dask-local 1"],
