@@ -20,10 +20,11 @@ sweep: $(STAMP)
 	$(PY) -m sweep run $(CONFIG) $(if $(THREADS),--threads $(THREADS))
 
 # The suite on TEST_WORKERS processes (pytest-xdist; "auto": one per core), which take
-# tests as they come free and share numba's on-disk cache of compiled kernels.
+# tests as they come free and share numba's on-disk cache of compiled kernels; the
+# report ends with the 25 slowest tests (and set-ups), where the suite's time goes.
 TEST_WORKERS ?= 2
 test: $(STAMP)
-	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist worksteal
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist worksteal --durations=25
 
 # The kernels as plain Python, so they count in coverage runs: the tests of the
 # model, kernels, grid, files and CLI (the long regularised, batch and figure runs

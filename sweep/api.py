@@ -4,28 +4,42 @@ Thin functions over the same pieces the CLI uses; nothing here writes a file.
 ``sweep.load_config`` and ``sweep.with_changes`` come from ``sweep/config.py``.
 """
 
-from collections.abc import Mapping
+from __future__ import annotations
 
-from .config import load_config, with_changes
+import os
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+from .config import Config, load_config, with_changes
 from .errors import InputError
 
+if TYPE_CHECKING:
+    import xarray
 
-def run(config, *, threads=None, client=None, progress=True, refine=None):
+
+def run(
+    config: str | os.PathLike | Mapping[str, Any] | Config,
+    *,
+    threads: int | None = None,
+    client: Any = None,
+    progress: bool = True,
+    refine: int | Mapping[str, Any] | bool | None = None,
+) -> xarray.Dataset:
     """Run a sweep and return its result; nothing is written.
 
     Parameters
     ----------
-    config : path, str, Mapping or Config
-        A YAML file, the name of a packaged example (``sweep.examples.names()``),
-        a mapping as the YAML would read, or a :class:`~sweep.config.Config`
-        (e.g. from :func:`~sweep.config.with_changes`).
+    config : str, os.PathLike, Mapping or Config
+        A YAML file, the name of a packaged example (:func:`sweep.examples.names`),
+        a mapping as the YAML would read, or a :class:`~sweep.Config`
+        (e.g. from :func:`~sweep.with_changes`).
     threads : int, optional
-        threads on this machine (default: all cores); not with ``client``.
+        Threads on this machine (default: all cores); not with ``client``.
     client : distributed.Client, Cluster or str, optional
         Run the chunks as tasks on this Dask client, on a new client of this
         cluster (e.g. a ``LocalCluster``), or on the scheduler at this address
         (``"tcp://host:8786"``). A given Client is left open.
-    progress : bool
+    progress : bool, default True
         Show progress: a widget bar in a notebook (with ipywidgets), a bar on a
         terminal, plain lines in pipes and logs.
     refine : int, Mapping or bool, optional
@@ -41,13 +55,21 @@ def run(config, *, threads=None, client=None, progress=True, refine=None):
         The result, as ``python -m sweep run`` writes it (dimensions named after
         the sweep axes, fixed parameters as scalar coordinates, CF attributes);
         its ``history`` says it was made by ``sweep.run()`` and from which config
-        (``<mapping>`` for a mapping). Save it with ``sweep.dataset.write_netcdf``
+        (``<mapping>`` for a mapping). Save it with :func:`sweep.dataset.write_netcdf`
         (atomic) or ``ds.to_netcdf``. A refined sweep's runs lie along one dimension,
-        ``point`` (``sweep.to_grid`` puts them on a grid, ``sweep.boundaries`` gives the
-        boundaries between labels).
+        ``point`` (:func:`sweep.to_grid` puts them on a grid, :func:`sweep.boundaries`
+        gives the boundaries between labels).
 
-    Raises ``ConfigError`` for a bad config, ``InputError`` for bad arguments and ``RunError`` when
-    Dask is missing or the cluster cannot be reached.
+    Raises
+    ------
+    ConfigError
+        The config is not valid (every problem listed, each naming its key).
+    InputError
+        ``threads`` is not an integer in [1, cores], is given with ``client``,
+        ``client`` is none of a Client, a Cluster or an address, or ``refine`` is none
+        of a number, a mapping or a bool.
+    RunError
+        Dask is not installed, or the cluster cannot be reached.
     """
     from contextlib import nullcontext
 
@@ -90,14 +112,36 @@ def with_refine(config, refine):
     return with_changes(config, changes)
 
 
-def compile_kernels(*configs, processes=None):
-    """Compile the kernels that ``configs`` (each as for :func:`run`) may use, or load
-    them from numba's on-disk cache, into this process: each config's variant, and
-    the one with the tangent for λ1 where unsettled runs ask for it
-    (``classification.lyapunov``). Run it once before job-array tasks or workers on
-    other nodes start, so that they only read the cache. Several variants are
-    compiled side by side in up to ``processes`` fresh processes (default: one per
-    core; ``dispatch.load_kernels``). Returns None."""
+def compile_kernels(
+    *configs: str | os.PathLike | Mapping[str, Any] | Config, processes: int | None = None
+) -> None:
+    """Compile the kernels that ``configs`` may use, or load them from numba's cache.
+
+    Each config's variant is compiled into this process, and the one with the
+    tangent for λ1 where unsettled runs ask for it (``classification.lyapunov``).
+    Run it once before job-array tasks or workers on other nodes start, so that
+    they only read numba's on-disk cache (``python -m sweep compile`` does the same).
+
+    Parameters
+    ----------
+    *configs : str, os.PathLike, Mapping or Config
+        Configs, each as :func:`run` takes them.
+    processes : int, optional
+        Several variants are compiled side by side in up to this many fresh
+        processes (default: one per core), then loaded here.
+
+    Returns
+    -------
+    None
+        The kernels are compiled and cached; nothing is returned.
+
+    Raises
+    ------
+    ConfigError
+        A config is not valid.
+    InputError
+        ``processes`` is not a positive integer.
+    """
     from .dispatch import kernel_jobs, load_kernels
     from .grid import build_grid
 

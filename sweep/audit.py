@@ -8,7 +8,10 @@ early exit off and a much later end time, and compares the two regimes point
 by point.
 """
 
+from __future__ import annotations
+
 import dataclasses
+import os
 
 import numpy as np
 import xarray as xr
@@ -50,26 +53,34 @@ def audit_config(config, t_end):
     )
 
 
-def audit_result(result, sample=20, near_kc=0.01, t_end=None, seed=0, threads=None,
-                 source=None):  # fmt: skip
+def audit_result(
+    result: str | os.PathLike | xr.Dataset,
+    sample: int = 20,
+    near_kc: float = 0.01,
+    t_end: float | None = None,
+    seed: int = 0,
+    threads: int | None = None,
+    source: str | None = None,
+) -> xr.Dataset:
     """Rerun a sample of a result's grid points for longer and compare regimes.
 
     Parameters
     ----------
-    result : path or xarray.Dataset
-        A result of ``python -m sweep run`` (it holds its config).
-    sample : int
+    result : str, os.PathLike or xarray.Dataset
+        A result of ``python -m sweep run`` or :func:`sweep.run` (it holds its
+        config), or the path of its file.
+    sample : int, default 20
         Number of grid points drawn at random (all of them if the grid is
         smaller).
-    near_kc : float
-        Every point with ``|K/Kc − 1| ≤ near_kc`` is audited too (1).
+    near_kc : float, default 0.01
+        Every point with ``|K/Kc − 1| ≤ near_kc`` is audited too (a fraction, 1).
     t_end : float, optional
         End time of the audit runs, in the config's ``t_unit``. Default: 10 ×
         the file's end time.
-    seed : int
+    seed : int, default 0
         Seed of the random draw.
     threads : int, optional
-        threads (default: all cores).
+        Threads on this machine (default: all cores).
     source : str, optional
         Name of the result in error messages (default: its path).
 
@@ -81,6 +92,14 @@ def audit_result(result, sample=20, near_kc=0.01, t_end=None, seed=0, threads=No
         values (physical units), ``index`` (flat grid index), ``near_kc``
         (audited for being near Kc), ``K_over_Kc``, ``regime_file``,
         ``regime_audit`` and ``agree``. Attributes: the audit settings.
+
+    Raises
+    ------
+    InputError
+        The result cannot be read or holds no config, or ``sample``, ``near_kc`` or
+        ``t_end`` is out of range (every problem listed).
+    ConfigError
+        The stored config is no longer valid.
     """
     ds, source = load_result(result, source)
     config = stored_config(ds, source)

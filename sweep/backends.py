@@ -31,16 +31,29 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class Resources:
-    """What a run may use: ``threads`` threads on this machine (None: all cores), or Dask: the
-    scheduler at ``scheduler`` (an address, a Client or a Cluster) or a new LocalCluster
-    of ``dask_local`` single-threaded worker processes."""
+    """What a run may use: threads on this machine, or Dask.
 
-    threads: int = None
+    Give at most one of ``scheduler`` and ``dask_local``; with neither, the chunks
+    run on ``threads`` local threads.
+
+    Parameters
+    ----------
+    threads : int, optional
+        Threads on this machine (default: all cores).
+    scheduler : str, distributed.Client or Cluster, optional
+        Run the chunks as Dask tasks on this scheduler (an address such as
+        ``"tcp://host:8786"``, a Client or a Cluster).
+    dask_local : int, optional
+        Run them on a new LocalCluster of this many single-threaded worker
+        processes.
+    """
+
+    threads: int | None = None
     scheduler: object = None
-    dask_local: int = None
+    dask_local: int | None = None
 
     @property
-    def dask(self):
+    def dask(self) -> bool:
         """Whether the chunks run as Dask tasks."""
         return self.scheduler is not None or self.dask_local is not None
 

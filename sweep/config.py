@@ -8,12 +8,16 @@ file, the key path, what is allowed and what was found, e.g.::
 Nothing downstream reads raw dicts: it gets a :class:`Config`.
 """
 
+from __future__ import annotations
+
 import dataclasses
 import math
+import os
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -257,67 +261,90 @@ class Refine:
 
 @dataclass(frozen=True)
 class Config:
-    """A validated run config. ``parameters`` holds the fixed (unswept) values."""
+    """A validated run config: what :func:`load_config` and :func:`parse_config` return.
 
+    Frozen: make a changed copy with :func:`with_changes`. Each field is a config
+    key of the same name (the keys are described on the guide's configs page);
+    nothing downstream reads the YAML again. Values are in physical units (µm, s).
+    """
+
+    #: The sweep's name (``name:``; default the file's stem, ``sweep`` for a mapping).
     name: str
+    #: Where the config came from (its path, ``"<mapping>"``, or ``"<config>"`` for
+    #: text); error messages and the result's provenance name it.
     source: str
+    #: The config as YAML text; stored in every result as ``config_text``.
     text: str
+    #: Number of blocks (1, 2, or more for a chain, ring or all-to-all coupling).
     blocks: int
+    #: ``quasi-static``, ``quasi-dynamic`` (radiation damping) or ``inertial``.
     model: str
+    #: Evolution law of the state Φ, ``aging`` (Dieterich) or ``slip`` (Ruina).
     state_law: str
-    parameters: tuple  # ((name, value), ...) in physical units
-    axes: tuple  # (Axis, ...)
+    #: The fixed (unswept) parameters shared by all blocks, ``((name, value), ...)``.
+    parameters: tuple[tuple[str, float], ...]
+    #: The sweep axes, in order (the dimensions of the result).
+    axes: tuple[Axis, ...]
+    #: The initial perturbation and the initial-condition ensemble (``initial:``).
     initial: Initial
+    #: Integrator settings (``integrator:``), e.g. method, tolerances, end time.
     integrator: Integrator
+    #: How a run is labelled (``classification:``), e.g. velocity cap, accuracy, events.
     classification: Classification
+    #: Result path, ``.nc`` (NetCDF) or ``.zarr`` (default ``results/<name>.nc``).
     output: str
+    #: Free text (``description:``); the result's ``description`` attribute.
     description: str = ""
-    # chain | ring | all; None: not given (an open chain, without the N-block outputs)
-    coupling_key: str = None
-    block_parameters: tuple = ()  # ((name, (value per block, ...)), ...), physical units
+    #: ``chain``, ``ring`` or ``all`` as given; None when not given (an open chain,
+    #: without the N-block outputs' ``coupling`` attribute). See :attr:`coupling`.
+    coupling_key: str | None = None
+    #: Per-block parameter lists, ``((name, (value per block, ...)), ...)``.
+    block_parameters: tuple[tuple[str, tuple[float, ...]], ...] = ()
+    #: The seeded relative spread of per-block values (``spread:``).
     spread: Spread = Spread()
-    refine: Refine = None  # None: the grid only
+    #: Refinement by label (the ``refine`` section), or None for the grid only.
+    refine: Refine | None = None
 
     @property
-    def coupling(self):
-        """Which blocks the coupling springs join: chain (default), ring or all."""
+    def coupling(self) -> str:
+        """Which blocks the coupling springs join (``chain``, the default, ``ring`` or ``all``)."""
         return self.coupling_key or "chain"
 
     @property
-    def heterogeneous(self):
-        """Whether blocks may differ: a per-block list, or a fixed or swept spread."""
+    def heterogeneous(self) -> bool:
+        """Whether blocks may differ (a per-block list, or a fixed or swept spread)."""
         return blocks_may_differ(self.block_parameters, self.spread, self.axes)
 
     @property
-    def nblock_outputs(self):
-        """Whether results carry the N-block outputs (sync_order, slip_participation):
-        for more than one block."""
+    def nblock_outputs(self) -> bool:
+        """Whether results carry the N-block outputs (``sync_order``,
+        ``slip_participation``), i.e. whether there is more than one block."""
         return self.blocks > 1
 
     @property
-    def features(self):
+    def features(self) -> tuple[str, ...]:
         """Which optional output groups a result has (``variables.Variable.feature``)."""
         return output_features(self.blocks, self.heterogeneous, self.initial.ensemble,
                                self.classification.events)  # fmt: skip
 
     @property
-    def members(self):
+    def members(self) -> int:
         """Runs per grid point (the ensemble size, or 1)."""
         return max(1, self.initial.ensemble)
 
     @property
-    def fixed(self):
+    def fixed(self) -> dict[str, float]:
         """The fixed parameters as a dict (name → value, physical units)."""
         return dict(self.parameters)
 
     @property
-    def shape(self):
-        """Grid shape: the length of each sweep axis, in order."""
+    def shape(self) -> tuple[int, ...]:
+        """The grid's shape (the length of each sweep axis, in order)."""
         return tuple(len(a.values) for a in self.axes)
 
     @property
-    def run_shape(self):
-        """Shape of the runs: the grid, then the ensemble members (if any)."""
+    def run_shape(self) -> tuple[int, ...]:
+        """The shape of the runs (the grid, then the ensemble members if any)."""
         return self.shape + ((self.members,) if self.initial.ensemble else ())
 
 
@@ -445,20 +472,25 @@ class _Checker:
         return self.number(value, key, low=info.low, low_open=info.low_open)
 
 
-def load_config(config):
+def load_config(config: str | os.PathLike | Mapping[str, Any] | Config) -> Config:
     """A validated :class:`Config` from a path, a packaged example's name, a mapping or a Config.
 
     Parameters
     ----------
-    config : str, path, Mapping or Config
+    config : str, os.PathLike, Mapping or Config
         A YAML file; else, if no such file exists, the name of a packaged example
-        (``sweep.examples.names()``, e.g. ``"quick"``); a mapping as the YAML would
+        (:func:`sweep.examples.names`, e.g. ``"quick"``); a mapping as the YAML would
         read (its ``source`` is ``"<mapping>"``); or a Config, returned as it is.
+
+    Returns
+    -------
+    Config
+        The validated config.
 
     Raises
     ------
     ConfigError
-        Listing every problem.
+        The file cannot be read or the config is not valid (every problem listed).
     """
     if isinstance(config, Config):
         return config
@@ -477,12 +509,28 @@ def load_config(config):
     return parse_config(text, source=str(path))
 
 
-def parse_config(config, source=None):
-    """Validate a config: YAML text, or a mapping as the YAML would read.
+def parse_config(config: str | Mapping[str, Any], source: str | None = None) -> Config:
+    """Validate a config given as YAML text or as a mapping, not as a file.
 
-    ``source`` names it in error messages and provenance (default: ``"<config>"``
-    for text, :data:`MAPPING_SOURCE` for a mapping). A mapping's ``config_text``
-    is its YAML. Raises :class:`ConfigError` listing every problem.
+    Parameters
+    ----------
+    config : str or Mapping
+        YAML text, or a mapping as the YAML would read (numpy numbers and arrays
+        are accepted; a mapping's ``config_text`` is its YAML).
+    source : str, optional
+        How error messages and provenance name it (default: ``"<config>"`` for
+        text, ``"<mapping>"`` for a mapping).
+
+    Returns
+    -------
+    Config
+        The validated config.
+
+    Raises
+    ------
+    ConfigError
+        The text is not YAML, or the config is not valid (every problem listed,
+        each naming its key, what is allowed and what was found).
     """
     if isinstance(config, Mapping):
         source = source or MAPPING_SOURCE
@@ -638,12 +686,16 @@ def _axis_mapping(axis):
     return {"start": start, "stop": stop, "num": len(axis.values), "scale": scale}
 
 
-def with_changes(config, changes, source=None):
+def with_changes(
+    config: str | os.PathLike | Mapping[str, Any] | Config,
+    changes: Mapping[str, Any],
+    source: str | None = None,
+) -> Config:
     """``config`` with some values changed, validated again like a file.
 
     Parameters
     ----------
-    config : Config, path or Mapping
+    config : str, os.PathLike, Mapping or Config
         The starting config (anything :func:`load_config` takes).
     changes : Mapping
         Nested like the YAML: e.g. ``{"integrator": {"t_end": 5000}, "parameters":
@@ -657,7 +709,13 @@ def with_changes(config, changes, source=None):
     Returns
     -------
     Config
-        Raises :class:`ConfigError` naming every changed key that is not valid.
+        The changed config, validated.
+
+    Raises
+    ------
+    ConfigError
+        ``changes`` is not a mapping, or the changed config is not valid (every
+        problem listed; the source names the changed key paths).
     """
     config = load_config(config)
     if not isinstance(changes, Mapping):

@@ -300,8 +300,24 @@ def utc_now():
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 
 
-def write_netcdf(ds, path):
-    """Write ``ds`` to ``path`` atomically (temporary file in the same folder, then rename)."""
+def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
+    """Write a result to a NetCDF file atomically (a temporary file, then a rename).
+
+    Data variables are compressed (zlib, level 4); coordinates get no fill value
+    (CF). A failed write leaves an earlier file at ``path`` as it was.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result (:func:`sweep.run`) or a trace (:func:`sweep.trace.compute_trace`).
+    path : str or pathlib.Path
+        The file; missing folders are created.
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     encoding = {name: {"zlib": True, "complevel": 4} for name in ds.data_vars}
@@ -311,13 +327,30 @@ def write_netcdf(ds, path):
     return path
 
 
-def read_result(path, needs_config=False):
-    """Load the result file ``path`` into memory (the file is closed again).
+def read_result(path: str | Path, needs_config: bool = False) -> xr.Dataset:
+    """Load a result file into memory and check that it is a complete sweep result.
 
-    With ``needs_config``, the file must also hold the config that made it
-    (``config_text``). A ``.zarr`` path is read as a Zarr store (needs zarr) and
-    must be complete. Raises :class:`~sweep.errors.InputError` naming ``path``
-    for a missing or unreadable file, or one that is not a sweep result.
+    The file is closed again, so it can be replaced while the result is in use
+    (``xarray.open_dataset`` alone keeps it open and reads lazily).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A NetCDF result, or a ``.zarr`` store (needs zarr), which must be complete.
+    needs_config : bool, default False
+        The file must also hold the config that made it (``config_text``).
+
+    Returns
+    -------
+    xarray.Dataset
+        The result, in memory.
+
+    Raises
+    ------
+    InputError
+        Naming ``path``: it is missing or unreadable, not a sweep result, without
+        ``config_text`` when ``needs_config`` asks for it, or has runs not yet
+        computed (a Zarr store of a sweep in progress).
     """
     zarr = Path(path).suffix == ZARR_SUFFIX
     if zarr:

@@ -16,10 +16,14 @@ chaotic and quasi-periodic motion can be told from undecided. Every other run
 is left as it was, bit for bit.
 """
 
+from __future__ import annotations
+
 import dataclasses
+import os
 from pathlib import Path
 
 import numpy as np
+import xarray as xr
 
 from .config import with_changes
 from .dataset import (
@@ -104,19 +108,25 @@ def with_end_time(config, t_end, early_exit=None, source=None):
     return dataclasses.replace(changed, source=config.source)
 
 
-def extend_result(result, t_end=None, threads=None, source=None):
+def extend_result(
+    result: str | os.PathLike | xr.Dataset,
+    t_end: float | None = None,
+    threads: int | None = None,
+    source: str | None = None,
+) -> xr.Dataset:
     """Continue the undecided runs of a result up to the end time ``t_end``.
 
     Parameters
     ----------
-    result : path or xarray.Dataset
-        A result of ``python -m sweep run`` (it holds its config).
+    result : str, os.PathLike or xarray.Dataset
+        A result of ``python -m sweep run`` or :func:`sweep.run` (it holds its
+        config), or the path of its file.
     t_end : float, optional
         New end time, in the config's ``t_unit`` (D0/V or s); must exceed the
         old horizon (``max_t_end``, up to which unsettled runs already went on;
         the end time without early exit). Default: 4 × that horizon.
     threads : int, optional
-        threads (default: all cores).
+        Threads on this machine (default: all cores).
     source : str, optional
         Name of the result in error messages (default: its path).
 
@@ -130,8 +140,13 @@ def extend_result(result, t_end=None, threads=None, source=None):
         and ``integrator_t_end`` and an entry in ``history``. Other runs are
         unchanged. A result without undecided runs is returned as it is.
 
-    Raises ``InputError`` for a file that cannot be continued or an end time
-    that is not later than the old one.
+    Raises
+    ------
+    InputError
+        The file cannot be read or continued (not a result, no stored config or
+        final state), or ``t_end`` is not later than the old horizon.
+    ConfigError
+        The stored config is no longer valid.
     """
     ds, source = load_result(result, source)
     config = stored_config(ds, source)
@@ -204,13 +219,45 @@ def write_extended(ds, path, source):
     return path
 
 
-def extend_file(path, t_end=None, out=None, threads=None):
-    """Extend the result file ``path`` and write it to ``out`` (default: in place).
+def extend_file(
+    path: str | os.PathLike,
+    t_end: float | None = None,
+    out: str | os.PathLike | None = None,
+    threads: int | None = None,
+) -> tuple[xr.Dataset, int]:
+    """Extend a result file's undecided runs (:func:`extend_result`) and write it.
 
-    Returns ``(dataset, n_continued)``; with no undecided run nothing is written
-    and ``n_continued`` is 0. Holds the lock of ``out`` from reading to writing, so a
-    run or another extend on it refuses with ``OutputBusy`` instead of one
-    overwriting the other's result.
+    Holds the lock of ``out`` from reading to writing, so a run or another extend
+    on it refuses instead of one overwriting the other's result. The file is
+    written through a temporary file, so a failed write leaves it as it was.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A result file (NetCDF, or a complete Zarr store with ``out`` given).
+    t_end : float, optional
+        New end time, as for :func:`extend_result`.
+    out : str or os.PathLike, optional
+        Where to write the extended result, a ``.nc`` path (default: ``path``,
+        in place).
+    threads : int, optional
+        Threads on this machine (default: all cores).
+
+    Returns
+    -------
+    dataset : xarray.Dataset
+        The extended result.
+    n_continued : int
+        Runs continued; 0 when no run was undecided, and then nothing is written.
+
+    Raises
+    ------
+    InputError
+        As for :func:`extend_result`; also an ``out`` that cannot be written, or a
+        Zarr store to be extended in place.
+    RunError
+        The file cannot be written (the old one is kept), or another process holds
+        the output's lock.
     """
     if out is None and Path(path).suffix == ZARR_SUFFIX:
         raise InputError(path, ["extend writes NetCDF: give --out PATH.nc to extend a Zarr store"])

@@ -343,7 +343,8 @@ def make_figures(
     caption = (
         "D0 = 1.0 and 0.6 µm (mean 0.8). K rising: a torus, the simple cycle's period "
         "doubling, the simple cycle, a slip and a stick bump (off the scale, ln v/V ≈ −25) "
-        "doubling to four events, chaos with periodic windows, the simple cycle again"
+        "doubling, periodic windows with tori and chaos between them, a chaotic band, the "
+        "simple cycle again"
     )
     route = compute(route_config, threads=threads, show_progress=False)
     fig = plot_orbit_diagram(route, caption=caption, lnv_range=(0.5, 2.5))

@@ -14,9 +14,13 @@ default regime, attractor and cycle_events: "stick_slip, periodic, 2 events"; wi
 ensemble the regime fractions).
 """
 
+from __future__ import annotations
+
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import xarray as xr
 
 from .refine import Lattice, axis_values, cell_tree, point_labels
 from .refined_dataset import lattice_index, refined_config
@@ -99,7 +103,7 @@ def _label_text(ds, labels, row):
     return ", ".join(parts) or "-"
 
 
-def boundaries(ds, outputs=None):
+def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Boundary]:
     """The boundaries between the labels of a refined result.
 
     Parameters
@@ -114,9 +118,16 @@ def boundaries(ds, outputs=None):
     Returns
     -------
     list of Boundary
-        Sorted by the labels they separate, then by their first vertex. Raises
-        ``InputError`` for a result that is not refined and ``ValueError`` for one
-        refined over more than two axes (its boundaries are surfaces).
+        One record per polyline (``between``, ``axes``, ``vertices``, ``resolution``,
+        ``level``; see :class:`~sweep.phase_boundaries.Boundary`), sorted by the labels
+        they separate, then by their first vertex.
+
+    Raises
+    ------
+    InputError
+        ``ds`` is not a refined result.
+    ValueError
+        ``ds`` is refined over more than two axes (its boundaries are surfaces).
     """
     config = refined_config(ds)
     lattice = Lattice(config)

@@ -10,14 +10,26 @@ lazily, so importing the package stays light.
 One table, :data:`REGIME_COLOURS`, colours each regime in every figure.
 """
 
+from __future__ import annotations
+
+import os
 import re
 import textwrap
+from collections.abc import Iterable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .dataset import parameter_values
 from .physics import PARAMETERS
 from .variables import REGIMES
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    import xarray
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 #: Colour of each regime in every figure (Okabe–Ito palette, colour-blind safe).
 REGIME_COLOURS = {
@@ -185,18 +197,36 @@ def critical_crossings(x, ratio):
 MEASURES = ("lnv_amplitude", "growth_rate")
 
 
-def plot_result(ds, caption="", ax=None):
-    """Phase diagram of a sweep result; returns the Figure.
+def plot_result(ds: xarray.Dataset, caption: str = "", ax: Axes | None = None) -> Figure:
+    """Phase diagram of a sweep result.
 
     Two or more sweep axes: regimes as a categorical map over the first two
     (first axis along x), beside maps of :data:`MEASURES`; one axis: the
     measures against it, points coloured by regime, with the linear growth
     rate. The analytic critical stiffness (where K/Kc = 1) is drawn over every
     panel. Further axes are taken at their first value (named in the title).
-    ``caption``: an extra title line. With ``ax`` (a matplotlib Axes), only the
-    regime panel is drawn there (one axis: the first measure coloured by regime),
-    with no figure title, and its Figure is returned. A refined result is drawn by
-    :func:`plot_refined`.
+    A refined result (runs along ``point``) is drawn by :func:`plot_refined`: its
+    cells at their level with the boundaries between labels on top.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A sweep result (:func:`sweep.run`, or a file opened with xarray).
+    caption : str, optional
+        An extra line of the figure's title.
+    ax : matplotlib.axes.Axes, optional
+        Draw only the regime panel there (one axis: the first measure coloured by
+        regime), with no figure title (default: a new figure with every panel).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The new figure, or the figure of ``ax``.
+
+    Raises
+    ------
+    ValueError
+        No sweep axis has more than one value.
     """
     if _refined(ds):
         return plot_refined(ds, caption, ax)
@@ -364,29 +394,38 @@ def _figure_and_axes(ax, figsize):
     return fig, fig.subplots()
 
 
-def plot_variable(ds, name, ax=None, block=0):
-    """Any variable of a sweep result over its sweep axes; returns the Figure.
+def plot_variable(ds: xarray.Dataset, name: str, ax: Axes | None = None, block: int = 0) -> Figure:
+    """Any variable of a sweep result over its sweep axes.
 
     Two or more sweep axes: a colour map over the first two (``regime`` as
     categories, others with a colour bar naming the units); one axis: the
     variable against it, points coloured by regime. Further axes are taken at
     their first value, per-block variables at ``block``; both are named in the
-    title. The analytic Kc (K/Kc = 1) is drawn dashed.
+    title. The analytic Kc (K/Kc = 1) is drawn dashed. A refined result is drawn on
+    a grid (``refined_dataset.as_grid``).
 
     Parameters
     ----------
     ds : xarray.Dataset
         A sweep result.
     name : str
-        The variable, e.g. ``"period"`` (s) or ``"v_max"`` (µm s⁻¹); see :func:`plottable`.
-    ax : matplotlib Axes, optional
+        The variable, e.g. ``"period"`` (s) or ``"v_max"`` (µm s⁻¹): any numeric
+        data variable of the result (``sweep.plots.plottable(ds)`` lists them).
+    ax : matplotlib.axes.Axes, optional
         Draw there (default: a new figure).
-    block : int
+    block : int, default 0
         Block index for per-block variables.
 
-    A refined result is drawn on a grid (``refined_dataset.as_grid``).
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The new figure, or the figure of ``ax``.
 
-    Raises ``ValueError`` listing the valid names for an unknown ``name``.
+    Raises
+    ------
+    ValueError
+        ``name`` is not a variable of the result (the message lists the valid
+        names), or no sweep axis has more than one value.
     """
     ds = _as_grid(ds)
     valid = plottable(ds)
@@ -457,15 +496,33 @@ def _scalar(ds, name):
     return parameter_values(ds).get(name)
 
 
-def plot_bifurcation(datasets, caption=""):
-    """Bifurcation diagram of 1-D sweeps over K (or any axis); returns the Figure.
+def plot_bifurcation(datasets: Iterable[xarray.Dataset], caption: str = "") -> Figure:
+    """Bifurcation diagram of 1-D sweeps over K (or any axis).
 
     Amplitude of the attractor against K/Kc, one curve per model (and per value
     of any further sweep axis): (a) peak-to-peak ln v, (b) v_max/V and v_min/V.
     Steady runs are drawn at zero amplitude (v/V = 1: their attractor is steady
     sliding, whatever transient they showed); runaway runs as triangles at the
-    top (no bounded attractor); marker colours are the regimes. ``caption``:
-    an extra title line.
+    top (no bounded attractor); marker colours are the regimes.
+
+    Parameters
+    ----------
+    datasets : iterable of xarray.Dataset
+        Sweep results, e.g. of ``configs/bifurcation_qs.yaml`` and
+        ``configs/bifurcation_qd.yaml``; each gives one curve per value of its
+        axes other than K/W.
+    caption : str, optional
+        An extra line of the figure's title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        A new figure with the two panels.
+
+    Raises
+    ------
+    ValueError
+        No point of any result has an analytic Kc > 0 (no instability to show).
     """
     from matplotlib.lines import Line2D
 
@@ -643,21 +700,46 @@ ATTRACTOR_COLOURS = {
 }
 
 
-def plot_orbit_diagram(ds, axis=None, ax=None, caption="", lnv_range=None):
-    """Orbit diagram of a sweep result: the last events' maxima of ln v (block 0)
-    against one sweep axis; returns the Figure.
+def plot_orbit_diagram(
+    ds: xarray.Dataset,
+    axis: str | None = None,
+    ax: Axes | None = None,
+    caption: str = "",
+    lnv_range: tuple[float, float] | None = None,
+) -> Figure:
+    """Orbit diagram: the last events' maxima of ln v (block 0) against a sweep axis.
 
     Each run's ``event_lnv_peak`` (a periodic run: its cycle's n events; chaotic and
     quasi-periodic runs: their last kept events) as points coloured by attractor,
     and below, the largest Lyapunov exponent with its error where it was computed.
-    ``axis``: the sweep axis along x (default the first with more than one value);
-    the other axes are taken at their first value (named in the title). With
-    ``ax``, only the orbit panel is drawn there. ``caption``: an extra title line.
-    ``lnv_range``: (low, high) of ln(v/V) shown, e.g. only the slips, where the small
-    bumps of a sticking block (ln v/V ≈ −25) would squash them (default: all).
 
-    Raises ``ValueError`` for a result without events (``classification.events: 0``)
-    or an unknown axis. A refined result is drawn on a grid (``refined_dataset.as_grid``).
+    A refined result is drawn on a grid (``refined_dataset.as_grid``).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A sweep result with events (``classification.events`` > 0).
+    axis : str, optional
+        The sweep axis along x (default: the first with more than one value); the
+        other axes are taken at their first value (named in the title).
+    ax : matplotlib.axes.Axes, optional
+        Draw only the orbit panel there (default: a new figure with both panels).
+    caption : str, optional
+        An extra line of the figure's title.
+    lnv_range : (float, float), optional
+        The range of ln(v/V) shown, e.g. only the slips, where the small bumps of a
+        sticking block (ln v/V ≈ −25) would squash them (default: all).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The new figure, or the figure of ``ax``.
+
+    Raises
+    ------
+    ValueError
+        The result has no events (``classification.events: 0``), or ``axis`` is
+        not one of its sweep axes.
     """
     ds = _as_grid(ds)
     if "event_lnv_peak" not in ds:
@@ -711,11 +793,24 @@ def plot_orbit_diagram(ds, axis=None, ax=None, caption="", lnv_range=None):
     return fig
 
 
-def plot_trace(ds, ax=None):
-    """Block velocity against time of one trace (``sweep/trace.py``); returns the Figure.
+def plot_trace(ds: xarray.Dataset, ax: Axes | None = None) -> Figure:
+    """Slip velocity of every block against time, of one trace.
 
-    ``ax``: draw there (default: a new figure). The time axis ends where the run
-    ended.
+    The time axis ends where the run ended; the title names the parameters, K/Kc
+    and the start.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A trace: :func:`sweep.trace.compute_trace`, or a file written by
+        ``python -m sweep trace``.
+    ax : matplotlib.axes.Axes, optional
+        Draw there (default: a new figure).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The new figure, or the figure of ``ax``.
     """
     fig, ax = _figure_and_axes(ax, (8, 4.2))
     draw_trace(ax, ds)
@@ -724,11 +819,28 @@ def plot_trace(ds, ax=None):
     return fig
 
 
-def save_figure(fig, out, dpi=DPI):
-    """Write ``fig`` to ``out`` atomically, creating folders; return the path.
+def save_figure(fig: Figure, out: str | os.PathLike, dpi: float = DPI) -> Path:
+    """Write a figure to a file atomically (a temporary file, then a rename).
 
-    The suffix picks the format: ``.png`` (at ``dpi`` dots per inch), ``.pdf`` or
-    ``.svg`` (see :data:`FORMATS`); raises ``ValueError`` for another.
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure, e.g. from :func:`plot_result`.
+    out : str or os.PathLike
+        The file; its suffix picks the format: ``.png``, ``.pdf`` or ``.svg``.
+        Missing folders are created.
+    dpi : float, default 150
+        Resolution of a PNG, in dots per inch.
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+
+    Raises
+    ------
+    ValueError
+        The suffix is not ``.png``, ``.pdf`` or ``.svg``.
     """
     from pathlib import Path
 

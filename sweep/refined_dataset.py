@@ -107,7 +107,7 @@ def lattice_index(ds, lattice):
     )
 
 
-def to_grid(ds, level=0):
+def to_grid(ds: xr.Dataset, level: int = 0) -> xr.Dataset:
     """A refined result on the regular grid of ``level``: a Dataset like a grid sweep's.
 
     Every grid point takes the values of the run at it where there is one, else of the
@@ -125,14 +125,25 @@ def to_grid(ds, level=0):
     ds : xarray.Dataset
         A refined result (:func:`sweep.run` or ``python -m sweep run`` with a ``refine``
         section).
-    level : int
+    level : int, default 0
         From 0 (the config's grid) to the result's ``refine_levels``.
 
     Returns
     -------
     xarray.Dataset
-        Raises ``InputError`` for a result that is not refined, ``ValueError`` for a level
-        out of range or a grid of more than :data:`MAX_GRID_POINTS` points.
+        The grid of ``level``: one dimension per sweep axis at that level's values,
+        the data variables of the runs taken, and the coordinates ``level`` and
+        ``exact``; the attributes of ``ds`` (without ``featureType``) and
+        ``refine_grid_level``.
+
+    Raises
+    ------
+    InputError
+        ``ds`` is not a refined result (no runs along ``point`` with
+        ``featureType`` point, or no stored config with a ``refine`` section).
+    ValueError
+        ``level`` is not an integer in [0, ``refine_levels``], or its grid would have
+        more than :data:`MAX_GRID_POINTS` points.
     """
     config = refined_config(ds)
     lattice = Lattice(config)

@@ -16,6 +16,8 @@ ending in ``.zarr`` is a Zarr store instead (``sweep/zarr_store.py``): created
 full size up front, each chunk written into it as it finishes, no parts.
 """
 
+from __future__ import annotations
+
 import logging
 import math
 import signal
@@ -27,8 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from . import store, zarr_store
-from .backends import DaskTasks, LocalThreads, open_backend
-from .config import parse_config
+from .backends import DaskTasks, LocalThreads, Resources, open_backend
+from .config import Config, parse_config
 from .dataset import build_dataset, write_netcdf
 from .errors import ConfigError, InputError, Interrupted, PartError, RunError
 from .grid import build_grid, settings_array, state_size
@@ -192,38 +194,67 @@ def compute(config, threads=None, chunk_size=None, show_progress=True, client=No
     return build_dataset(grid, results, y_final, command)
 
 
-def run_sweep(config, out=None, *, resources=None, chunk_size=None, resume=False, shard=None,
-              show_progress=True, stop=None):  # fmt: skip
+def run_sweep(
+    config: Config,
+    out: str | Path | None = None,
+    *,
+    resources: Resources | None = None,
+    chunk_size: int | None = None,
+    resume: bool = False,
+    shard: tuple[int, int] | None = None,
+    show_progress: bool = True,
+    stop: StopRequest | None = None,
+) -> SweepResult:
     """Run ``config``, saving each chunk as a part, and write the NetCDF result.
+
+    What ``python -m sweep run`` does: chunks run on threads or Dask, each kept as
+    a part file as it finishes, so an interrupted sweep resumes where it stopped.
+    A config with a ``refine`` section runs level by level
+    (``sweep/refine_runner.py``), its runs along one dimension, ``point``.
 
     Parameters
     ----------
     config : Config
-    out : path, optional
+        The sweep (:func:`sweep.load_config`).
+    out : str or pathlib.Path, optional
         NetCDF output (default: the config's ``output``); parts go to
         ``<out without .nc>.parts/``. A ``.zarr`` path is a Zarr store filled
         chunk by chunk (its chunks are the runner's; ``shard`` is refused).
-    resources : backends.Resources, optional
+    resources : sweep.backends.Resources, optional
         Where the chunks run: ``threads`` on this machine (default: all cores), or Dask (a
         ``scheduler`` address or ``dask_local`` worker processes).
     chunk_size : int, optional
         Systems per chunk (default: :func:`default_chunk_size`; with ``shard``,
         one that depends on the grid size only, so all shards agree).
-    resume : bool
+    resume : bool, default False
         Reuse the rows of valid parts of this config instead of recomputing them.
-    shard : (i, n_shards), optional
+    shard : (int, int), optional
         Compute only chunks ``k`` with ``k % n_shards == i`` and keep them as
-        parts (no NetCDF); combine with ``merge_parts`` or a later full run.
-    show_progress : bool
+        parts (no NetCDF), ``i`` of ``n_shards``; combine with ``merge_parts`` or a
+        later full run.
+    show_progress : bool, default True
         Show progress (:class:`~sweep.progress.Progress`: a bar in a notebook or on a
         terminal, plain lines in pipes and logs).
     stop : StopRequest, optional
         Checked between chunks; when set, raise :class:`~sweep.errors.Interrupted`.
 
-    Raises ``InputError`` for an output that cannot be written, ``RunError``
-    when the disk or the cluster fails and ``Interrupted`` after a stop; in
-    every case an earlier result file is left as it was. A config with a ``refine``
-    section runs level by level (``sweep/refine_runner.py``).
+    Returns
+    -------
+    SweepResult
+        ``dataset`` (the result; None for a shard), ``path`` (the file written, or
+        a shard's parts folder), ``elapsed`` (wall time, s), ``computed`` and
+        ``reused`` (runs integrated now and read back from parts); for a refinement
+        also ``timings`` (wall time, s, by activity).
+
+    Raises
+    ------
+    InputError
+        The output cannot be written, or ``shard`` (or a ``refine`` section) is
+        given with a Zarr output.
+    RunError
+        The disk or the cluster failed, or another process holds the output's
+        lock; after a stop, its subclass ``Interrupted``. In every case an earlier
+        result file is left as it was, and the parts written so far are kept.
     """
     if config.refine is not None:
         from .refine_runner import run_refined

@@ -13,14 +13,17 @@ decayed run is followed to the end), except that a runaway ends it, exactly
 as in a sweep.
 """
 
+from __future__ import annotations
+
 import dataclasses
 import math
+from collections.abc import Mapping
 
 import numpy as np
 import xarray as xr
 
 from . import physics
-from .config import ConfigError, with_changes
+from .config import Config, ConfigError, with_changes
 from .dataset import (
     derived_fields,
     parameter_attrs,
@@ -48,14 +51,31 @@ TRACE_VARIABLES = {
 }
 
 
-def pin_config(config, at, t_end=None):
+def pin_config(config: Config, at: Mapping[str, float], t_end: float | None = None) -> Config:
     """The one-system config of ``config`` at the parameter values ``at``.
 
-    ``at``: parameter name → value (physical units). Every sweep axis must be
-    given; a fixed parameter given in ``at`` is overridden. ``t_end`` (in the
-    config's ``t_unit``) replaces the end time. Early exit is switched off.
-    Raises :class:`~sweep.errors.InputError` listing every problem (of ``at`` and
-    ``t_end``: ``config`` itself is valid).
+    Early exit is switched off, so that a trace follows the run to its end time.
+
+    Parameters
+    ----------
+    config : Config
+        A sweep's config (:func:`sweep.load_config`).
+    at : Mapping of str to float
+        Parameter name → value, in physical units (e.g. ``{"K_W": 0.046}``, µm⁻¹).
+        Every sweep axis must be given; a fixed parameter given here is overridden.
+    t_end : float, optional
+        A new end time, in the config's ``t_unit`` (default: the config's).
+
+    Returns
+    -------
+    Config
+        A config of one grid point, for :func:`compute_trace`.
+
+    Raises
+    ------
+    InputError
+        Listing every problem of ``at`` and ``t_end`` (an unknown parameter, a
+        sweep axis without a value, a value out of range).
     """
     text = " ".join(f"--at {name}={value:g}" for name, value in at.items())
     source = f"{config.source} {text}".strip()
@@ -117,14 +137,29 @@ def decimate(lnv, points):
     return np.unique(keep[keep < n])
 
 
-def compute_trace(config, points=4000):
-    """Integrate the single system of a pinned config (see :func:`pin_config`).
+def compute_trace(config: Config, points: int = 4000) -> xr.Dataset:
+    """Integrate the single system of a pinned config and keep its time series.
 
-    ``points``: number of time bins of the decimated series (each keeps up to
-    1 + 2 × blocks samples). Returns the trace Dataset: ``velocity`` (µm/s), ``lnv``,
-    ``ln_state``, ``friction`` over (block, time [s]); every model parameter a
-    scalar coordinate; the run's regime, t_runaway and other statistics of the
-    sweep's schema in the attributes.
+    Parameters
+    ----------
+    config : Config
+        A config of one grid point (:func:`pin_config`).
+    points : int, default 4000
+        Number of time bins of the decimated series (each keeps up to
+        1 + 2 × blocks samples, so every slip peak and stick trough survives).
+
+    Returns
+    -------
+    xarray.Dataset
+        The trace: ``velocity`` (µm/s), ``lnv``, ``ln_state`` and ``friction`` over
+        (``block``, ``time`` in s); every model parameter a scalar coordinate; the
+        run's regime, ``t_runaway`` and the other statistics of the sweep's schema
+        as attributes. :func:`sweep.plot_trace` draws it.
+
+    Raises
+    ------
+    ValueError
+        The config has more than one grid point.
     """
     if math.prod(config.shape) != 1:
         raise ValueError(

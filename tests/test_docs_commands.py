@@ -40,7 +40,9 @@ BIN = Path(sys.executable).parent
 RUN = {"sh", "python"}
 CHECKED = {"yaml"}
 NOT_RUN = {"text", "{eval-rst}", "{toctree}", "{include}", "{confkey}", "{outvar}"}
-NOT_RUN |= {"{sweep-config-keys}", "{sweep-output-variables}"}
+NOT_RUN |= {"{sweep-config-keys}", "{sweep-output-variables}", "{image}", "{math}"}
+#: Directives of docs/_ext whose content is generated (command line, citation)
+NOT_RUN |= {"{sweep-cli}", "{sweep-citation}", "{sweep-references}"}
 TIMEOUT = 600
 
 

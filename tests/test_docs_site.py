@@ -49,3 +49,101 @@ def test_every_config_key_has_an_entry():
         assert listed or key in GENERATED_SECTIONS, f"no entry for config key {key}"
     for field in dataclasses.fields(Initial):
         assert f"initial.{field.name}" in entries, f"no entry for initial.{field.name}"
+
+
+def float_literals(text):
+    """Every number written in ``text`` (``2e-3``, ``0.002``, ``1e5``), as floats."""
+    return {float(x) for x in re.findall(r"(?<![\w.])\d+(?:\.\d+)?(?:e[-+]?\d+)?(?![\w.])", text)}
+
+
+def stated_tolerances(bullet):
+    """The tolerances a bullet says a test uses: "tested at 1e-4 and 1e-6", "tested at
+    2 %" (as 0.02)."""
+    found = []
+    for phrase in re.findall(r"tested at ((?:[\d.]+(?:e-\d+)?(?: %)?(?:,| and| or)? ?)+)", bullet):
+        for number, percent in re.findall(r"([\d.]+(?:e-\d+)?)( %)?", phrase):
+            found.append(float(number) / 100 if percent else float(number))
+    return found
+
+
+def test_internals_tolerances_are_the_tests():
+    """Each "tested at …" tolerance of docs/internals.md's test list is written in one of
+    the test modules its bullet names, so a tolerance changed in a test cannot leave
+    the page behind (the page quoted tolerances that had moved, issue 40)."""
+    text = (DOCS / "internals.md").read_text()
+    tests = text[text.index("## Tests") : text.index("## Numerical choices")]
+    bullets = re.split(r"\n- ", tests)[1:]
+    checked = 0
+    for bullet in bullets:
+        bullet = " ".join(bullet.split())
+        files = set(re.findall(r"tests/(\w+\.py)", bullet))
+        literals = set()
+        for name in files:
+            literals |= float_literals((ROOT / "tests" / name).read_text())
+        for value in stated_tolerances(bullet):
+            assert any(abs(value - x) <= 1e-12 * value for x in literals), (
+                f"internals.md says a test in {sorted(files)} uses {value:g}: not in the tests"
+            )
+            checked += 1
+    assert checked >= 10  # the page still states them
+
+
+# --- the site as a reader finds it (issue 40) --------------------------------------------
+
+
+def prose(page):
+    """A page's text outside fenced code blocks."""
+    out, fence = [], False
+    for line in page.read_text().splitlines():
+        if line.startswith("```"):
+            fence = not fence
+        elif not fence:
+            out.append(line)
+    return "\n".join(out)
+
+
+def guide_pages():
+    return [DOCS / "getting-started.md", *sorted((DOCS / "guide").glob("*.md")),
+            DOCS / "physics.md"]  # fmt: skip
+
+
+def test_the_guide_links_every_api_name_it_mentions():
+    """A documented ``sweep.*`` name in the guide's prose is a link (``{func}`` or
+    ``{class}`` role), not plain code, and every guide page links to the API."""
+    documented = {f"sweep.{name}" for name in autosummary_names((DOCS / "api.md").read_text())}
+    for page in guide_pages():
+        text = prose(page)
+        plain = re.findall(r"(?<![}\w])`(sweep\.[\w.]+)", text)
+        named = [n for n in plain if n in documented or n.rsplit(".", 1)[0] in documented]
+        assert not named, f"{page.name}: plain code, not a link: {named}"
+        if page.parent.name == "guide":
+            assert re.search(r"\{(func|class)\}`~?sweep\.", text), f"{page.name}: no API link"
+
+
+def test_the_site_loads_nothing_from_a_cdn():
+    """Math is MathML written at build time (no MathJax), sphinx-gallery writes no
+    execution-time pages (they load DataTables and Bootstrap from CDNs), and every
+    style sheet is served from the site."""
+    conf = {"__file__": str(DOCS / "conf.py")}
+    exec(compile((DOCS / "conf.py").read_text(), "conf.py", "exec"), conf)
+    assert "sphinx.ext.mathjax" not in conf["extensions"]
+    assert conf["html_math_renderer"] == "mathml" and "sweep_mathml" in conf["extensions"]
+    assert conf["sphinx_gallery_conf"]["write_computation_times"] is False
+    for css in conf["html_css_files"]:
+        assert (DOCS / "_static" / css).is_file() and "//" not in css
+
+
+def test_citing_page_is_linked_and_every_reference_is_complete():
+    """The landing page, the physics page and its errata link the citing page; each
+    reference of CITATION.cff but the seed paper has authors, a year and a DOI."""
+    import yaml
+
+    assert "citing.md" in (DOCS / "index.md").read_text()
+    physics = (DOCS / "physics.md").read_text()
+    errata = physics[physics.index("## Errata in the seed paper") :]
+    assert "citing.md" in physics[: physics.index("## Errata")] and "citing.md" in errata
+    cff = yaml.safe_load((ROOT / "CITATION.cff").read_text())
+    seed, *others = cff["references"]
+    assert seed["authors"][0]["family-names"] == "Szkutnik"
+    for ref in others:
+        assert ref["authors"] and ref["year"] and ref["doi"].startswith("10."), ref["title"]

@@ -430,3 +430,63 @@ def test_readme_and_models_page_state_the_same_numbers(pattern):
     (in_readme,) = re.findall(pattern, readme)
     (in_page,) = re.findall(pattern, page)
     assert in_readme == in_page
+
+
+# --- defaults and counts the pages state, against the code (issue 40 §6) -----------------
+
+#: How the pages name each ``integrator.method``.
+METHOD_NAMES = {"dop853": "DOP853", "dopri5": "DOPRI5", "rk4": "RK4", "rosenbrock": "RODAS4"}
+
+
+def default_method(model):
+    """``integrator.method`` of a config that does not set it, for ``model``."""
+    from sweep.config import required_parameters
+
+    values = {"A": 0.03, "B": 0.08, "mu0": 0.4, "V": 0.1, "D0": 1.0, "eta_W": 0.01, "m_W": 1.0}
+    fixed = {k: values[k] for k in required_parameters(1, model) if k != "K_W"}
+    raw = {"blocks": 1, "model": model, "parameters": {**fixed, "Phi0": 1.0},
+           "sweep": {"K_W": [0.05]}}  # fmt: skip
+    return parse_config(raw).integrator.method
+
+
+def test_readme_names_each_models_default_method():
+    """The README's "by default `dop853` …; `rosenbrock` (RODAS4 …) for the stiff
+    inertial model" is what a config that names no method gets, model by model, and
+    names every method the parser accepts."""
+    from sweep.config import METHODS
+    from sweep.physics import MODELS
+
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    sentence = (r"by default `(\w+)`[^;]*; `(\w+)` \((\w+),[^)]*\) for the stiff inertial "
+                r"model; `(\w+)` and the paper's fixed-step `(\w+)`")  # fmt: skip
+    match = re.search(sentence, readme)
+    assert match, "README: the sentence naming the default methods is gone"
+    default, inertial, inertial_name, *others = match.groups()
+    for model in MODELS:
+        assert default_method(model) == (inertial if model == "inertial" else default), model
+    assert METHOD_NAMES[inertial] == inertial_name
+    assert {default, inertial, *others} == set(METHODS) == set(METHOD_NAMES)
+
+
+def test_models_page_names_each_models_default_method():
+    """docs/guide/models.md: the inertial model "defaults to `integrator.method:
+    rosenbrock`", "the other models default to `integrator.method: dop853`"."""
+    (inertial,) = doc_numbers(r"It therefore defaults to `integrator.method: (\w+)`")
+    (others,) = doc_numbers(r"The other models default to `integrator.method: (\w+)`")
+    assert default_method("inertial") == inertial
+    assert {default_method(m) for m in ("quasi-static", "quasi-dynamic")} == {others}
+
+
+def test_stated_event_counts_are_the_codes():
+    """Counts of events the pages state: the default ``classification.events`` kept per
+    run (large sweeps), the longest cycle the classifier recognises (internals), and
+    the events a chaotic run's amplitude spans (outputs), against the code."""
+    from sweep.config import MAX_EVENTS
+    from sweep.kernels import cycles
+
+    (kept,) = doc_numbers(r"half of it the (\d+) event maxima and intervals kept per run")
+    assert int(kept) == Classification().events
+    (longest,) = doc_numbers(r"return-map verdicts for cycles of 1 to (\d+) events")
+    assert int(longest) == cycles.MAX_CYCLE_EVENTS
+    (spanned,) = doc_numbers(r"the last kept events \(up to (\d+)\) of chaotic")
+    assert int(spanned) == cycles.HISTORY == MAX_EVENTS

@@ -217,8 +217,10 @@ def test_runs_that_need_the_tangent_are_redone_by_its_kernel_number_for_number()
     after that, the variant's calls go straight to that kernel, with the same numbers.
     Asked for λ1 over whole runs, the kernel without it steps no run."""
     ks = [1.1 * KC_W, 0.9 * KC_W, 1.0 * KC_W, 1.0002 * KC_W]
-    t_end = 20.0  # runaway, cycle and slow decay all unsettled by then
-    config = make_config({"sweep": {"K_W": ks}, "integrator": {"t_end": t_end}})
+    t_end = 20.0  # runaway, cycle and slow decay all unsettled by then; the runaway and
+    # the slow decay still unsettled at max_t_end = 40, with λ1 over 20 … 40
+    config = make_config({"sweep": {"K_W": ks}, "integrator": {"t_end": t_end},
+                          "classification": {"max_t_end": 2 * t_end}})  # fmt: skip
     g = build_grid(config)
 
     def call(kernel, settings):
