@@ -74,7 +74,7 @@ def test_every_benchmark_runs_at_smoke_size(tmp_path):
         bad = {k: v for k, v in values.items() if not math.isfinite(v)}
         assert not bad, f"{section}: not finite: {bad}"
     assert figures["oneblock"]["config"] == "configs/quick.yaml"
-    refine = figures["refine"]
+    refine = figures["refine"]["quick"]
     assert refine["runs"] == sum(refine["runs_per_level"]) < refine["uniform_runs"] == 33
     for method in ("LSODA", "DOP853"):
         assert 0.0 <= figures["scipy"][method]["agreement_percent"] <= 100.0
