@@ -478,7 +478,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
     With a fixed size, the state, the stages and the other scratch of the step are
     arrays of that size on the stack (``stack.py``), which LLVM keeps in registers:
     1.1–1.4× faster per step for one and two blocks, the same numbers bit for bit
-    (``docs/internals.md``). Otherwise they are numba arrays on the heap.
+    (``docs/performance.md``). Otherwise they are numba arrays on the heap.
 
     ``integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y)``
     integrates every row one after another: the system with parameters ``params[s]``

@@ -387,7 +387,7 @@ def dense_excursion(method, y0, y1, d0, d1, h, r5):
     other methods take ``EXCURSION_FACTOR`` × (|y1 − y0| + h (|d0| + |d1|)): DOP853's
     r6 … r8 cost three more stages, and the cubic Hermite interpolant of RK4 and RODAS4
     keeps the factor too (its proved bound, r5 = 0, would move the inertial configs'
-    friction drops by up to 1.3e-7 for no measurable time: ``docs/internals.md``)."""
+    friction drops by up to 1.3e-7 for no measurable time: ``docs/performance.md``)."""
     if method == DOPRI5:
         return _CUBE_SLOPE * h * (abs(d0) + abs(d1)) + _CUBE_CHORD * abs(y1 - y0) + abs(r5) / 16.0
     return EXCURSION_FACTOR * (abs(y1 - y0) + h * (abs(d0) + abs(d1)))
