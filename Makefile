@@ -34,8 +34,11 @@ NOJIT_TESTS := tests/test_physics.py tests/test_kernels.py tests/test_grid.py \
 test-nojit: $(STAMP)
 	NUMBA_DISABLE_JIT=1 $(PY) -m pytest -q $(NOJIT_TESTS)
 
+# The benchmarks (results/bench.json), then the plot of the engine against its peers
+# drawn from them (results/bench_peers.png; docs/performance.md).
 bench: $(STAMP)
 	$(PY) benchmarks/bench.py
+	$(PY) benchmarks/plot_bench.py
 
 figures: $(STAMP)
 	$(PY) -m sweep figures --dpi 100

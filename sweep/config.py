@@ -177,7 +177,7 @@ class Integrator:
     # Largest step of the adaptive methods. DOPRI5 and DOP853 need none: their dense
     # output is as accurate as their steps, and extrema that do not stand out of the
     # error scale count as no events (kernels/cycles.py, TURN_FACTOR). RODAS4 keeps
-    # 0.5 D0/V (DEFAULT_MAX_STEPS; docs/changelog.md, "max_step").
+    # 0.5 D0/V (DEFAULT_MAX_STEPS; docs/internals.md, "max_step").
     max_step: float = setting(math.inf, "largest step of the adaptive methods (.inf: no cap; "
                               "rosenbrock's default: 0.5)", "(0, inf)", "D0/V")  # fmt: skip
     t_end: float = setting(3000.0, "end time", "(0, inf)", "t_unit")
