@@ -66,7 +66,7 @@ def test_every_benchmark_runs_at_smoke_size(tmp_path):
     assert run.returncode == 0, run.stderr[-3000:]
     figures = json.loads(out.read_text())
     sections = {"scipy", "single_purpose", "scipy_hard", "threads_large", "throughput", "rk4",
-                "oneblock", "dask", "compile", "attractors"}  # fmt: skip
+                "oneblock", "dask", "compile", "attractors", "refine"}  # fmt: skip
     assert sections <= set(figures)
     for section in sections:
         values = dict(numbers(figures[section]))
@@ -74,6 +74,8 @@ def test_every_benchmark_runs_at_smoke_size(tmp_path):
         bad = {k: v for k, v in values.items() if not math.isfinite(v)}
         assert not bad, f"{section}: not finite: {bad}"
     assert figures["oneblock"]["config"] == "configs/quick.yaml"
+    refine = figures["refine"]["quick"]
+    assert refine["runs"] == sum(refine["runs_per_level"]) < refine["uniform_runs"] == 33
     for method in ("LSODA", "DOP853"):
         assert 0.0 <= figures["scipy"][method]["agreement_percent"] <= 100.0
         assert figures["scipy"][method]["seconds"] > 0.0
