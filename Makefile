@@ -20,10 +20,11 @@ sweep: $(STAMP)
 	$(PY) -m sweep run $(CONFIG) $(if $(THREADS),--threads $(THREADS))
 
 # The suite on TEST_WORKERS processes (pytest-xdist; "auto": one per core), which take
-# tests as they come free and share numba's on-disk cache of compiled kernels.
+# tests as they come free and share numba's on-disk cache of compiled kernels; the
+# report ends with the 25 slowest tests (and set-ups), where the suite's time goes.
 TEST_WORKERS ?= 2
 test: $(STAMP)
-	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist worksteal
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist worksteal --durations=25
 
 # The kernels as plain Python, so they count in coverage runs: the tests of the
 # model, kernels, grid, files and CLI (the long regularised, batch and figure runs
@@ -33,8 +34,11 @@ NOJIT_TESTS := tests/test_physics.py tests/test_kernels.py tests/test_grid.py \
 test-nojit: $(STAMP)
 	NUMBA_DISABLE_JIT=1 $(PY) -m pytest -q $(NOJIT_TESTS)
 
+# The benchmarks (results/bench.json), then the plot of the engine against its peers
+# drawn from them (results/bench_peers.png; docs/performance.md).
 bench: $(STAMP)
 	$(PY) benchmarks/bench.py
+	$(PY) benchmarks/plot_bench.py
 
 figures: $(STAMP)
 	$(PY) -m sweep figures --dpi 100

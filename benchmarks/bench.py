@@ -17,7 +17,14 @@ Prints and writes ``results/bench.json``:
   tangent against a plain step (DOPRI5, RODAS4);
 * ``configs/twoblock.yaml`` wall time on 1 and 2 threads (JIT cache warm) and
   the 2-thread speed-up; JIT compile time measured separately, in a fresh
-  process with the cache off and on.
+  process with the cache off and on;
+* a refinement by label (``configs/unequal_qd.yaml``, 8 levels: 1/256 of each grid
+  step): its runs against the uniform grid of its finest cells, its wall time on 2
+  threads, and its time beyond the integration (planning, bookkeeping, the file)
+  against the integration's. ``--refine-only`` runs only refinements, those of
+  :data:`REFINE_TARGETS` (issue 37's targets, with ``configs/twoblock.yaml``: hours on 2
+  cores, its finest runs lie within 1e-4 of Kc and go on to ``max_t_end``), and
+  updates the ``refine`` entry of ``--out``.
 
 Timings are not asserted anywhere; ``--quick`` shrinks every size and
 ``--smoke`` makes them tiny (``tests/test_bench.py`` runs every code path so). The
@@ -41,13 +48,13 @@ import numpy as np
 import yaml
 
 from sweep import physics
-from sweep.backends import DaskTasks, LocalThreads
+from sweep.backends import DaskTasks, LocalThreads, Resources
 from sweep.config import load_config, parse_config, with_changes
 from sweep.dispatch import load_kernel
 from sweep.distributed import connect
 from sweep.grid import build_grid
 from sweep.kernels import layout
-from sweep.runner import compute, integrate_in_memory
+from sweep.runner import compute, integrate_in_memory, run_sweep
 from sweep.variables import REGIMES
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -676,6 +683,78 @@ def bench_dask(config_path, workers=2):
     return times
 
 
+def bench_refine(config_path, levels, threads=2):
+    """A refinement of ``config_path`` to ``levels`` levels on ``threads`` threads, written
+    to a file (kernels compiled beforehand): its runs against the uniform grid of its
+    finest cells, and what is not integration (planning and labelling each level,
+    bookkeeping, writing the file) against the integration's wall time."""
+    config = with_changes(load_config(config_path), {"refine": {"levels": levels}})
+    with tempfile.TemporaryDirectory() as folder:
+        # warm-up: the grid alone (level 0), which compiles and loads the NetCDF writer
+        grid_only = with_changes(config, {"refine": {"levels": 0}})
+        run_sweep(grid_only, Path(folder) / "grid.nc", resources=Resources(threads),
+                  show_progress=False)  # fmt: skip
+        start = time.perf_counter()
+        result = run_sweep(config, Path(folder) / "refined.nc", resources=Resources(threads),
+                           show_progress=False)  # fmt: skip
+        seconds = time.perf_counter() - start
+    runs = int(result.dataset["regime"].size)
+    uniform = math.prod((len(a.values) - 1) * 2**levels + 1 for a in config.axes)
+    uniform *= config.members
+    t = result.timings
+    return {
+        "config": os.path.relpath(config_path, ROOT),
+        "levels": levels,
+        "threads": threads,
+        "runs": runs,
+        "runs_per_level": [int(r) for r in result.dataset.attrs["refine_runs"]],
+        "uniform_runs": uniform,
+        "runs_over_uniform": runs / uniform,
+        "seconds": seconds,
+        "integration_seconds": t["integration"],
+        "planning_seconds": t["planning"],
+        "file_seconds": t["file"],
+        "overhead_over_integration": (seconds - t["integration"]) / t["integration"],
+    }
+
+
+def bench_refinements(entries):
+    """:func:`bench_refine` of each ``(config name, levels)``, printed as it finishes;
+    returns ``{config name: figures}``."""
+    found = {}
+    for name, levels in entries:
+        found[name] = rf = bench_refine(repo_config(name), levels)
+        print(
+            f"{rf['config']} refined {rf['levels']} levels: {rf['runs']} runs, "
+            f"{100 * rf['runs_over_uniform']:.2g} % of the {rf['uniform_runs']} of a uniform "
+            f"grid of the finest cells; {rf['seconds']:.1f} s on {rf['threads']} threads, of "
+            f"which {100 * rf['overhead_over_integration']:.1f} % beyond the integration "
+            f"(planning {rf['planning_seconds']:.2f} s, file {rf['file_seconds']:.2f} s)",
+            flush=True,
+        )
+    return found
+
+
+def _print_refine_targets(found):
+    """Issue 37's targets beside the measured figures of each refinement."""
+    print("\nrefinement targets:")
+    for name, rf in found.items():
+        rows = [
+            (f"{name}: runs vs the uniform grid of 1/{2 ** rf['levels']} steps", "<= 1 %",
+             f"{100 * rf['runs_over_uniform']:.3g} % ({rf['runs']} of {rf['uniform_runs']})"),
+            (f"{name}: wall time, {rf['threads']} threads", "minutes",
+             f"{rf['seconds'] / 60:.1f} min"),
+            (f"{name}: time beyond the integration", "<= 5 %",
+             f"{100 * rf['overhead_over_integration']:.2f} %"),
+        ]  # fmt: skip
+        for what, target, measured in rows:
+            print(f"  {what:<48} target {target:<10} measured {measured}")
+
+
+#: The refinements of issue 37's targets (``--refine-only``): the shipped refined example
+#: and the two-block map, each to 1/256 of its grid steps.
+REFINE_TARGETS = (("unequal_qd", 8), ("twoblock", 8))
+
 #: Problem sizes: the figures of the README (``full``), a quicker look (``quick``) and
 #: the smallest that still runs every code path (``smoke``, for the test suite).
 SIZES = {
@@ -683,17 +762,20 @@ SIZES = {
              "attractors": (201, 2000),
              "threads_large": (10_000, 2000), "throughput": (16, 500), "rk4": 2_000_000,
              "block_scaling": (8, 500),
-             "configs": ("oneblock", "twoblock"), "dask": "twoblock", "compile": "twoblock"},
+             "configs": ("oneblock", "twoblock"), "dask": "twoblock", "compile": "twoblock",
+             "refine": (("unequal_qd", 8),)},
     "quick": {"scipy": (6, 300), "single_purpose": (21, 300), "scipy_hard": (5, 2000),
               "attractors": (21, 300),
               "threads_large": (200, 2000), "throughput": (2, 50), "rk4": 10_000,
               "block_scaling": (2, 50),
-              "configs": ("quick", "quick"), "dask": "quick", "compile": "quick"},
+              "configs": ("quick", "quick"), "dask": "quick", "compile": "quick",
+              "refine": (("unequal_qd", 2),)},
     "smoke": {"scipy": (3, 100), "single_purpose": (3, 100), "scipy_hard": (2, 100),
               "attractors": (3, 100),
               "threads_large": (4, 100), "throughput": (1, 10), "rk4": 1_000,
               "block_scaling": (1, 10),
-              "configs": ("quick",), "dask": "quick", "compile": "quick"},
+              "configs": ("quick",), "dask": "quick", "compile": "quick",
+              "refine": (("quick", 2),)},
 }  # fmt: skip
 
 
@@ -711,8 +793,23 @@ def main(argv=None):
                        help="tiny sizes: runs every code path (tests/test_bench.py)")  # fmt: skip
     parser.add_argument("--out", default=str(ROOT / "results" / "bench.json"),
                         help="where to write the figures")  # fmt: skip
+    parser.add_argument(
+        "--refine-only",
+        action="store_true",
+        help="run only the refinements; update the refine entry of --out",
+    )
     args = parser.parse_args(argv)
     size = SIZES[args.size or "full"]
+    if args.refine_only:
+        out = Path(args.out)
+        figures = json.loads(out.read_text()) if out.exists() else {}
+        entries = REFINE_TARGETS if args.size is None else size["refine"]
+        figures["refine"] = bench_refinements(entries)
+        _print_refine_targets(figures["refine"])
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(figures, indent=2) + "\n")
+        print(f"wrote {out}")
+        return 0
     figures = {"quick": args.size is not None, "machine_cores": os.cpu_count()}
     figures["scipy"] = bench_scipy(*size["scipy"])
     _print_scipy(figures["scipy"])
@@ -770,8 +867,10 @@ def main(argv=None):
         f"with an empty cache, {c['cache_warm_seconds']:.1f} s with a warm cache); a further "
         f"variant (another model), shared helpers cached: {c['further_compile_seconds']:.1f} s"
     )
+    figures["refine"] = bench_refinements(size["refine"])
     if "twoblock" in figures:
         _print_targets(figures)
+    _print_refine_targets(figures["refine"])
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(figures, indent=2) + "\n")
     print(f"wrote {args.out}")

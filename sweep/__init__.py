@@ -13,7 +13,8 @@ Kernels: :func:`compile_kernels` (warm numba's cache before job arrays);
 configs: :func:`load_config`, :func:`with_changes`, :func:`examples.names`;
 figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
 :func:`plot_orbit_diagram`, :func:`plot_trace` (``sweep/plots.py``);
-traces: ``sweep.trace.compute_trace``.
+traces: ``sweep.trace.compute_trace``; refined results: :func:`to_grid`,
+:func:`boundaries`.
 """
 
 from . import examples
@@ -29,6 +30,8 @@ _LAZY = {
     "plot_orbit_diagram": "plots",
     "plot_trace": "plots",
     "save_figure": "plots",
+    "to_grid": "refined_dataset",
+    "boundaries": "phase_boundaries",
 }
 
 
@@ -58,5 +61,7 @@ __all__ = [
     "run",
     "save_figure",
     "SweepError",
+    "boundaries",
+    "to_grid",
     "with_changes",
 ]

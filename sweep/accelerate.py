@@ -1,14 +1,14 @@
 """Numba policy: the one place where decorator arguments are decided.
 
 Decisions (each tested in ``tests/test_accelerate.py``; the measurements behind them
-are in the changelog of the documentation, ``docs/changelog.md``):
+are in the engineering notes of the documentation, ``docs/internals.md``):
 
 * ``nogil=True`` everywhere, so Dask worker threads can run kernels side by side.
 * The grid kernels and the helpers they call are cached on disk by default
   (``jit``, :class:`SourceKeyedCache`): users rerun the CLI many times and a warm
   cache saves the compile time, and a variant not compiled before (another model,
   law, method or coupling) loads the helpers it shares with those that were and
-  compiles in 6–7 s instead of 13.5 (``docs/performance.md``). numba checks an entry
+  compiles in 6–7 s instead of 13.5 (``docs/internals.md``). numba checks an entry
   against its own file only and a compiled function holds the code of everything it
   calls, so the key also covers every kernel source and this file: an edit anywhere
   compiles afresh (tested). numba's cache is not safe to write from several processes
@@ -54,7 +54,7 @@ are in the changelog of the documentation, ``docs/changelog.md``):
   (:class:`VariantDispatcher`): numba compiles a copy of a function for every constant
   argument it is called with (``history_value`` eight times in one kernel).
   Together with the above, a cold compile of the default config takes 13.5 s instead
-  of 16 and a further variant 6 s instead of 8 (``docs/performance.md``).
+  of 16 and a further variant 6 s instead of 8 (``docs/internals.md``).
 * The grid kernel's loop calls small inlined helpers, each written without
   a loop or a non-inlined call behind a branch (``runaway_index``, ``update_cycle``).
   Where an inlined body has one, numba's reference-count pruning fails and every

@@ -10,7 +10,7 @@ import os
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from .config import Config, load_config
+from .config import Config, load_config, with_changes
 from .errors import InputError
 
 if TYPE_CHECKING:
@@ -23,6 +23,7 @@ def run(
     threads: int | None = None,
     client: Any = None,
     progress: bool = True,
+    refine: int | Mapping[str, Any] | bool | None = None,
 ) -> xarray.Dataset:
     """Run a sweep and return its result; nothing is written.
 
@@ -41,6 +42,12 @@ def run(
     progress : bool, default True
         Show progress: a widget bar in a notebook (with ipywidgets), a bar on a
         terminal, plain lines in pipes and logs.
+    refine : int, Mapping or bool, optional
+        Refine the sweep where its labels change (the config's ``refine`` section,
+        ``sweep/refine.py``): a number of levels, a mapping like the section (e.g.
+        ``{"levels": 8, "max_runs": 20000}``, merged into the config's), True for the
+        config's section or the defaults, False for the grid only. Default: as the
+        config says.
 
     Returns
     -------
@@ -49,15 +56,18 @@ def run(
         the sweep axes, fixed parameters as scalar coordinates, CF attributes);
         its ``history`` says it was made by ``sweep.run()`` and from which config
         (``<mapping>`` for a mapping). Save it with :func:`sweep.dataset.write_netcdf`
-        (atomic) or ``ds.to_netcdf``.
+        (atomic) or ``ds.to_netcdf``. A refined sweep's runs lie along one dimension,
+        ``point`` (:func:`sweep.to_grid` puts them on a grid, :func:`sweep.boundaries`
+        gives the boundaries between labels).
 
     Raises
     ------
     ConfigError
         The config is not valid (every problem listed, each naming its key).
     InputError
-        ``threads`` is not an integer in [1, cores], is given with ``client``, or
-        ``client`` is none of a Client, a Cluster or an address.
+        ``threads`` is not an integer in [1, cores], is given with ``client``,
+        ``client`` is none of a Client, a Cluster or an address, or ``refine`` is none
+        of a number, a mapping or a bool.
     RunError
         Dask is not installed, or the cluster cannot be reached.
     """
@@ -65,7 +75,7 @@ def run(
 
     from .runner import compute
 
-    config = load_config(config)
+    config = with_refine(load_config(config), refine)
     if client is not None and threads is not None:
         raise InputError(config.source, ["threads is for local threads; Dask workers own theirs"])
     _check_threads(config.source, threads)
@@ -79,6 +89,27 @@ def run(
         return compute(
             config, threads, show_progress=progress, client=dask_client, command="sweep.run"
         )
+
+
+def with_refine(config, refine):
+    """``config`` with its ``refine`` section set by ``refine`` (see :func:`run`): levels
+    (an int), a mapping merged into the section, True (the section, or the defaults),
+    False (none) or None (unchanged). Validated like a file (``ConfigError``)."""
+    if refine is None or (refine is True and config.refine is not None):
+        return config
+    if refine is False:
+        changes = {"refine": None}
+    elif refine is True:
+        changes = {"refine": {}}
+    elif isinstance(refine, int):
+        changes = {"refine": {"levels": refine}}
+    elif isinstance(refine, Mapping):
+        changes = {"refine": dict(refine)}
+    else:
+        problem = (f"refine must be a number of levels, a mapping like the config's refine "
+                   f"section, or a bool; got {refine!r}")  # fmt: skip
+        raise InputError(config.source, [problem])
+    return with_changes(config, changes)
 
 
 def compile_kernels(

@@ -61,7 +61,7 @@ class Resources:
 #: Systems per batch a thread takes as it comes free: small, so that the costly runs
 #: near Kc, which sit next to each other in the grid, are shared out, yet large
 #: against the ~10 µs a kernel call costs in Python. 8 gave the best 2-thread speed-up
-#: of the sizes measured (docs/changelog.md, "Threads"). Small chunks get smaller
+#: of the sizes measured (docs/internals.md, "Threads"). Small chunks get smaller
 #: batches, at least four per thread.
 BATCH = 8
 

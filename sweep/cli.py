@@ -115,6 +115,19 @@ def build_parser():
         metavar="I/N",
         help="compute share I of N (0 <= I < N) of the chunks",
     )
+    run.add_argument(
+        "--refine",
+        type=_count,
+        metavar="LEVELS",
+        help="refine where the labels change, LEVELS levels (the config's refine section "
+        "otherwise, or its defaults)",
+    )
+    run.add_argument(
+        "--max-runs",
+        type=_positive_int,
+        metavar="N",
+        help="with --refine or a refine section: run at most N runs in all",
+    )
     merge = sub.add_parser("merge", help="assemble a NetCDF result from the parts of shards")
     merge.add_argument("parts", nargs="+", metavar="PARTS", help="part files or folders of parts")
     merge.add_argument("--out", required=True, help="output NetCDF path")
@@ -283,7 +296,7 @@ def cmd_run(args):
     from .errors import Interrupted
     from .runner import run_sweep, stop_on_signals
 
-    config = load_config(args.config)
+    config = refine_options(load_config(args.config), args.refine, args.max_runs)
     if args.threads and (args.scheduler or args.dask_local):
         print("error: --threads is for local threads; Dask workers own theirs", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -312,8 +325,25 @@ def cmd_run(args):
     for line in summary_lines(result.dataset):
         print(line)
     n = result.dataset["regime"].size
+    if "refine_runs" in result.dataset.attrs:
+        runs = result.dataset.attrs["refine_runs"]
+        per_level = ", ".join(f"{r}" for r in runs)
+        print(f"refined {len(runs) - 1} levels ({result.dataset.attrs['refine_stopped']}): "
+              f"runs per level {per_level}")  # fmt: skip
     print(f"wrote {result.path} ({n} runs in {result.elapsed:.1f} s)")
     return 0
+
+
+def refine_options(config, levels, max_runs):
+    """``config`` with ``--refine LEVELS`` and ``--max-runs N`` applied (validated)."""
+    from .api import with_refine
+
+    if max_runs is not None and levels is None and config.refine is None:
+        raise InputError(config.source, ["--max-runs needs --refine or a refine section"])
+    section = {} if levels is None else {"levels": levels}
+    if max_runs is not None:
+        section["max_runs"] = max_runs
+    return with_refine(config, section) if section else config
 
 
 def cmd_extend(args):

@@ -53,6 +53,7 @@ TOP_LEVEL_KEYS = (
     "initial",
     "integrator",
     "classification",
+    "refine",
     "output",
 )
 #: ``source`` of a config given as a mapping (no file): provenance says so.
@@ -81,10 +82,17 @@ _Loader.add_implicit_resolver(
 
 @dataclass(frozen=True)
 class Axis:
-    """One sweep axis: a model parameter (see ``physics.PARAMETERS``) and its values."""
+    """One sweep axis: a model parameter (see ``physics.PARAMETERS``) and its values.
+
+    ``span``: ``(scale, start, stop)`` for values given as a range (``len(values)``
+    points from start to stop, evenly spaced in ``scale``, linear or log; see
+    :func:`range_values`), ``()`` for a list. Refinement (``sweep/refine.py``) places
+    its points between the values by the same rule.
+    """
 
     name: str
     values: tuple
+    span: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -135,6 +143,7 @@ class Setting:
     doc: str
     allowed: object = None
     units: str = "1"
+    default_text: str = None  # what a default of None stands for (the docs say it)
 
     def bounds(self):
         """``(low, low_open, high, high_open)`` of an interval ``allowed``."""
@@ -142,9 +151,10 @@ class Setting:
         return low, self.allowed[0] == "(", high, self.allowed[-1] == ")"
 
 
-def setting(default, doc, allowed=None, units="1"):
+def setting(default, doc, allowed=None, units="1", default_text=None):
     """A dataclass field with its :class:`Setting` (the one place a setting is stated)."""
-    return dataclasses.field(default=default, metadata={"setting": Setting(doc, allowed, units)})
+    spec = Setting(doc, allowed, units, default_text)
+    return dataclasses.field(default=default, metadata={"setting": spec})
 
 
 @dataclass(frozen=True)
@@ -161,7 +171,7 @@ class Integrator:
     # Largest step of the adaptive methods. DOPRI5 and DOP853 need none: their dense
     # output is as accurate as their steps, and extrema that do not stand out of the
     # error scale count as no events (kernels/classify/extrema.py, TURN_FACTOR). RODAS4 keeps
-    # 0.5 D0/V (DEFAULT_MAX_STEPS; docs/changelog.md, "max_step").
+    # 0.5 D0/V (DEFAULT_MAX_STEPS; docs/internals.md, "max_step").
     max_step: float = setting(math.inf, "largest step of the adaptive methods (.inf: no cap; "
                               "rosenbrock's default: 0.5)", "(0, inf)", "D0/V")  # fmt: skip
     t_end: float = setting(3000.0, "end time", "(0, inf)", "t_unit")
@@ -190,7 +200,7 @@ class Classification:
     confirm_cycles: int = setting(2, "consecutive cycles a verdict must hold to stop early",
                                   "[1, inf)")  # fmt: skip
     max_t_end: float = setting(None, "unsettled runs go on up to this time", "(0, inf)",
-                               "t_unit")  # fmt: skip
+                               "t_unit", "10 × t_end")  # fmt: skip
     early_exit: bool = setting(True, "stop each run as soon as its regime is settled",
                                (True, False))  # fmt: skip
     slip_v_over_V: float = setting(
@@ -204,6 +214,43 @@ class Classification:
         32, "events (maxima of ln v of block 0) whose values and intervals each run reports "
         "(the event dimension)", f"[0, {MAX_EVENTS}]",
     )  # fmt: skip
+
+
+#: Outputs whose change between neighbouring runs splits a cell, unless ``refine.outputs``
+#: says otherwise: the labels of a run; with an initial-condition ensemble the share of its
+#: members in each regime (the members' labels differ by start).
+REFINE_OUTPUTS = ("regime", "attractor", "cycle_events")
+REFINE_ENSEMBLE_OUTPUTS = ("regime_fraction",)
+#: Most levels of refinement: each halves the cells, so 20 levels cut a grid step into
+#: about 10^6 (lattice indices stay exact in float64; ``sweep/refine.py``).
+MAX_REFINE_LEVELS = 20
+
+
+@dataclass(frozen=True)
+class Refine:
+    """Refinement by label (``sweep/refine.py``): from the swept grid on, every cell whose
+    corner runs differ in ``outputs`` is split in two along every axis with more than one
+    value, and only the new points are run, level by level, up to ``levels`` levels or
+    ``max_runs`` runs in all. Outputs of integer type and ``regime_fraction`` differ on any
+    change; continuous ones where their range over the corners exceeds ``rtol`` times the
+    largest magnitude there (NaN against a number counts as a change).
+    """
+
+    levels: int = setting(
+        6, "levels of refinement beyond the grid: each halves the cells, so the finest cell is "
+        "the grid step / 2^levels", f"[0, {MAX_REFINE_LEVELS}]",
+    )  # fmt: skip
+    max_runs: int = setting(
+        None, "most runs in all, the grid's included: a level that would pass it is cut to the "
+        "cells that fit (by the order of outputs, then spread evenly) and refinement stops there",
+        "[1, inf)", default_text="no limit",
+    )  # fmt: skip
+    outputs: tuple = setting(
+        None, "output variables whose change between the corner runs of a cell splits it",
+        default_text="regime, attractor, cycle_events; with an ensemble regime_fraction",
+    )  # fmt: skip
+    rtol: float = setting(0.05, "relative tolerance of the continuous outputs in outputs",
+                          "(0, inf)")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -249,6 +296,8 @@ class Config:
     block_parameters: tuple[tuple[str, tuple[float, ...]], ...] = ()
     #: The seeded relative spread of per-block values (``spread:``).
     spread: Spread = Spread()
+    #: Refinement by label (the ``refine`` section), or None for the grid only.
+    refine: Refine | None = None
 
     @property
     def coupling(self) -> str:
@@ -258,9 +307,7 @@ class Config:
     @property
     def heterogeneous(self) -> bool:
         """Whether blocks may differ (a per-block list, or a fixed or swept spread)."""
-        return bool(self.block_parameters or self.spread.sizes) or any(
-            a.name.startswith(SPREAD_PREFIX) for a in self.axes
-        )
+        return blocks_may_differ(self.block_parameters, self.spread, self.axes)
 
     @property
     def nblock_outputs(self) -> bool:
@@ -271,13 +318,8 @@ class Config:
     @property
     def features(self) -> tuple[str, ...]:
         """Which optional output groups a result has (``variables.Variable.feature``)."""
-        flags = (
-            ("nblock", self.nblock_outputs),
-            ("heterogeneous", self.heterogeneous),
-            ("ensemble", self.initial.ensemble > 0),
-            ("events", self.classification.events > 0),
-        )
-        return tuple(name for name, on in flags if on)
+        return output_features(self.blocks, self.heterogeneous, self.initial.ensemble,
+                               self.classification.events)  # fmt: skip
 
     @property
     def members(self) -> int:
@@ -298,6 +340,25 @@ class Config:
     def run_shape(self) -> tuple[int, ...]:
         """The shape of the runs (the grid, then the ensemble members if any)."""
         return self.shape + ((self.members,) if self.initial.ensemble else ())
+
+
+def blocks_may_differ(block_parameters, spread, axes):
+    """Whether blocks may differ: per-block lists, or a fixed or swept spread."""
+    return bool(block_parameters or spread.sizes) or any(
+        a.name.startswith(SPREAD_PREFIX) for a in axes
+    )
+
+
+def output_features(blocks, heterogeneous, ensemble, events):
+    """The optional output groups (``variables.Variable.feature``) of a sweep of ``blocks``
+    blocks, unequal or not, with an ``ensemble`` of starts and ``events`` kept per run."""
+    flags = (
+        ("nblock", blocks > 1),
+        ("heterogeneous", heterogeneous),
+        ("ensemble", ensemble > 0),
+        ("events", events > 0),
+    )
+    return tuple(name for name, on in flags if on)
 
 
 def _numeric(text):
@@ -545,6 +606,9 @@ def _validate(raw, text, source):
     if not isinstance(output, str) or not output.endswith((".nc", ".zarr")):
         c.add(f"output must be a path ending in .nc (NetCDF) or .zarr (Zarr), got {output!r}")
         output = f"results/{name}.nc"
+    heterogeneous = blocks_may_differ(lists, spread, axes)
+    features = output_features(blocks, heterogeneous, initial.ensemble, classification.events)
+    refine = _parse_refine(c, raw, axes, initial, blocks, model, features, output)
     if c.problems:
         raise ConfigError(source, c.problems)
     return Config(
@@ -564,6 +628,7 @@ def _validate(raw, text, source):
         coupling_key=coupling,
         block_parameters=tuple(lists.items()),
         spread=spread,
+        refine=refine,
     )
 
 
@@ -583,7 +648,7 @@ def config_mapping(config):
             **dict(config.parameters),
             **{k: list(v) for k, v in config.block_parameters},
         },
-        "sweep": {a.name: list(a.values) for a in config.axes},
+        "sweep": {a.name: _axis_mapping(a) for a in config.axes},
         "initial": {
             "v_over_V": list(config.initial.v_over_V),
             "phi_over_phi_ss": list(config.initial.phi_over_phi_ss),
@@ -599,9 +664,20 @@ def config_mapping(config):
     if config.initial.ensemble:
         ini = config.initial
         raw["initial"].update(ensemble=ini.ensemble, seed=ini.seed, amplitude=ini.amplitude)
+    if config.refine is not None:
+        refine = dataclasses.asdict(config.refine)
+        raw["refine"] = {**refine, "outputs": list(refine["outputs"])}
     if config.output != f"results/{config.name}.nc":
         raw["output"] = config.output
     return raw
+
+
+def _axis_mapping(axis):
+    """An :class:`Axis` as the YAML gives it: its range, or the list of its values."""
+    if not axis.span:
+        return list(axis.values)
+    scale, start, stop = axis.span
+    return {"start": start, "stop": stop, "num": len(axis.values), "scale": scale}
 
 
 def with_changes(
@@ -681,17 +757,17 @@ def _parse_sweep(c, raw):
     for name, spec in sweep.items():
         key = f"sweep.{name}"
         if name in SPREAD_AXES:
-            values = _axis_values(c, spec, key)
+            values, span = _axis_values(c, spec, key)
             if values is not None and all(
                 c.number(v, f"{key}[{i}]", low=0.0) is not None for i, v in enumerate(values)
             ):
-                axes.append(Axis(name, tuple(float(v) for v in values)))
+                axes.append(Axis(name, tuple(float(v) for v in values), span))
             continue
         if name not in PARAMETERS:
             allowed = ", ".join((*PARAMETERS, *SPREAD_AXES))
             c.add(f"unknown sweep axis {key}; allowed: {allowed}")
             continue
-        values = _axis_values(c, spec, key)
+        values, span = _axis_values(c, spec, key)
         if values is None:
             continue
         # check what the user wrote (a range's ends, or each listed value): an interval
@@ -702,57 +778,66 @@ def _parse_sweep(c, raw):
             written = [(f"{key}[{i}]", v) for i, v in enumerate(values)]
         bad = [k for k, v in written if c.parameter(name, v, k) is None]
         if not bad:
-            axes.append(Axis(name, tuple(float(v) for v in values)))
+            axes.append(Axis(name, tuple(float(v) for v in values), span))
     return axes
 
 
 def _axis_values(c, spec, key):
-    """Values of one axis: a list, {values: [...]}, or {start, stop, num[, scale]}."""
+    """Values of one axis and its span (see :class:`Axis`): a list, {values: [...]}, or
+    {start, stop, num[, scale]}; ``(None, ())`` after a problem."""
     if isinstance(spec, list):
         spec = {"values": spec}
     if not isinstance(spec, dict):
         c.add(f"{key} must be a list of values or a mapping with start/stop/num or values")
-        return None
+        return None, ()
     if "values" in spec:
         c.unknown(spec, key, ("values",))
         values = spec["values"]
         if not isinstance(values, list) or not values:
             c.add(f"{key}.values must be a non-empty list of numbers, got {values!r}")
-            return None
+            return None, ()
         if len(set(v for v in values if isinstance(v, (int, float)))) != len(values):
             c.add(f"{key}.values must be distinct numbers, got {values!r}")
-            return None
-        return values
+            return None, ()
+        return values, ()
     c.unknown(spec, key, ("start", "stop", "num", "scale"))
     missing = [k for k in ("start", "stop", "num") if k not in spec]
     if missing:
         c.add(f"{key} is missing {', '.join(missing)} (give start, stop and num, or values)")
-        return None
+        return None, ()
     start = c.number(spec["start"], f"{key}.start")
     stop = c.number(spec["stop"], f"{key}.stop")
     num = c.integer(spec["num"], f"{key}.num", 1)
     scale = c.choice(spec.get("scale", "linear"), f"{key}.scale", ("linear", "log"))
     if None in (start, stop, num, scale):
-        return None
+        return None, ()
     if num > 1 and start == stop:
         c.add(f"{key}: start and stop must differ when num > 1, got {start:g} twice")
-        return None
-    if scale == "log":
-        if start <= 0 or stop <= 0:
-            c.add(f"{key}: a log-scale axis needs start > 0 and stop > 0")
-            return None
-        return [float(v) for v in _geomspace(start, stop, num)]
-    return [float(v) for v in _linspace(start, stop, num)]
-
-
-def _linspace(start, stop, num):
+        return None, ()
+    if scale == "log" and (start <= 0 or stop <= 0):
+        c.add(f"{key}: a log-scale axis needs start > 0 and stop > 0")
+        return None, ()
     if num == 1:
-        return [start]
-    return [start + (stop - start) * k / (num - 1) for k in range(num)]
+        return [start], (scale, start, stop)
+    values = range_values(scale, start, stop, np.arange(num), num - 1)
+    return [float(v) for v in values], (scale, start, stop)
 
 
-def _geomspace(start, stop, num):
-    return [math.exp(v) for v in _linspace(math.log(start), math.log(stop), num)]
+def range_values(scale, start, stop, k, intervals):
+    """Points ``k`` (an integer array) of the range from ``start`` to ``stop`` cut into
+    ``intervals`` equal steps, linear or in log (``scale``).
+
+    The one formula of range axes: the k-th of ``num`` values is point k of
+    ``num - 1`` intervals, and point ``k * 2^L`` of ``(num - 1) * 2^L`` intervals is
+    the same number bit for bit (both integers are scaled by a power of two), so a
+    refined point has the value of a finer range's point.
+    """
+    k = np.asarray(k)
+    if scale == "log":
+        low, high = math.log(start), math.log(stop)
+        flat = [math.exp(low + (high - low) * int(i) / intervals) for i in k.ravel()]
+        return np.array(flat, float).reshape(k.shape)
+    return start + (stop - start) * k.astype(float) / intervals
 
 
 def _parse_parameters(c, raw, blocks, model, swept):
@@ -960,3 +1045,63 @@ def _parse_classification(c, raw, t_end):
     if not max_ok or None in (v for k, v in values.items() if k != "max_t_end"):
         return d
     return Classification(**values)
+
+
+def _parse_refine(c, raw, axes, initial, blocks, model, features, output):
+    """The ``refine`` section (None when not given): levels, run budget, outputs, rtol."""
+    if raw.get("refine") is None:
+        return None
+    from .variables import variables_for
+
+    spec = c.mapping(raw["refine"], "refine")
+    c.unknown(spec, "refine", tuple(Refine.__dataclass_fields__))
+    d = Refine()
+    problems = len(c.problems)
+    levels = c.integer(spec.get("levels", d.levels), "refine.levels", 0, MAX_REFINE_LEVELS)
+    rtol = c.number(spec.get("rtol", d.rtol), "refine.rtol", low=0.0, low_open=True)
+    known = [v.name for v in variables_for(blocks, model, features)]
+    outputs = _refine_outputs(c, spec, known, "ensemble" in features)
+    max_runs = spec.get("max_runs", d.max_runs)
+    if max_runs is not None:
+        runs = math.prod(len(a.values) for a in axes) * max(1, initial.ensemble)
+        if c.integer(max_runs, "refine.max_runs", runs) is None:
+            c.problems[-1] += f" (the {runs} runs of the grid come first)"
+    split = [a for a in axes if len(a.values) > 1]
+    if axes and not split:
+        c.add("refine needs a sweep axis with at least two values (cells to split)")
+    if isinstance(levels, int) and split:
+        points = math.prod((len(a.values) - 1) * 2**levels + 1 for a in split)
+        if points > 2**62:
+            c.add(
+                f"refine.levels = {levels} makes a finest grid of {points:.3g} points on these "
+                "axes, more than 2^62 (its indices are 64-bit integers); give fewer levels"
+            )
+    if isinstance(output, str) and output.endswith(".zarr"):
+        c.add(f"output {output}: a refined sweep is written as NetCDF; give a path ending in .nc")
+    if len(c.problems) > problems:
+        return d
+    return Refine(levels, max_runs, outputs, rtol)
+
+
+def _refine_outputs(c, spec, known, ensemble):
+    """``refine.outputs`` checked against the output variables ``known`` of this config."""
+    default = REFINE_ENSEMBLE_OUTPUTS if ensemble else REFINE_OUTPUTS
+    outputs = spec.get("outputs", list(default))
+    if not isinstance(outputs, list) or not outputs:
+        c.add(f"refine.outputs must be a non-empty list of output variables, e.g. "
+              f"[{', '.join(default)}]; got {outputs!r}")  # fmt: skip
+        return None
+    ok = True
+    for i, name in enumerate(outputs):
+        if name == "regime_fraction" and not ensemble:
+            c.add(f"refine.outputs[{i}]: regime_fraction needs an initial-condition ensemble "
+                  "(initial.ensemble > 0)")  # fmt: skip
+            ok = False
+        elif name not in known:
+            c.add(f"refine.outputs[{i}] must be an output variable of this sweep, one of "
+                  f"{', '.join(known)}; got {name!r}")  # fmt: skip
+            ok = False
+    if ok and len(set(outputs)) != len(outputs):
+        c.add(f"refine.outputs must name each output once, got {outputs!r}")
+        ok = False
+    return tuple(outputs) if ok else None

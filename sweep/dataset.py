@@ -158,13 +158,15 @@ def without_coordinate_fill(ds):
     return ds
 
 
-def data_variables(config, fields, shape=None):
+def data_variables(config, fields, shape=None, dims=None):
     """The data variables ``{name: (dims, data, attrs)}``, in the schema's dtypes, from the
     flat ``fields`` (as from :func:`derived_fields`) of the grid points of a block of
-    ``shape`` (default: the whole grid), every ensemble member of each included."""
+    ``shape`` (default: the whole grid), every ensemble member of each included.
+    ``dims``: the dimensions of those points (default: the sweep axes; a refinement's
+    points lie along one, ``("point",)``)."""
     shape = config.shape if shape is None else tuple(shape)
     run_shape = shape + config.run_shape[len(config.shape) :]
-    dims = tuple(a.name for a in config.axes)
+    dims = tuple(a.name for a in config.axes) if dims is None else tuple(dims)
     ensemble = config.initial.ensemble > 0
     run_dims = dims + (("member",) if ensemble else ())
     data_vars = {}
@@ -367,6 +369,11 @@ def stored_config(ds, source):
         config = parse_config(ds.attrs["config_text"], f"{source} (config_text)")
     except ConfigError as exc:
         raise ConfigError(source, [f"stored config_text: {p}" for p in exc.problems]) from None
+    if "point" in ds["regime"].dims and config.refine is not None:
+        raise InputError(
+            source, ["a refined result (its runs along point) is not a grid: extend and audit "
+                     "take grid results; sweep.to_grid(ds, level) gives one"]
+        )  # fmt: skip
     dims = tuple(a.name for a in config.axes) + (("member",) if config.initial.ensemble else ())
     if ds["regime"].dims != dims or ds["regime"].shape != config.run_shape:
         raise InputError(

@@ -4,7 +4,9 @@ Every system is derived from ``configs/paper.yaml`` (the paper's one-block
 system, read with D0 = 1 µm: erratum 1) and integrated as a trace
 (``sweep/trace.py``); the phase diagram and bifurcation diagram come from
 ordinary sweeps (``configs/twoblock.yaml``, ``configs/bifurcation_*.yaml``), the orbit
-diagram of two unequal inertial blocks from ``configs/route_to_chaos.yaml``.
+diagram of two unequal inertial blocks from ``configs/route_to_chaos.yaml``, and the
+refined map of two unequal radiation-damped blocks from ``configs/unequal_qd.yaml``
+(:func:`figure_refined`).
 
 Where the paper's quasi-static model runs away (K < Kc has no stick-slip limit
 cycle), the figures show the runaway and, beside it, the same system with a
@@ -14,6 +16,7 @@ true stick-slip cycle. Its critical stiffness is Kc/W = (B − A − η̂)/D0 =
 move Kc/W to 0.040 µm⁻¹ and make K/W = 0.046 µm⁻¹ steady.
 """
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -262,6 +265,25 @@ def figure_nblock(nblock="nblock", heterogeneous="heterogeneous", threads=None):
     return plot_nblock(sizes, spread, coupling, caption)
 
 
+def figure_refined(ds):
+    """The refined map ``ds`` (a refined result): its cells at their level and the
+    boundaries between its labels (``plots.plot_refined``), with the runs it took beside
+    those of the uniform grid of its finest cells; returns the Figure."""
+    from .plots import plot_result
+    from .refined_dataset import refined_config
+
+    config = refined_config(ds)
+    levels = config.refine.levels
+    runs = int(ds["regime"].size)
+    uniform = math.prod((len(a.values) - 1) * 2**levels + 1 for a in config.axes)
+    uniform *= config.members
+    caption = (
+        f"{runs} runs where the uniform grid of the finest cells (1/{2**levels} of a grid "
+        f"step) would take {uniform:,}: {100 * runs / uniform:.2g} %"
+    )
+    return plot_result(ds, caption)
+
+
 def make_figures(
     paper="paper",
     twoblock="twoblock",
@@ -272,11 +294,13 @@ def make_figures(
     threads=None,
     suffix=".png",
     dpi=DPI,
+    refined="unequal_qd",
 ):
     """Regenerate every paper figure into ``out_dir``; returns the file paths.
 
     Configs are paths or names of packaged examples (``sweep/examples.py``), so
-    this works from any folder; ``route``: the 1-D sweep whose orbit diagram is drawn.
+    this works from any folder; ``route``: the 1-D sweep whose orbit diagram is drawn;
+    ``refined``: the refined sweep whose cells and boundaries are drawn.
     ``suffix``: ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
     """
     from .dispatch import load_kernels
@@ -291,10 +315,12 @@ def make_figures(
     bifurcation_configs = [load_config(p) for p in bifurcation]
     nblock_configs = [load_config(path) for path in nblock]
     route_config = load_config(route)
+    refined_config = load_config(refined)
     check_writable(out_dir / f"fig1_one_block{suffix}", str(out_dir), "--out-dir", suffix)
     rows = (*ONE_BLOCK_ROWS, *((label, {**c, "k2_W": K2_W}) for label, c in TWO_BLOCK_ROWS))
     trace_configs = [variant(config, f"{config.name}_{r}", **c) for r, (_, c) in enumerate(rows)]
-    every = [*trace_configs, phase_config, *bifurcation_configs, *nblock_configs, route_config]
+    every = [*trace_configs, phase_config, *bifurcation_configs, *nblock_configs, route_config,
+             refined_config]  # fmt: skip
     # side by side; each variant here also has runs that need the tangent for λ1
     grids = [build_grid(c) for c in every]
     load_kernels([(g.params, g.settings, t) for g in grids for t in (None, True)], threads)
@@ -317,9 +343,12 @@ def make_figures(
     caption = (
         "D0 = 1.0 and 0.6 µm (mean 0.8). K rising: a torus, the simple cycle's period "
         "doubling, the simple cycle, a slip and a stick bump (off the scale, ln v/V ≈ −25) "
-        "doubling to four events, chaos with periodic windows, the simple cycle again"
+        "doubling, periodic windows with tori and chaos between them, a chaotic band, the "
+        "simple cycle again"
     )
     route = compute(route_config, threads=threads, show_progress=False)
     fig = plot_orbit_diagram(route, caption=caption, lnv_range=(0.5, 2.5))
     paths.append(save_figure(fig, out_dir / f"route_to_chaos{suffix}", dpi))
+    fig = figure_refined(compute(refined_config, threads=threads, show_progress=False))
+    paths.append(save_figure(fig, out_dir / f"refined_{refined_config.name}{suffix}", dpi))
     return paths

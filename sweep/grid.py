@@ -22,18 +22,21 @@ from . import codes, heterogeneity, linear, physics
 from .kernels import layout
 
 
-def physical_parameters(config):
+def physical_parameters(config, points=None):
     """Every physical parameter at every grid point, flattened (name → 1-D array).
 
     Parameters a config leaves out default to zero (k2_W, eta_W, m_W); the
     reference V0 is derived from Phi0 (V0 = D0/Phi0) or the other way round.
     Swept spread sizes appear as ``spread_<name>``; per-block lists by their common
     value (the mean). With an ensemble every grid point is repeated per member.
+    ``points``: axis name → 1-D array of values, the points to take instead of the
+    grid (e.g. those of a refinement, ``sweep/refine.py``), in order.
     """
-    shape = config.shape
-    n = math.prod(shape)
-    mesh = np.meshgrid(*(np.asarray(a.values) for a in config.axes), indexing="ij")
-    values = {a.name: m.reshape(n) for a, m in zip(config.axes, mesh, strict=True)}
+    if points is None:
+        mesh = np.meshgrid(*(np.asarray(a.values) for a in config.axes), indexing="ij")
+        points = {a.name: m.ravel() for a, m in zip(config.axes, mesh, strict=True)}
+    values = {a.name: np.asarray(points[a.name], float) for a in config.axes}
+    n = values[config.axes[0].name].size
     if config.initial.ensemble:
         values = {k: np.repeat(v, config.members) for k, v in values.items()}
         n *= config.members
@@ -118,13 +121,14 @@ class Grid:
         )
 
 
-def build_grid(config):
-    """The :class:`Grid` of a validated config.
+def build_grid(config, points=None):
+    """The :class:`Grid` of a validated config, or of its ``points`` only (see
+    :func:`physical_parameters`).
 
     With ``t_unit: s`` the end time is converted to units of D0/V per system;
     step sizes are always in D0/V.
     """
-    phys = physical_parameters(config)
+    phys = physical_parameters(config, points)
     dl = physics.dimensionless(
         phys["A"], phys["B"], phys["D0"], phys["V"], phys["K_W"], phys["k2_W"],
         phys["eta_W"], phys["m_W"],

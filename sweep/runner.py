@@ -84,7 +84,8 @@ class SweepResult:
 
     ``dataset``: the result (``None`` for a shard); ``path``: the NetCDF file
     written, or for a shard its parts folder; ``elapsed``: wall time (s);
-    ``computed`` / ``reused``: runs integrated now / read back from parts.
+    ``computed`` / ``reused``: runs integrated now / read back from parts;
+    ``timings``: for a refinement, wall time (s) by activity (``sweep/refine_runner.py``).
     """
 
     dataset: object
@@ -92,6 +93,7 @@ class SweepResult:
     elapsed: float
     computed: int = 0
     reused: int = 0
+    timings: dict = None
 
 
 def default_chunk_size(n_systems, n_threads=1, dask_threads=0):
@@ -173,6 +175,10 @@ def compute(config, threads=None, chunk_size=None, show_progress=True, client=No
     ``threads``: local threads (default: all cores), or ``client``: an open Dask client.
     ``command``: what is running it, for the file's ``history`` (``dataset.provenance``).
     """
+    if config.refine is not None:
+        from .refine_runner import compute_refined
+
+        return compute_refined(config, threads, chunk_size, show_progress, client, command)
     grid = build_grid(config)
     backend = LocalThreads(threads) if client is None else DaskTasks(client)
     # compiled here, not first in integrate_in_memory: before the progress clock
@@ -203,6 +209,8 @@ def run_sweep(
 
     What ``python -m sweep run`` does: chunks run on threads or Dask, each kept as
     a part file as it finishes, so an interrupted sweep resumes where it stopped.
+    A config with a ``refine`` section runs level by level
+    (``sweep/refine_runner.py``), its runs along one dimension, ``point``.
 
     Parameters
     ----------
@@ -235,17 +243,25 @@ def run_sweep(
     SweepResult
         ``dataset`` (the result; None for a shard), ``path`` (the file written, or
         a shard's parts folder), ``elapsed`` (wall time, s), ``computed`` and
-        ``reused`` (runs integrated now and read back from parts).
+        ``reused`` (runs integrated now and read back from parts); for a refinement
+        also ``timings`` (wall time, s, by activity).
 
     Raises
     ------
     InputError
-        The output cannot be written, or ``shard`` is given with a Zarr output.
+        The output cannot be written, or ``shard`` (or a ``refine`` section) is
+        given with a Zarr output.
     RunError
         The disk or the cluster failed, or another process holds the output's
         lock; after a stop, its subclass ``Interrupted``. In every case an earlier
         result file is left as it was, and the parts written so far are kept.
     """
+    if config.refine is not None:
+        from .refine_runner import run_refined
+
+        return run_refined(config, out, resources=resources, chunk_size=chunk_size,
+                           resume=resume, shard=shard, show_progress=show_progress,
+                           stop=stop)  # fmt: skip
     start_time = time.perf_counter()
     path = Path(out or config.output)
     key = "output" if out is None else "--out"
@@ -306,12 +322,13 @@ def run_sweep(
 
 
 class _PartStore:
-    """The result arrays of a run and the parts folder each finished chunk is saved to."""
+    """The result arrays of a run and the parts folder each finished chunk is saved to;
+    parts are named by ``chash`` (default: the config's hash)."""
 
-    def __init__(self, folder, config, n, n_vars):
+    def __init__(self, folder, config, n, n_vars, chash=None):
         self.folder = folder
         self.config = config
-        self.chash = store.config_hash(config)
+        self.chash = chash or store.config_hash(config)
         self.n = n
         self.results = np.empty((n, result_width(settings_array(config))))
         self.y_final = np.empty((n, n_vars))
@@ -453,6 +470,11 @@ def _merge_locked(paths, out):
     groups = store.group(files)
     if not groups:
         raise InputError("merge", [f"no part files in {', '.join(map(str, paths))}"])
+    refined = next((c for c in map(_part_config, groups.values()) if c and c.refine), None)
+    if refined is not None:  # the parts of a refinement's levels: replayed level by level
+        from .refine_runner import merge_refined
+
+        return merge_refined(refined, groups, paths, out)
     problems = []
     for chash, entries in groups.items():
         config = _part_config(entries)
@@ -477,15 +499,21 @@ def _merge_locked(paths, out):
             log.warning("%s", problem)
         ds = build_dataset(build_grid(config), results, y_final, "merge")
         _write_result(ds, out, "the parts")
-        for f in used:
-            f.unlink()
-        for folder in {Path(p) for p in paths if Path(p).is_dir()}:
-            for f in store.stale_temp_files(folder):
-                f.unlink(missing_ok=True)
-            if not any(folder.iterdir()):
-                folder.rmdir()
+        remove_merged(used, paths)
         return ds
     raise RunError("cannot merge: " + "; ".join(problems))
+
+
+def remove_merged(used, paths):
+    """After a merge: remove the parts ``used``, then in the folders of ``paths`` the
+    temporary files of killed writers, then those folders if empty."""
+    for f in used:
+        f.unlink()
+    for folder in {Path(p) for p in paths if Path(p).is_dir()}:
+        for f in store.stale_temp_files(folder):
+            f.unlink(missing_ok=True)
+        if not any(folder.iterdir()):
+            folder.rmdir()
 
 
 def _part_config(entries):

@@ -246,3 +246,24 @@ def test_a_sweep_whose_runs_all_settle_never_compiles_the_tangent():
     )
     count, *regimes = python_stdout(code).split()
     assert count == "1" and len(regimes) == 2
+
+
+def test_run_refines_by_keyword(quick_result):
+    """refine=: levels, a mapping merged into the config's section, True (the config's or
+    the defaults), False (the grid only); anything else is refused naming the config."""
+    ds = sweep.run(QUICK, refine=2, threads=1, progress=False)
+    assert ds["regime"].dims == ("point",) and ds.attrs["refine_levels"] == 2
+    grid = sweep.to_grid(ds, 0).drop_vars(["level", "exact"])
+    for name, var in quick_result.data_vars.items():
+        assert grid[name].values.tobytes() == var.values.tobytes(), name
+    config = sweep.with_changes(QUICK, {"refine": {"levels": 3, "max_runs": 12}})
+    merged = sweep.run(config, refine={"levels": 1}, threads=1, progress=False)
+    assert (merged.attrs["refine_levels"], merged.attrs["refine_max_runs"]) == (1, 12)
+    assert sweep.run(config, refine=True, progress=False).attrs["refine_levels"] == 3
+    plain = sweep.run(config, refine=False, threads=1, progress=False)
+    xr.testing.assert_identical(without_file_attrs(plain), without_file_attrs(quick_result))
+    with pytest.raises(sweep.InputError, match=r"quick.yaml: refine must be a number of levels"):
+        sweep.run(QUICK, refine="deep", progress=False)
+    with pytest.raises(sweep.ConfigError, match=r"refine.levels must be an integer in \[0, 20\]"):
+        sweep.run(QUICK, refine=40, progress=False)
+    assert [b.between for b in sweep.boundaries(ds)]  # the lazy names resolve to functions

@@ -66,7 +66,7 @@ def test_every_benchmark_runs_at_smoke_size(tmp_path):
     assert run.returncode == 0, run.stderr[-3000:]
     figures = json.loads(out.read_text())
     sections = {"scipy", "single_purpose", "scipy_hard", "threads_large", "throughput", "rk4",
-                "oneblock", "dask", "compile", "attractors"}  # fmt: skip
+                "oneblock", "dask", "compile", "attractors", "refine"}  # fmt: skip
     assert sections <= set(figures)
     for section in sections:
         values = dict(numbers(figures[section]))
@@ -74,6 +74,8 @@ def test_every_benchmark_runs_at_smoke_size(tmp_path):
         bad = {k: v for k, v in values.items() if not math.isfinite(v)}
         assert not bad, f"{section}: not finite: {bad}"
     assert figures["oneblock"]["config"] == "configs/quick.yaml"
+    refine = figures["refine"]["quick"]
+    assert refine["runs"] == sum(refine["runs_per_level"]) < refine["uniform_runs"] == 33
     for method in ("LSODA", "DOP853"):
         assert 0.0 <= figures["scipy"][method]["agreement_percent"] <= 100.0
         assert figures["scipy"][method]["seconds"] > 0.0
@@ -88,3 +90,35 @@ def test_every_benchmark_runs_at_smoke_size(tmp_path):
         assert sp["engine_early_exit_on"][f"vs_cyrk_{method}"] > 0.0
     assert sp["cyrk_DOP853"]["steps_per_run"] < 0.5 * sp["cyrk_RK45"]["steps_per_run"]
     assert "wrote" in run.stdout
+
+
+def load_plot():
+    """``benchmarks/plot_bench.py`` as a module."""
+    spec = importlib.util.spec_from_file_location(
+        "plot_bench", ROOT / "benchmarks" / "plot_bench.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_peers_plot_draws_the_recorded_figures(tmp_path):
+    """``make bench``'s second step draws results/bench_peers.png (the performance
+    page's plot) from results/bench.json: every bar is a figure of that file, CyRK's
+    bars are left out where CyRK was not installed, and the committed plot stays small."""
+    plot = load_plot()
+    figures = json.loads((ROOT / "results" / "bench.json").read_text())
+    rates = dict((label, rate) for label, rate, _ in plot.peer_rates(figures))
+    sp = figures["single_purpose"]
+    for label, key, _ in plot.BARS:
+        assert rates[label] == sp[key]["systems_per_second"]
+    hard = figures["scipy_hard"]
+    assert rates["SciPy solve_ivp LSODA loop"] == hard["grid_points"] / hard["scipy_seconds"]
+    without_cyrk = {**figures, "single_purpose": {k: v for k, v in sp.items() if "cyrk" not in k}}
+    (tmp_path / "bench.json").write_text(json.dumps(without_cyrk))
+    assert (
+        plot.main(["--json", str(tmp_path / "bench.json"), "--out", str(tmp_path / "p.png")]) == 0
+    )
+    assert (tmp_path / "p.png").read_bytes().startswith(b"\x89PNG")
+    assert not any("CyRK" in label for label, _, _ in plot.peer_rates(without_cyrk))
+    assert (ROOT / "results" / "bench_peers.png").stat().st_size < 150_000

@@ -17,15 +17,26 @@ archive and :data:`REFERENCE_COMMIT`::
 
 Move it only in a commit that says which numbers changed and why (a changed method,
 controller or classifier), never to make the test pass.
+
+The reference commit's code is compiled cold in a fresh tree (about 100 s of a core),
+and its numbers are a function of that code, this machine and the compiling and numeric
+libraries: they are kept in :func:`reference_cache` under a key of exactly those
+(:func:`reference_key`), so that a later run on the same machine, from any clone,
+compares with them instead of recompiling. ``SWEEP_BIT_IDENTITY_CACHE=0`` turns the
+cache off; another path moves it.
 """
 
+import hashlib
 import io
 import os
+import platform
 import subprocess
 import sys
 import tarfile
 from pathlib import Path, PurePosixPath
 
+import llvmlite
+import numba
 import numpy as np
 import pytest
 from conftest import SUBPROCESS_TIMEOUT
@@ -41,6 +52,41 @@ REFERENCE_ARCHIVE = Path(__file__).parent / "data" / "bit_identity_reference.tar
 #: Seconds the reference commit's code may take for the cases (about 100 s cold on two
 #: busy cores): a hung process fails the test instead of blocking it.
 REFERENCE_TIMEOUT = 1800
+
+
+def reference_cache():
+    """Folder of the reference's numbers computed on this machine: ``$SWEEP_BIT_IDENTITY_CACHE``,
+    else ``$XDG_CACHE_HOME/rsf-sweep/bit-identity`` (``~/.cache``); None if that variable
+    is ``0``."""
+    setting = os.environ.get("SWEEP_BIT_IDENTITY_CACHE")
+    if setting == "0":
+        return None
+    if setting:
+        return Path(setting)
+    return (
+        Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+        / "rsf-sweep"
+        / "bit-identity"
+    )
+
+
+def reference_key(archive=None):
+    """A digest of everything the reference's numbers depend on besides the code under
+    test: the archive's bytes, Python, NumPy, numba and llvmlite, numba's settings from
+    the environment, and the CPU (its model and flags, which pick NumPy's and LLVM's
+    kernels)."""
+    digest = hashlib.sha256(Path(archive or REFERENCE_ARCHIVE).read_bytes())
+    cpu = ""
+    if os.path.exists("/proc/cpuinfo"):
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
+        cpu = "\n".join(
+            sorted({line for line in lines if line.startswith(("model name", "flags"))})
+        )
+    numba_env = sorted((k, v) for k, v in os.environ.items() if k.startswith("NUMBA_"))
+    for part in (sys.version, platform.machine(), platform.processor(), cpu, np.__version__,
+                 numba.__version__, llvmlite.__version__, repr(numba_env)):  # fmt: skip
+        digest.update(part.encode())
+    return digest.hexdigest()[:32]
 
 
 def extract(archive, tree):
@@ -75,9 +121,16 @@ def test_the_archive_holds_the_reference_commit():
 
 @pytest.fixture(scope="module")
 def reference_run(tmp_path_factory):
-    """The reference commit's code extracted from :data:`REFERENCE_ARCHIVE` to a
+    """The reference's numbers from :func:`reference_cache` if this machine computed them
+    before, else the reference commit's code extracted from :data:`REFERENCE_ARCHIVE` to a
     temporary tree and started there in its own process, which computes while this one
-    computes :func:`computed` (two cores: half the wait)."""
+    computes :func:`computed` (two cores: half the wait). Yields ``(file, process)``:
+    the ``.npz`` the numbers are (or will be) in, and the process (None if cached)."""
+    cache = reference_cache()
+    cached = cache / f"{reference_key()}.npz" if cache else None
+    if cached is not None and cached.is_file():
+        yield cached, None
+        return
     tree = tmp_path_factory.mktemp("reference_commit")
     extract(REFERENCE_ARCHIVE, tree)
     # The reference commit's script writes tests/data/bit_identity.npz beside itself.
@@ -86,7 +139,7 @@ def reference_run(tmp_path_factory):
     with open(tree / "stderr.txt", "w") as stderr:
         proc = subprocess.Popen([sys.executable, str(script)], cwd=tree, env=env,
                                 stdout=subprocess.DEVNULL, stderr=stderr)  # fmt: skip
-    yield tree, proc
+    yield tree / "tests" / "data" / "bit_identity.npz", proc
     if proc.poll() is None:
         proc.kill()
         proc.wait(timeout=SUBPROCESS_TIMEOUT)
@@ -101,11 +154,32 @@ def computed(reference_run):
 
 @pytest.fixture(scope="module")
 def reference(reference_run, computed):
-    """``{"case/var": array}`` computed by the reference commit's code, on this machine."""
-    tree, proc = reference_run
-    assert proc.wait(timeout=REFERENCE_TIMEOUT) == 0, (tree / "stderr.txt").read_text()
-    with np.load(tree / "tests" / "data" / "bit_identity.npz") as ref:
+    """``{"case/var": array}`` computed by the reference commit's code, on this machine;
+    a fresh computation is kept in :func:`reference_cache` (written to a temporary name
+    and renamed, so a concurrent or killed run leaves no partial file)."""
+    numbers, proc = reference_run
+    if proc is not None:
+        assert proc.wait(timeout=REFERENCE_TIMEOUT) == 0, (
+            numbers.parents[2] / "stderr.txt"
+        ).read_text()
+        cache = reference_cache()
+        if cache is not None:
+            cache.mkdir(parents=True, exist_ok=True)
+            partial = cache / f"{reference_key()}.{os.getpid()}.tmp"
+            partial.write_bytes(numbers.read_bytes())
+            os.replace(partial, cache / f"{reference_key()}.npz")
+    with np.load(numbers) as ref:
         return {key: ref[key] for key in ref.files}
+
+
+def test_the_cache_key_is_the_archives(tmp_path):
+    """The same bytes give the same key; one changed byte (another reference) another."""
+    copy = tmp_path / "copy.tar.gz"
+    data = REFERENCE_ARCHIVE.read_bytes()
+    copy.write_bytes(data)
+    assert reference_key(copy) == reference_key()
+    copy.write_bytes(data[:-1] + bytes([data[-1] ^ 1]))
+    assert reference_key(copy) != reference_key()
 
 
 def test_every_reference_number_is_still_computed(reference, computed):

@@ -507,9 +507,9 @@ def test_two_blocks_anti_phase_start_at_0_995_is_decided_by_rounding():
     desynchronises at τ ≈ 2500 onto an attracting out-of-phase cycle (ptp 1.92098, period
     5.016600, multipliers |0.99797| (pair), 0.7813), converged to 1e-2 only by τ = 10 440
     (1e-4 by 21 800); the engine (measured with DOPRI5, rtol 1e-8 or 1e-10) stays
-    synchronised and runs away in phase at τ = 2468.2. Both are faithful to the equations up to rounding, so
-    runaway (v did cross the cap) or undecided (not converged by 8000); never steady,
-    and stick_slip only with the cycle's features."""
+    synchronised and runs away in phase at τ = 2468.2. Both are faithful to the equations
+    up to rounding, so runaway (v did cross the cap) or undecided (not converged by 8000);
+    never steady, and stick_slip only with the cycle's features."""
     ref = two_block_cycle(0.995)
     assert_attracting(ref)
     row = engine([0.995 * KC_QS], 8000.0, ANTI, blocks=2, parameters={"k2_W": K2_C})[0]

@@ -180,3 +180,26 @@ def test_pure_python_kernels(tmp_path):
         assert list(jit["regime"].values) == [REGIMES.index("runaway"), REGIMES.index("steady")]
         for name in ("t_final", "lnv_max", "lnv_min", "t_runaway", "period"):
             np.testing.assert_allclose(nojit[name], jit[name], rtol=1e-6, err_msg=name)
+
+
+def test_run_refine_and_max_runs_options(tmp_path, capsys):
+    """--refine LEVELS refines a grid config, --max-runs caps it; the summary gives the
+    runs per level, and plot draws the refined file."""
+    out = tmp_path / "r.nc"
+    args = ["run", str(QUICK), "--out", str(out), "--quiet", "--refine", "4", "--max-runs", "14"]
+    assert cli.main(args) == 0
+    printed = capsys.readouterr().out
+    assert (
+        "refined 3 levels (the next level would pass refine.max_runs): runs per level "
+        "9, 2, 2, 1" in printed
+    ), printed
+    with xr.open_dataset(out) as ds:
+        assert ds.sizes["point"] == 14 and ds.attrs["refine_max_runs"] == 14
+    assert cli.main(["plot", str(out)]) == 0
+    assert out.with_suffix(".png").stat().st_size > 0
+    assert cli.main(["plot", str(out), "--var", "t_final"]) == 0
+
+
+def test_max_runs_needs_a_refinement(capsys):
+    assert cli.main(["run", str(QUICK), "--max-runs", "20", "--quiet"]) == 2
+    assert "--max-runs needs --refine or a refine section" in capsys.readouterr().err

@@ -77,7 +77,19 @@ BAD_CONFIGS = [
     ("mass on quasi-static", {"parameters": {"m_W": 1.0}}, "parameters.m_W"),
     ("coupling on one block", {"parameters": {"k2_W": 0.05}}, "parameters.k2_W"),
     ("output not netcdf", {"output": "out.txt"}, "output"),
-]
+    ("refine not a mapping", {"refine": [4]}, "refine"),
+    ("refine unknown key", {"refine": {"level": 4}}, "refine.level"),
+    ("refine levels above 20", {"refine": {"levels": 21}}, "refine.levels"),
+    ("refine levels not an integer", {"refine": {"levels": 2.5}}, "refine.levels"),
+    ("refine max_runs below the grid", {"refine": {"max_runs": 1}}, "refine.max_runs"),
+    ("refine unknown output", {"refine": {"outputs": ["regim"]}}, "refine.outputs[0]"),
+    ("refine outputs not a list", {"refine": {"outputs": "regime"}}, "refine.outputs"),
+    ("refine fraction without ensemble", {"refine": {"outputs": ["regime_fraction"]}},
+     "refine.outputs[0]"),
+    ("refine rtol zero", {"refine": {"rtol": 0}}, "refine.rtol"),
+    ("refine to zarr", {"refine": {}, "output": "results/test.zarr"}, "output"),
+    ("refine one value per axis", {"refine": {}, "sweep": {"K_W": [0.05]}}, "refine"),
+]  # fmt: skip
 
 
 @pytest.fixture
@@ -362,3 +374,41 @@ def test_shipped_model_configs(name, model_name, law, second):
         assert np.abs(axes["K_W"] / kc - 1).min() > 1e-3
     if second == "m_W":
         assert axes["m_W"].max() / axes["m_W"].min() >= 100.0
+
+
+def test_refine_errors_say_what_is_allowed():
+    """Each bad refine value is named with its key, what is allowed and what was given,
+    all in one error."""
+    with pytest.raises(ConfigError) as info:
+        make_config(refine={"levels": -1, "max_runs": 1, "outputs": ["period", "colour"],
+                            "rtol": -0.1})  # fmt: skip
+    problems = info.value.problems
+    assert "refine.levels must be an integer in [0, 20], got -1" in problems
+    assert (
+        "refine.max_runs must be an integer >= 2, got 1 (the 2 runs of the grid come "
+        "first)" in problems
+    )
+    assert "refine.rtol must be in (0, inf), got -0.1" in problems
+    (unknown,) = [p for p in problems if p.startswith("refine.outputs[1]")]
+    assert "must be an output variable of this sweep, one of regime, attractor" in unknown
+    assert unknown.endswith("got 'colour'")
+    assert len(problems) == 4
+
+
+def test_refine_defaults_and_round_trip():
+    """An empty section takes the defaults (an ensemble refines on regime_fraction);
+    config_mapping writes the section and the ranges back, so with_changes keeps them."""
+    from sweep.config import config_mapping, with_changes
+
+    config = make_config(refine={})
+    assert (config.refine.levels, config.refine.max_runs, config.refine.outputs) == (
+        6, None, ("regime", "attractor", "cycle_events"),
+    )  # fmt: skip
+    ensemble = make_config(refine={}, initial={"ensemble": 2})
+    assert ensemble.refine.outputs == ("regime_fraction",)
+    ranged = make_config(sweep={"K_W": {"start": 0.04, "stop": 0.06, "num": 5, "scale": "log"}},
+                         refine={"levels": 3})  # fmt: skip
+    again = parse_config(config_mapping(ranged))
+    assert (again.refine, again.axes) == (ranged.refine, ranged.axes)
+    assert again.axes[0].span == ("log", 0.04, 0.06)
+    assert with_changes(ranged, {"refine": {"levels": 5}}).axes == ranged.axes

@@ -152,6 +152,10 @@ MAPPED = {
         "no scheduler at host:8786: the same Dask client path through a local scheduler",
         ["python -m sweep run configs/twoblock.yaml --dask-local 1"],
     ),
+    "python -m sweep run configs/unequal_qd.yaml": (
+        "its 8 levels refine the whole map from one cell of the small config (minutes): 2",
+        ["python -m sweep run configs/unequal_qd.yaml --refine 2"],
+    ),
     "python -m sweep run configs/twoblock.yaml --dask-local 4": (
         "four worker processes would compete with the suite for two cores: one worker",
         ["python -m sweep run configs/twoblock.yaml --dask-local 1"],
@@ -218,8 +222,9 @@ def write_small_configs(folder):
     (folder / "configs").mkdir()
     (folder / "results").mkdir()
     for path in sorted((ROOT / "configs").glob("*.yaml")):
-        raw = config_mapping(load_config(path))
-        raw["sweep"] = {name: [values[0], values[-1]] for name, values in raw["sweep"].items()}
+        config = load_config(path)
+        raw = config_mapping(config)
+        raw["sweep"] = {a.name: [a.values[0], a.values[-1]] for a in config.axes}
         if raw.get("initial", {}).get("ensemble"):
             raw["initial"]["ensemble"] = 2
         raw.pop("output", None)

@@ -28,7 +28,8 @@ ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 PAPER_FIGURES = (
-    "fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation", "nblock", "route_to_chaos"
+    "fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation", "nblock",
+    "route_to_chaos", "refined_unequal_qd",
 )  # fmt: skip
 
 
@@ -272,14 +273,16 @@ def test_make_figures_on_small_configs(tmp_path):
     nblock, heterogeneous = small_nblock_configs()
     route = small(CONFIGS / "route_to_chaos.yaml", "route_small",
                   sweep={"K_W": [0.0042, 0.005]}, classification={"max_t_end": 3000.0})  # fmt: skip
+    refined = small(CONFIGS / "unequal_qd.yaml", "unequal_qd", refine={"levels": 2},
+                    sweep={"K_W": [0.05, 0.07], "k2_W": [0.005, 0.02]})  # fmt: skip
     paths = []
-    for config in (paper, twoblock, qs, nblock, heterogeneous, route):
+    for config in (paper, twoblock, qs, nblock, heterogeneous, route, refined):
         path = tmp_path / f"{config.name}.yaml"
         path.write_text(config.text)
         paths.append(path)
     out = make_figures(
         paths[0], paths[1], (paths[2],), nblock=paths[3:5], route=paths[5],
-        out_dir=tmp_path / "figures", threads=1,
+        out_dir=tmp_path / "figures", threads=1, refined=paths[6],
     )  # fmt: skip
     assert [p.stem for p in out] == list(PAPER_FIGURES)
     for path in out:
@@ -429,3 +432,65 @@ def test_orbit_diagram_plots_each_runs_events_by_attractor(one_d, two_d, tmp_pat
     capsys.readouterr()
     assert main(["plot", str(path), "--orbit", "--var", "period"]) == 2
     assert "give --var or --orbit" in capsys.readouterr().err
+
+
+# --- refined results ---------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def refined_two_d():
+    config = small(
+        CONFIGS / "twoblock.yaml",
+        "twoblock_refined",
+        sweep={"K_W": {"start": 0.0303, "stop": 0.0703, "num": 5}, "k2_W": [0.0, 0.1, 0.2]},
+        refine={"levels": 4},
+    )
+    return compute(config, show_progress=False)
+
+
+def test_a_refined_map_draws_its_cells_at_their_level_and_its_boundaries(refined_two_d,
+                                                                          tmp_path):  # fmt: skip
+    """Left: every unsplit cell coloured by its runs' attractor (a mixed cell by quarters),
+    the boundary on top; right: each cell's level. The cells tile the map."""
+    from matplotlib.collections import PolyCollection
+
+    from sweep.refine import Lattice, cell_tree
+    from sweep.refined_dataset import lattice_index, refined_config
+
+    fig = plot_result(refined_two_d, "a caption")
+    assert_png(saved(fig, tmp_path / "refined.png"))
+    cells_ax, levels_ax = fig.axes[:2]
+    (cells,) = [c for c in cells_ax.collections if isinstance(c, PolyCollection)]
+    (levels,) = [c for c in levels_ax.collections if isinstance(c, PolyCollection)]
+    area = sum(abs(np.prod(np.ptp(p.vertices[:4], axis=0))) for p in cells.get_paths())
+    assert area == pytest.approx(0.04 * 0.2, rel=1e-9)  # no gap, no overlap
+    lattice = Lattice(refined_config(refined_two_d))
+    tree = cell_tree(lattice, lattice_index(refined_two_d, lattice))
+    assert len(levels.get_paths()) == sum(int((~split).sum()) for _, split in tree)
+    assert sorted(set(levels.get_array().tolist())) == list(range(5))
+    boundary_lines = [line for line in cells_ax.get_lines() if line.get_linestyle() == "-"]
+    assert boundary_lines  # the steady/runaway boundary
+    assert "refined 4 levels" in fig._suptitle.get_text()
+
+
+def test_a_refined_result_draws_on_a_given_axes_and_as_a_variable(refined_two_d, tmp_path):
+    from matplotlib.figure import Figure
+
+    fig = Figure()
+    ax = fig.subplots()
+    assert plot_result(refined_two_d, ax=ax) is fig and len(fig.axes) == 1
+    fig = plot_variable(refined_two_d, "t_final")
+    assert_png(saved(fig, tmp_path / "t_final.png"), min_bytes=5000)
+
+
+def test_a_refined_axis_is_drawn_along_its_runs(tmp_path):
+    """One refined axis: the runs sorted along it, the boundaries' cells shaded."""
+    config = small(CONFIGS / "quick.yaml", "quick_refined", refine={"levels": 5})
+    ds = compute(config, show_progress=False)
+    fig = plot_result(ds)
+    assert_png(saved(fig, tmp_path / "line.png"))
+    x = np.sort(ds["K_W"].values)
+    for ax in fig.axes:
+        assert len(ax.patches) >= 2  # a shaded cell per boundary
+        points = np.concatenate([c.get_offsets() for c in ax.collections])
+        assert len(points) == len(x) and np.isin(points[:, 0], x).all()

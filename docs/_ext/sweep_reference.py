@@ -2,8 +2,8 @@
 
 ``{confkey}`` and ``{outvar}`` are object types (each entry is found by the search box
 and listed in the index); the directives ``{sweep-config-keys}`` and
-``{sweep-output-variables}`` write one entry per model parameter, per integrator and
-classification setting (``sweep.config``'s ``Setting``s) and per output variable
+``{sweep-output-variables}`` write one entry per model parameter, per integrator,
+classification and refine setting (``sweep.config``'s ``Setting``s) and per output variable
 (``sweep.variables.VARIABLES``), so the reference cannot drift from the code.
 """
 
@@ -39,11 +39,12 @@ class _Generated(SphinxDirective):
 
 
 class ConfigKeys(_Generated):
-    """One ``confkey`` per model parameter and per integrator and classification setting."""
+    """One ``confkey`` per model parameter and per integrator, classification and refine
+    setting."""
 
     def lines(self):
         from sweep import physics
-        from sweep.config import Classification, Integrator
+        from sweep.config import Classification, Integrator, Refine
 
         out = []
         for name, info in physics.PARAMETERS.items():
@@ -51,10 +52,12 @@ class ConfigKeys(_Generated):
             text = f"{info.long_name[:1].upper()}{info.long_name[1:]}: fixed under "
             text += f"`parameters`, or swept under `sweep.{name}`"
             out += _entry("confkey", f"parameters.{name}", parts, text)
-        for section, cls in (("integrator", Integrator), ("classification", Classification)):
+        sections = (("integrator", Integrator), ("classification", Classification),
+                    ("refine", Refine))  # fmt: skip
+        for section, cls in sections:
             for field in dataclasses.fields(cls):
                 spec = field.metadata["setting"]
-                default = "10 × t_end" if field.default is None else repr(field.default)
+                default = spec.default_text or repr(field.default)
                 parts = [_units_text(spec.units), _allowed_text(spec.allowed), f"default {default}"]
                 text = spec.doc[:1].upper() + spec.doc[1:]
                 out += _entry("confkey", f"{section}.{field.name}", parts, text)

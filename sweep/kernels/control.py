@@ -13,7 +13,7 @@ def next_step_size(exponent, h, err, max_step):
     accepted step, shrinking at least 5× after a rejected one (and 5× when the error is
     not finite).
 
-    Tried and not kept (``docs/performance.md``): a PI controller, no growth right after
+    Tried and not kept (``docs/internals.md``): a PI controller, no growth right after
     a rejection, growth up to 10×, and Gustafsson's predictive controller, which cut
     rejected steps but changed every number and moved labels.
     """

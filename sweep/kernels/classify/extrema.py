@@ -85,7 +85,7 @@ def lnv_extremum_matters(i, span, y, ynew, f, turns, rtol, atol):
     (``TURN_FACTOR`` × the tolerance) of the step's ends and, wherever it lies there,
     it could not count as a turn (:func:`count_turn`): the wiggles of an oscillation
     decayed below the tolerance, which otherwise cost root searches (and DOP853 three
-    more stages) at almost every step (``docs/performance.md``)."""
+    more stages) at almost every step (``docs/internals.md``)."""
     lo = min(y[i], ynew[i])
     hi = max(y[i], ynew[i])
     least = TURN_FACTOR * (atol + rtol * max(0.0, min(abs(lo), abs(hi)) - span))

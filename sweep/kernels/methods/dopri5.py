@@ -20,7 +20,7 @@ MATRIX = False
 #: Its continuous extension's fifth coefficient r5, from the stages: no evaluation.
 DENSE_ROWS, DENSE_STAGES = 1, 0
 #: Proved (``step.excursion``): with the measured factor of DOP853 it spared none of its
-#: wiggles; with the proved bound, 90–95 % (``docs/performance.md``).
+#: wiggles; with the proved bound, 90–95 % (``docs/internals.md``).
 EXCURSION = PROVED
 TANGENT_ROWS = 6
 TANGENT_CAP = True

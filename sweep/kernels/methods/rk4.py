@@ -15,7 +15,7 @@ MATRIX = False
 DENSE_ROWS, DENSE_STAGES = 0, 0  # the cubic Hermite interpolant
 #: Measured: the proved bound (``step.PROVED``, r5 = 0) holds for the cubic Hermite
 #: interpolant too, but moves numbers (RODAS4's: the inertial configs' friction drops by
-#: up to 1.3e-7) for no time measurable (``docs/performance.md``).
+#: up to 1.3e-7) for no time measurable (``docs/internals.md``).
 EXCURSION = MEASURED
 TANGENT_ROWS = 4
 TANGENT_CAP = False  # a fixed step: nothing to cap

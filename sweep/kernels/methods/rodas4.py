@@ -23,7 +23,7 @@ STAGE_ROWS = 6
 MATRIX = True  # I/(γh) − J, factorised in place
 DENSE_ROWS, DENSE_STAGES = 0, 0  # the cubic Hermite interpolant
 #: Measured: the proved bound (``step.PROVED``, r5 = 0) would move the inertial configs'
-#: friction drops by up to 1.3e-7 for no time measurable (``docs/performance.md``).
+#: friction drops by up to 1.3e-7 for no time measurable (``docs/internals.md``).
 EXCURSION = MEASURED
 TANGENT_ROWS = STAGE_ROWS
 #: Not capped: |J δ| includes the stiff decay it need not resolve (``tangent.TANGENT_TURN``).

@@ -1,0 +1,266 @@
+"""Orchestration of a refinement: level after level, each run as any sweep's chunks are.
+
+The plan of a level (``sweep/refine.py``) needs every run of the level before, so levels
+run one after another; within a level the points are a sweep of their own: cut into
+chunks, integrated on threads or as Dask tasks (``sweep/backends.py``), each finished
+chunk saved at once as a part (``sweep/store.py``). A level's parts are named by its
+*level key*, a hash of the config's hash (``store.config_hash``: everything that
+changes the numbers), the level and the kernels' arrays of its points, so they are only
+ever used for those very runs. The plan is a function of the runs, which do not depend
+on how they were run, so a resumed, sharded or Dask run plans the same points as any
+other and writes the same file.
+
+* ``resume``: a level's parts written before are read back instead of run again.
+* ``shard=(i, n)``: shard i runs its chunks of each level (those of a sweep of the
+  level's points), then waits for the other shards' parts of the level in the shared
+  parts folder, plans the next level as they all do, and so on; at the end the parts
+  stay for ``merge`` (:func:`merge_refined`, through ``runner.merge_parts``). All shards
+  must run at the same time (they meet between levels).
+"""
+
+import hashlib
+import logging
+import signal
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import store
+from .backends import DaskTasks, LocalThreads, open_backend
+from .dataset import derived_fields
+from .errors import Interrupted, RunError
+from .grid import build_grid
+from .kernels.layout import result_width
+from .progress import Progress
+from .refine import Refinement, point_labels
+from .refined_dataset import build_point_dataset
+from .runner import (
+    StopRequest,
+    SweepResult,
+    _default_chunk_size,
+    _make_folder,
+    _PartStore,
+    _rows,
+    _write_result,
+    chunk_ranges,
+    integrate_in_memory,
+    missing_ranges,
+    remove_merged,
+    run_chunks,
+)
+
+log = logging.getLogger(__name__)
+
+#: Seconds between looks into the parts folder while a shard waits for the others.
+POLL = 1.0
+
+
+def level_key(chash, level, grid):
+    """16 hex digits naming the parts of one level: the config hash ``chash``, the level
+    and the kernels' arrays of its points (``grid``)."""
+    digest = hashlib.sha256(f"{chash} refine level {level}".encode())
+    digest.update(np.ascontiguousarray(grid.params).tobytes())
+    digest.update(np.ascontiguousarray(grid.y0).tobytes())
+    return digest.hexdigest()[:16]
+
+
+def refine_levels(config, run_level, timings=None):
+    """Run the refinement of ``config``: level by level, ``run_level(level, index, grid)``
+    returns ``(results, y_final)`` of the level's points ``index`` (their
+    :class:`~sweep.grid.Grid`: ``grid``). Returns ``(refinement, grid, results,
+    y_final)`` over all points, in order. ``timings`` (a dict) gets the seconds spent
+    planning and labelling (``planning``) and running (``integration``)."""
+    timings = {} if timings is None else timings
+    clock = time.perf_counter()
+    refinement = Refinement(config)
+    results, finals = [], []
+    index = refinement.planned[0]
+    while index is not None:
+        grid = build_grid(config, refinement.lattice.values(index))
+        start = time.perf_counter()
+        res, yf = run_level(refinement.level, index, grid)
+        timings["integration"] = timings.get("integration", 0.0) + time.perf_counter() - start
+        results.append(res)
+        finals.append(yf)
+        refinement.add(index, point_labels(config, derived_fields(grid, res, yf)))
+        log.info("%s: level %d: %d runs", config.name, refinement.level, grid.n)
+        index = refinement.plan()
+    grid = build_grid(config, refinement.lattice.values(refinement.index))
+    total = time.perf_counter() - clock
+    timings["planning"] = total - timings.get("integration", 0.0)
+    return refinement, grid, np.concatenate(results), np.concatenate(finals)
+
+
+def _desc(config, level):
+    return f"{config.name} level {level}/{config.refine.levels}"
+
+
+def compute_refined(config, threads=None, chunk_size=None, show_progress=True, client=None,
+                    command="run"):  # fmt: skip
+    """Run the refinement of ``config`` in memory and return its Dataset (nothing written);
+    arguments as for :func:`sweep.runner.compute`. Progress is shown per level."""
+    backend = LocalThreads(threads) if client is None else DaskTasks(client)
+    first = build_grid(config)
+    backend.compile(first.params, first.settings)
+
+    def run_level(level, index, grid):
+        progress = Progress(grid.n, desc=_desc(config, level), enabled=show_progress)
+        try:
+            return integrate_in_memory(grid.params, grid.y0, grid.settings, chunk_size=chunk_size,
+                                       progress=progress, backend=backend)  # fmt: skip
+        finally:
+            progress.close()
+
+    refinement, grid, results, y_final = refine_levels(config, run_level)
+    return build_point_dataset(config, refinement, grid, results, y_final, command)
+
+
+def run_refined(config, out=None, *, resources=None, chunk_size=None, resume=False, shard=None,
+                show_progress=True, stop=None):  # fmt: skip
+    """Run the refinement of ``config`` level by level, saving each chunk as a part, and
+    write the NetCDF result; arguments, errors and result as for
+    :func:`sweep.runner.run_sweep` (whose refined configs come here). A ``.zarr`` output
+    is refused: the points of a refinement are not known before it runs.
+    ``SweepResult.timings``: seconds spent running, planning and writing."""
+    start_time = time.perf_counter()
+    path = Path(out or config.output)
+    key = "output" if out is None else "--out"
+    store.check_writable(path, config.source, key, ".nc")
+    timings = {}
+    counts = {"computed": 0, "reused": 0}
+    with store.output_lock(path, shared=bool(shard)):
+        stop = stop if stop is not None else StopRequest()
+        folder = store.parts_dir_for(path)
+        _make_folder(folder)
+        chash = store.config_hash(config)
+        with open_backend(resources) as backend:
+            first = build_grid(config)
+            backend.compile(first.params, first.settings)
+
+            def run_level(level, index, grid):
+                return _run_level(config, level, grid, folder, level_key(chash, level, grid),
+                                  backend, chunk_size, resume, shard, show_progress, stop,
+                                  counts)  # fmt: skip
+
+            refinement, grid, results, y_final = refine_levels(config, run_level, timings)
+        if shard:
+            return SweepResult(None, folder, time.perf_counter() - start_time,
+                               counts["computed"], counts["reused"], timings)  # fmt: skip
+        clock = time.perf_counter()
+        ds = build_point_dataset(config, refinement, grid, results, y_final)
+        _write_result(ds, path, f"{folder} (use --resume)")
+        store.remove_parts(folder)
+        timings["file"] = time.perf_counter() - clock
+        log.info(
+            "%s: %.1f s running, %.2f s planning and labelling, %.2f s writing the file",
+            config.name, timings["integration"], timings["planning"], timings["file"],
+        )  # fmt: skip
+        return SweepResult(ds, path, time.perf_counter() - start_time, counts["computed"],
+                           counts["reused"], timings)  # fmt: skip
+
+
+def _run_level(config, level, grid, folder, key, backend, chunk_size, resume, shard,
+               show_progress, stop, counts):  # fmt: skip
+    """The runs of one level: read back (``resume``), run the rest of this shard's chunks
+    saving each as a part, and with a shard wait for the other shards' parts."""
+    if level and stop:  # (within a level, run_chunks checks after each chunk)
+        raise Interrupted(stop.signum, f"interrupted by {signal.Signals(stop.signum).name} "
+                          f"before level {level}; rerun with --resume to continue")  # fmt: skip
+    run = _PartStore(folder, config, grid.n, grid.y0.shape[1], key)
+    size = chunk_size or _default_chunk_size(grid.n, backend, shard)
+    owned = chunk_ranges(grid.n, size, shard or (0, 1))
+    have = np.zeros(grid.n, bool)
+    if resume:
+        wanted = np.zeros(grid.n, bool)
+        for a, b in owned:
+            wanted[a:b] = True
+        _fill(folder, key, run, have, wanted)
+        log.info("%s: level %d: reusing %d runs from parts", config.name, level, int(have.sum()))
+    todo = missing_ranges(owned, have)
+    total, left = _rows(owned), _rows(todo)
+    progress = Progress(total, _desc(config, level), enabled=show_progress, initial=total - left)
+    try:
+        run_chunks(backend, grid.params, grid.y0, grid.settings, todo, run.results, run.y_final,
+                   progress, run.save, stop)  # fmt: skip
+    except KeyboardInterrupt:
+        stop.signum = stop.signum or signal.SIGINT
+    finally:
+        progress.close()
+    counts["computed"] += run.saved
+    counts["reused"] += total - left
+    if run.saved < left:
+        raise Interrupted(
+            stop.signum,
+            f"interrupted by {signal.Signals(stop.signum).name}: level {level}: "
+            f"{total - left + run.saved} of {total} runs are saved in {folder}; rerun with "
+            "--resume to continue",
+        )
+    for a, b in owned:
+        have[a:b] = True
+    if shard and not have.all():
+        _await_shards(config, level, folder, key, run, have, shard, stop)
+    return run.results, run.y_final
+
+
+def _fill(folder, key, run, have, wanted):
+    """Rows ``wanted`` and not yet ``have`` read from the parts of level ``key``; unusable
+    parts are reported and removed (their runs are computed again)."""
+    entries = store.scan(folder).get(key, [])
+    _, bad = store.fill_from_parts(entries, run.results, run.y_final, have, wanted)
+    for path, reason in bad:
+        log.warning("unusable part, its runs will be recomputed: %s", reason)
+        path.unlink(missing_ok=True)
+
+
+def _await_shards(config, level, folder, key, run, have, shard, stop):
+    """Wait until every run of the level is in the parts folder (the other shards write
+    them), reading them as they come; a stop request ends the wait."""
+    i, n = shard
+    log.info("%s: shard %d/%d: level %d: waiting for the other shards' runs (%d of %d here)",
+             config.name, i, n, level, int(have.sum()), have.size)  # fmt: skip
+    while True:
+        _fill(folder, key, run, have, ~have)
+        if have.all():
+            return
+        if stop:
+            raise Interrupted(
+                stop.signum,
+                f"interrupted by {signal.Signals(stop.signum).name} while shard {i}/{n} waited "
+                f"for the other shards' runs of level {level} ({int(have.sum())} of "
+                f"{have.size} in {folder}); rerun with --resume to continue",
+            )
+        time.sleep(POLL)
+
+
+def merge_refined(config, groups, paths, out):
+    """Assemble the result of the refinement of ``config`` from its parts (``groups``:
+    part entries by hash, ``store.group``), level by level, write it to ``out`` and
+    remove the parts used (``runner.remove_merged``). Raises ``RunError`` naming the
+    level and rows that no part holds. Returns the Dataset."""
+    chash = store.config_hash(config)
+    used_parts = []
+
+    def run_level(level, index, grid):
+        results = np.empty((grid.n, result_width(grid.settings)))
+        y_final = np.empty_like(grid.y0)
+        have = np.zeros(grid.n, bool)
+        entries = groups.get(level_key(chash, level, grid), [])
+        used, bad = store.fill_from_parts(entries, results, y_final, have, np.ones(grid.n, bool))
+        for _, reason in bad:
+            log.warning("corrupt part, not merged: %s", reason)
+        gaps = missing_ranges([(0, grid.n)], have)
+        if gaps:
+            rows = ", ".join(f"{a}:{b}" for a, b in gaps[:5]) + (" ..." if len(gaps) > 5 else "")
+            raise RunError(
+                f"cannot merge: parts of {config.name}: level {level}: rows {rows} missing "
+                f"({grid.n - int(have.sum())} of {grid.n} runs); rerun the shards with --resume"
+            )
+        used_parts.extend(used)
+        return results, y_final
+
+    refinement, grid, results, y_final = refine_levels(config, run_level)
+    ds = build_point_dataset(config, refinement, grid, results, y_final, "merge")
+    _write_result(ds, out, "the parts")
+    remove_merged(used_parts, paths)
+    return ds
