@@ -46,7 +46,7 @@ are in the engineering notes of the documentation, ``docs/internals.md``):
   loop around one call of the right-hand side.
 * The classifier's per-step update (``update_cycle``) is inlined by LLVM instead
   (``jit_forceinline``: numba's ``forceinline``, LLVM's ``alwaysinline``): compiled on
-  its own, cached and shared by the variants of its method, it no longer has its body
+  its own, cached and shared by every variant, it no longer has its body
   and scope copied into the kernel by numba's inliner, and it runs as fast per step
   (measured with DOPRI5, DOP853 and RODAS4, heap and stack scratch). DOP853's step
   inlined that way was 2-3 % slower per step and compiled no faster, so it is not.
@@ -89,14 +89,20 @@ CACHE = os.environ.get("SWEEP_NUMBA_CACHE", "1") != "0"
 _COMMON = {"nogil": True, "fastmath": False, "error_model": "numpy", "no_cfunc_wrapper": True}
 
 
+#: The files outside ``sweep/kernels`` that compiled code depends on: this policy and
+#: the code tables the kernels take as constants.
+COMPILED_FROM = ("accelerate.py", "codes.py")
+
+
 @functools.cache
 def source_digest():
     """SHA-256 (hex) of the sources compiled code comes from: every file of
-    ``sweep/kernels`` and this policy, in name order."""
+    ``sweep/kernels`` (its subpackages too) and :data:`COMPILED_FROM`, in path order."""
     here = Path(__file__).parent
+    paths = [*(here / "kernels").rglob("*.py"), *(here / name for name in COMPILED_FROM)]
     digest = hashlib.sha256()
-    for path in [*sorted((here / "kernels").glob("*.py")), here / "accelerate.py"]:
-        digest.update(path.name.encode())
+    for path in sorted(paths):
+        digest.update(path.relative_to(here).as_posix().encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()
 

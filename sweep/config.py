@@ -22,11 +22,11 @@ from typing import Any
 import numpy as np
 import yaml
 
+from .codes import COUPLINGS, LYAPUNOV_MODES, METHODS
 from .errors import ConfigError
 from .heterogeneity import DISTRIBUTIONS, PER_BLOCK, SPREAD_AXES, SPREAD_PREFIX, spread_pattern
 from .physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
 
-METHODS = ("dopri5", "rk4", "rosenbrock", "dop853")
 #: Default integrator per model where it is not dop853: the inertial model is stiff
 #: in stick phases (decay rate A e^(-ln v/V)/M̂ towards force balance). The explicit
 #: methods are held to steps below their stability limit there (with M̂ = 1e-3 dopri5
@@ -37,15 +37,9 @@ DEFAULT_METHODS = {"inertial": "rosenbrock"}
 #: a cubic Hermite interpolant, whose error grows with the step.
 DEFAULT_MAX_STEPS = {"rosenbrock": 0.5}
 TIME_UNITS = ("D0/V", "s")
-#: When the largest Lyapunov exponent is computed: from t_end on, for runs not settled
-#: by then; over every whole run; or never.
-LYAPUNOV_MODES = ("unsettled", "always", "never")
 #: Most events whose maxima a run can report: the cycles the classifier keeps
-#: (``kernels.cycles.HISTORY``; a test checks the two agree).
+#: (``kernels.classify.state.HISTORY``; a test checks the two agree).
 MAX_EVENTS = 128
-#: Which blocks a coupling spring k2 joins: neighbours in an open chain, neighbours
-#: in a closed ring, or every pair.
-COUPLINGS = ("chain", "ring", "all")
 TOP_LEVEL_KEYS = (
     "name",
     "description",
@@ -176,7 +170,7 @@ class Integrator:
     dt: float = setting(0.01, "fixed step of rk4", "(0, inf)", "D0/V")
     # Largest step of the adaptive methods. DOPRI5 and DOP853 need none: their dense
     # output is as accurate as their steps, and extrema that do not stand out of the
-    # error scale count as no events (kernels/cycles.py, TURN_FACTOR). RODAS4 keeps
+    # error scale count as no events (kernels/classify/extrema.py, TURN_FACTOR). RODAS4 keeps
     # 0.5 D0/V (DEFAULT_MAX_STEPS; docs/internals.md, "max_step").
     max_step: float = setting(math.inf, "largest step of the adaptive methods (.inf: no cap; "
                               "rosenbrock's default: 0.5)", "(0, inf)", "D0/V")  # fmt: skip

@@ -23,7 +23,7 @@ from .config import parse_config
 from .errors import ConfigError, InputError
 from .physics import PARAMETERS
 from .store import ZARR_SUFFIX, replaced_atomically, require_zarr
-from .variables import ATTRACTORS, REGIMES, variables_for
+from .variables import ATTRACTORS, REGIMES, SCALES, VARIABLES, variables_for
 
 
 def derived_fields(grid, results, y_final):
@@ -39,35 +39,21 @@ def derived_fields(grid, results, y_final):
     r = results
     nb = config.blocks
     V = phys["V"]
-    regime = r[:, layout.R_REGIME].astype(np.int8)
-    events = r[:, layout.R_CYCLE_EVENTS]
-    period = r[:, layout.R_PERIOD] * time_unit
     lin = grid.linear
     growth, kc, omega = lin["growth_rate"], lin["kappa_c"], lin["omega"]
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        # the variables read from one column of the kernels' results (their declaration)
         fields = {
-            "regime": regime,
-            "attractor": r[:, layout.R_ATTRACTOR],
-            "cycle_events": events,
-            "lyapunov_exponent": r[:, layout.R_LYAPUNOV] / time_unit,
-            "lyapunov_error": r[:, layout.R_LYAPUNOV_ERROR] / time_unit,
+            var.name: SCALES[var.scale](r[:, getattr(layout, var.column)], time_unit)
+            for var in VARIABLES
+            if var.column
+        }
+        events, period = fields["cycle_events"], fields["period"]
+        fields |= {
             "lnv_amplitude": r[:, layout.R_LNV_MAX] - r[:, layout.R_LNV_MIN],
-            "lnv_max": r[:, layout.R_LNV_MAX],
-            "lnv_min": r[:, layout.R_LNV_MIN],
             "v_max": V * np.exp(r[:, layout.R_LNV_MAX]),
             "v_min": V * np.exp(r[:, layout.R_LNV_MIN]),
-            "period": period,
-            "growth_rate": r[:, layout.R_GROWTH] / time_unit,
-            "friction_drop": r[:, layout.R_FRICTION_DROP],
             "slip_per_event": np.where(events > 0, V * period / np.maximum(events, 1), np.nan),
-            "t_runaway": r[:, layout.R_TAU_RUNAWAY] * time_unit,
-            "t_final": r[:, layout.R_TAU_FINAL] * time_unit,
-            "convergence": r[:, layout.R_CONVERGENCE],
-            "n_steps": r[:, layout.R_N_STEPS],
-            "n_rejected": r[:, layout.R_N_REJECTED],
-            "n_peaks": r[:, layout.R_N_PEAKS],
-            "sync_error": r[:, layout.R_SYNC_ERROR],
-            "phase_lag": r[:, layout.R_PHASE_LAG],
             "lnv_final": y_final[:, :nb],
             "ln_state_final": y_final[:, nb : 2 * nb],
             "linear_growth_rate": growth / time_unit,
@@ -82,11 +68,8 @@ def derived_fields(grid, results, y_final):
         fields["event_interval"] = r[:, start + m : start + 2 * m] * time_unit[:, None]
     if config.model == "inertial":
         fields["inertial_force_final"] = y_final[:, 2 * nb : 3 * nb]
-    if config.nblock_outputs:
-        fields["sync_order"] = r[:, layout.R_SYNC_ORDER]
-        fields["slip_participation"] = r[:, layout.R_SLIP_PARTICIPATION]
     if config.heterogeneous:
-        for name, values in heterogeneity.block_values(config, phys).items():
+        for name, values in grid.blocks.items():
             fields[f"{name}_block"] = values
     return fields
 

@@ -213,7 +213,7 @@ def critical_ratios(
     Returns a DataArray (coupling, blocks, seed)."""
     import xarray as xr
 
-    from . import grid, heterogeneity, linear
+    from . import grid, heterogeneity
 
     # None removes a key: one K/W, identical starts at steady sliding, a D0 spread only
     changes = {
@@ -230,10 +230,10 @@ def critical_ratios(
                                      "distribution": "uniform", "seed": seed}  # fmt: skip
                 source = f"{config.source} (N = {n}, {coupling}, seed {seed})"
                 cfg = with_changes(config, changes, source)
-                phys = grid.physical_parameters(cfg)
-                kc_w = linear.theory(cfg, phys)["kappa_c"][0] / phys["D0"][0]
-                mean_d0 = heterogeneity.block_values(cfg, phys)["D0"][0].mean()
-                out[i, j, k] = kc_w * mean_d0 / (phys["B"][0] - phys["A"][0])
+                g = grid.build_grid(cfg)
+                phys = g.physical
+                kc_w = g.linear["kappa_c"][0] / phys["D0"][0]
+                out[i, j, k] = kc_w * g.blocks["D0"][0].mean() / (phys["B"][0] - phys["A"][0])
     title = (
         f"D0 spread {spread:g} (uniform, seeds {seeds[0]}–{seeds[-1]}), "
         f"k2/W = {config.fixed['k2_W']:g} µm⁻¹: Jacobian Kc"

@@ -18,27 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import heterogeneity, linear, physics
+from . import codes, heterogeneity, linear, physics
 from .kernels import layout
-
-MODEL_CODES = {
-    "quasi-static": layout.QUASI_STATIC,
-    "quasi-dynamic": layout.QUASI_DYNAMIC,
-    "inertial": layout.INERTIAL,
-}
-LAW_CODES = {"aging": layout.AGING, "slip": layout.SLIP}
-COUPLING_CODES = {"chain": layout.CHAIN, "ring": layout.RING, "all": layout.ALL}
-METHOD_CODES = {
-    "dopri5": layout.DOPRI5,
-    "rk4": layout.RK4,
-    "rosenbrock": layout.ROSENBROCK,
-    "dop853": layout.DOP853,
-}
-LYAPUNOV_CODES = {
-    "never": layout.LYAP_NEVER,
-    "unsettled": layout.LYAP_UNSETTLED,
-    "always": layout.LYAP_ALWAYS,
-}
 
 
 def physical_parameters(config, points=None):
@@ -74,9 +55,9 @@ def settings_array(config):
     """The kernels' settings array (``layout.S_*``), shared by all systems."""
     s = np.zeros(layout.N_SETTINGS)
     integ, cls = config.integrator, config.classification
-    s[layout.S_MODEL] = MODEL_CODES[config.model]
-    s[layout.S_LAW] = LAW_CODES[config.state_law]
-    s[layout.S_METHOD] = METHOD_CODES[integ.method]
+    s[layout.S_MODEL] = codes.code(codes.MODELS, config.model)
+    s[layout.S_LAW] = codes.code(codes.STATE_LAWS, config.state_law)
+    s[layout.S_METHOD] = codes.code(codes.METHODS, integ.method)
     s[layout.S_NBLOCKS] = config.blocks
     s[layout.S_RTOL] = integ.rtol
     s[layout.S_ATOL] = integ.atol
@@ -87,8 +68,8 @@ def settings_array(config):
     s[layout.S_CONFIRM_CYCLES] = cls.confirm_cycles
     s[layout.S_EARLY_EXIT] = 1.0 if cls.early_exit else 0.0
     s[layout.S_SLIP_LNV] = math.log(cls.slip_v_over_V)
-    s[layout.S_COUPLING] = COUPLING_CODES[config.coupling]
-    s[layout.S_LYAPUNOV] = LYAPUNOV_CODES[cls.lyapunov]
+    s[layout.S_COUPLING] = codes.code(codes.COUPLINGS, config.coupling)
+    s[layout.S_LYAPUNOV] = codes.code(codes.LYAPUNOV_MODES, cls.lyapunov)
     s[layout.S_EVENTS] = cls.events
     return s
 
@@ -99,14 +80,17 @@ class Grid:
 
     ``physical``: name → 1-D array per system (physical units, see
     :func:`physical_parameters`); ``dimensionless``: ``physics.dimensionless`` of
-    those (``time_unit`` = D0/V in s per system); ``linear``: ``linear.theory``
-    per system; ``params`` (n, N_PARAMS [+ N_BLOCK_PARAMS × blocks]), ``y0``
-    (n, n_vars) and ``settings`` (N_SETTINGS,): the kernels' arrays.
+    those (``time_unit`` = D0/V in s per system); ``blocks``: A, B, D0 and K_W of every
+    block, (n, blocks) each (``heterogeneity.block_values``; empty where the blocks
+    are equal by config); ``linear``: ``linear.theory`` per system; ``params`` (n,
+    N_PARAMS [+ N_BLOCK_PARAMS × blocks]), ``y0`` (n, n_vars) and ``settings``
+    (N_SETTINGS,): the kernels' arrays.
     """
 
     config: object
     physical: dict
     dimensionless: dict
+    blocks: dict
     linear: dict
     params: np.ndarray
     y0: np.ndarray
@@ -129,6 +113,7 @@ class Grid:
             self.config,
             pick,
             {name: values[index] for name, values in self.dimensionless.items()},
+            {name: values[index] for name, values in self.blocks.items()},
             {name: values[index] for name, values in self.linear.items()},
             np.ascontiguousarray(self.params[index]),
             np.ascontiguousarray(self.y0[index]),
@@ -148,6 +133,7 @@ def build_grid(config, points=None):
         phys["A"], phys["B"], phys["D0"], phys["V"], phys["K_W"], phys["k2_W"],
         phys["eta_W"], phys["m_W"],
     )  # fmt: skip
+    blocks = heterogeneity.block_values(config, phys) if config.heterogeneous else {}
     n = phys["A"].size
     nb = config.blocks
     integ = config.integrator
@@ -167,25 +153,26 @@ def build_grid(config, points=None):
     max_t_end = 10.0 * integ.t_end if max_t_end is None else max_t_end
     params[:, layout.P_TAU_MAX] = max_t_end * to_tau
     if config.heterogeneous:
-        for k, values in enumerate(block_parameters(config, phys)):
+        for k, values in enumerate(block_parameters(blocks, phys)):
             start = layout.N_PARAMS + k * nb
             params[:, start : start + nb] = values
-    lin = linear.theory(config, phys)
+    lin = linear.theory(config, phys, dl, blocks)
     params[:, layout.P_LIN_GROWTH] = lin["growth_rate"]
-    return Grid(config, phys, dl, lin, params, initial_state(config, n), settings_array(config))
+    y0 = initial_state(config, n)
+    return Grid(config, phys, dl, blocks, lin, params, y0, settings_array(config))
 
 
-def block_parameters(config, phys):
+def block_parameters(values, phys):
     """Dimensionless per-block columns: (A_i, B_i, κ1_i, D0/D0_i), each (n, blocks),
-    in the order of ``layout.B_*``."""
-    values = heterogeneity.block_values(config, phys)
+    in the order of ``layout.B_*``, from the blocks' ``values``
+    (``heterogeneity.block_values``) and the common ``phys``."""
     D0 = phys["D0"][:, None]
     return (values["A"], values["B"], values["K_W"] * D0, D0 / values["D0"])
 
 
 def state_size(config):
     """State variables per system: ℓ and ψ per block, and z per block (inertial model)."""
-    return config.blocks * layout.values_per_block(MODEL_CODES[config.model])
+    return config.blocks * layout.values_per_block(codes.code(codes.MODELS, config.model))
 
 
 def initial_state(config, n_systems):

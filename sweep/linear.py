@@ -194,18 +194,17 @@ def unequal_theory(model_name, coupling, A, B, ratio, rate, kappa2, eta_hat, mas
     return growth, kc, omega
 
 
-def theory(config, phys):
-    """Linear theory at every system of a sweep (dimensionless, units of the reference D0/V).
+def theory(config, phys, dl, values):
+    """Linear theory at every system of a sweep (dimensionless, units of the reference D0/V),
+    from its physical parameters ``phys`` (``grid.physical_parameters``), their
+    dimensionless ``dl`` (``physics.dimensionless``) and, where blocks differ by config,
+    the blocks' ``values`` (``heterogeneity.block_values``).
 
     Returns a dict of arrays: ``growth_rate`` (max Re λ), ``kappa_c`` (critical
     common κ = Kc D0/W) and ``omega`` (|Im λ| at onset). Systems whose blocks are
     identical use the analytic modes of ``sweep/physics.py``; the others the
     eigenvalues of :func:`steady_jacobian`.
     """
-    dl = physics.dimensionless(
-        phys["A"], phys["B"], phys["D0"], phys["V"], phys["K_W"], phys["k2_W"],
-        phys["eta_W"], phys["m_W"],
-    )  # fmt: skip
     args = (config.model, dl["A"], dl["B"], dl["eta_hat"], dl["mass_hat"])
     growth = physics.linear_growth_rate(
         config.model, config.blocks, dl["A"], dl["B"], dl["kappa1"], dl["kappa2"],
@@ -218,7 +217,6 @@ def theory(config, phys):
     }
     if not config.heterogeneous:
         return out
-    values = heterogeneity.block_values(config, phys)
     rows = ~heterogeneity.identical_blocks(values)
     if rows.any():
         factors = heterogeneity.block_factors(config, phys)

@@ -27,8 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-MODELS = ("quasi-static", "quasi-dynamic", "inertial")
-STATE_LAWS = ("aging", "slip")
+from .codes import MODELS, STATE_LAWS  # noqa: F401 (the models and laws, named here)
 
 
 @dataclass(frozen=True)

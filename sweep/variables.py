@@ -9,16 +9,24 @@ feature (``Config.features``: ``nblock``, ``heterogeneous``, ``ensemble``,
 ``events``); ``per_member``: one value per run (with an ensemble, a ``member``
 dimension), else one per grid point; ``per_regime``: a trailing ``regime_name``
 dimension; ``per_event``: a trailing ``event`` dimension (the last events of each run).
+``column``: the column of the kernels' results it is read from (the name of a
+``kernels.layout`` ``R_*`` index; empty: computed from several), ``scale`` its
+conversion to physical units (:data:`SCALES`).
 """
 
 from dataclasses import dataclass
 
-#: Regime names in code order (``kernels.layout.STEADY`` … ``UNDECIDED``; the CF flag_values /
-#: flag_meanings of ``regime``). Output vocabulary, so it lives here, not with the kernels.
-REGIMES = ("steady", "stick_slip", "runaway", "undecided")
-#: What a run settled on, in code order (``kernels.layout.FIXED_POINT`` … ``UNBOUNDED``;
-#: the flag_values / flag_meanings of ``attractor``).
-ATTRACTORS = ("fixed_point", "periodic", "quasi_periodic", "chaotic", "unresolved", "unbounded")
+#: The regime and attractor names in code order (the flag_values / flag_meanings of
+#: ``regime`` and ``attractor``): the code tables of ``sweep/codes.py``.
+from .codes import ATTRACTORS, REGIMES  # noqa: F401
+
+#: Conversions of a kernel column to physical units, given D0/V in s per system: as is,
+#: a time (× D0/V: s), a rate (÷ D0/V: s⁻¹).
+SCALES = {
+    "": lambda x, time_unit: x,
+    "time": lambda x, time_unit: x * time_unit,
+    "rate": lambda x, time_unit: x / time_unit,
+}
 
 
 @dataclass(frozen=True)
@@ -37,37 +45,42 @@ class Variable:
     per_member: bool = True
     per_regime: bool = False
     per_event: bool = False
+    column: str = ""
+    scale: str = ""
 
 
 VARIABLES = (
     Variable("regime", "int8", "1", "dynamical regime",
              "steady, stick_slip, runaway or undecided (see flag_values/flag_meanings); "
              "stick_slip is bounded oscillation: a cycle of one or more events, or "
-             "quasi-periodic or chaotic motion (see attractor)"),
+             "quasi-periodic or chaotic motion (see attractor)", column="R_REGIME"),
     Variable("attractor", "int8", "1", "kind of attractor",
              "fixed_point (steady), periodic (a cycle of cycle_events events), quasi_periodic "
              "(lyapunov_exponent consistent with 0, no cycle of up to 32 events), chaotic "
              "(lyapunov_exponent > 0 beyond 3 lyapunov_error), unresolved (undecided), "
-             "unbounded (runaway); see flag_values/flag_meanings"),
+             "unbounded (runaway); see flag_values/flag_meanings", column="R_ATTRACTOR"),
     Variable("cycle_events", "int32", "1", "events per cycle",
              "number of events (maxima of ln v of block 0) after which a periodic run's "
              "motion repeats: 1 for a simple cycle, n for a period-n cycle; 0 where the run is "
-             "not periodic"),
+             "not periodic", column="R_CYCLE_EVENTS"),
     Variable("lyapunov_exponent", "float64", "s-1", "largest Lyapunov exponent",
              "lambda1 from a tangent vector carried beside the state (Benettin et al. 1980), a "
              "least-squares fit of its log growth after a transient; computed from t_end on for "
              "runs not settled by then (classification_lyapunov: unsettled), over every run "
-             "(always) or never; NaN where not computed or the window was too short"),
+             "(always) or never; NaN where not computed or the window was too short",
+             column="R_LYAPUNOV", scale="rate"),
     Variable("lyapunov_error", "float64", "s-1", "standard error of lyapunov_exponent",
              "standard error of the slopes of the fit's blocks (the window after the transient "
-             "cut into 7 blocks)"),
+             "cut into 7 blocks)", column="R_LYAPUNOV_ERROR", scale="rate"),
     Variable("lnv_amplitude", "float64", "1", "peak-to-peak ln(v/V)",
              "max - min of ln(v/V) over all blocks in the final window: the last completed "
              "cycle of a periodic run (all its events), the last events kept (up to 128) of "
              "chaotic and quasi-periodic runs, else the last interval between maxima of ln v of "
              "block 0; for runaway runs and runs without two maxima, the interval in progress"),
-    Variable("lnv_max", "float64", "1", "maximum ln(v/V)", "in the final window"),
-    Variable("lnv_min", "float64", "1", "minimum ln(v/V)", "in the final window"),
+    Variable("lnv_max", "float64", "1", "maximum ln(v/V)", "in the final window",
+             column="R_LNV_MAX"),
+    Variable("lnv_min", "float64", "1", "minimum ln(v/V)", "in the final window",
+             column="R_LNV_MIN"),
     Variable("v_max", "float64", "um s-1", "maximum slip velocity",
              "V exp(lnv_max); for runaway runs the velocity after the step that crossed the "
              "cap (at least the cap), or the last finite value if the run blew up first"),
@@ -76,38 +89,43 @@ VARIABLES = (
     Variable("period", "float64", "s", "oscillation period",
              "of a periodic run the full period of its cycle (the sum of the intervals of its "
              "cycle_events events); otherwise the time between the last two maxima of ln v of "
-             "block 0; NaN without two maxima"),
+             "block 0; NaN without two maxima", column="R_PERIOD", scale="time"),
     Variable("growth_rate", "float64", "s-1", "envelope growth rate",
              "ln(ratio of the last two peak-to-trough amplitudes of ln v of block 0, one cycle "
              "apart) / period; "
              "negative: decaying, about 0: limit cycle, positive: growing; NaN where either "
-             "amplitude is below classification_steady_amplitude (round-off)"),
+             "amplitude is below classification_steady_amplitude (round-off)",
+             column="R_GROWTH", scale="rate"),
     Variable("friction_drop", "float64", "1", "friction drop per event",
-             "max - min of the friction coefficient over the final window (largest over blocks)"),
+             "max - min of the friction coefficient over the final window (largest over blocks)",
+             column="R_FRICTION_DROP"),
     Variable("slip_per_event", "float64", "um", "slip per event",
              "V * period / cycle_events for periodic stick-slip (the load point's advance per "
              "event); NaN otherwise"),
     Variable("t_runaway", "float64", "s", "runaway time",
              "time at which v first exceeded the velocity cap or the state became non-finite; "
-             "NaN if the run did not run away"),
+             "NaN if the run did not run away", column="R_TAU_RUNAWAY", scale="time"),
     Variable("t_final", "float64", "s", "time the run stopped",
              "end time, earlier when the regime was settled (early exit), or later (up to "
-             "classification_max_t_end) when it was not settled at the end time"),
+             "classification_max_t_end) when it was not settled at the end time",
+             column="R_TAU_FINAL", scale="time"),
     Variable("convergence", "float64", "1", "distance of the last cycle to the limit cycle",
              "estimated relative distance of the final cycle's features (extremes of ln v, "
              "peak-to-peak, period) to those of the limit cycle, from the Aitken extrapolation "
              "of the cycle-to-cycle sequence (per residue class for a cycle of several "
              "events); periodic runs have at most classification_accuracy; elsewhere the best "
              "over the cycles tried, inf where the cycles do not contract; NaN for steady and "
-             "runaway runs"),
-    Variable("n_steps", "int32", "1", "accepted integration steps", ""),
-    Variable("n_rejected", "int32", "1", "rejected integration steps", "adaptive method only"),
-    Variable("n_peaks", "int32", "1", "maxima of ln v of block 0", ""),
+             "runaway runs", column="R_CONVERGENCE"),
+    Variable("n_steps", "int32", "1", "accepted integration steps", "", column="R_N_STEPS"),
+    Variable("n_rejected", "int32", "1", "rejected integration steps", "adaptive method only",
+             column="R_N_REJECTED"),
+    Variable("n_peaks", "int32", "1", "maxima of ln v of block 0", "", column="R_N_PEAKS"),
     Variable("sync_error", "float64", "1", "synchronisation error",
-             "max |ln v_i - ln v_0| over blocks in the final window", min_blocks=2),
+             "max |ln v_i - ln v_0| over blocks in the final window", min_blocks=2,
+             column="R_SYNC_ERROR"),
     Variable("phase_lag", "float64", "1", "phase lag of the last block",
              "time from a maximum of ln v_0 to the next maximum of ln v of the last block, "
-             "as a fraction of the period in [-0.5, 0.5)", min_blocks=2),
+             "as a fraction of the period in [-0.5, 0.5)", min_blocks=2, column="R_PHASE_LAG"),
     Variable("lnv_final", "float64", "1", "final ln(v/V) per block",
              "state at t_final", per_block=True),
     Variable("ln_state_final", "float64", "1", "final ln(Phi/Phi_ss) per block",
@@ -120,11 +138,12 @@ VARIABLES = (
              "Kuramoto R = |mean_i exp(i theta_i)| of the blocks' oscillation phases in the final "
              "window, theta_i = 2 pi (time of block i's last maximum of ln v - time of block 0's "
              "maximum) / period: 1 in phase, 0 spread evenly; NaN without two maxima of block 0 "
-             "or where a block had none", feature="nblock"),
+             "or where a block had none", feature="nblock", column="R_SYNC_ORDER"),
     Variable("slip_participation", "float64", "1", "fraction of blocks taking part in a slip",
              "mean over the slip events of the final window of the fraction of blocks that slip "
              "(v > classification_slip_v_over_V * V) during the event; an event lasts while any "
-             "block slips; NaN without a completed event", feature="nblock"),
+             "block slips; NaN without a completed event", feature="nblock",
+             column="R_SLIP_PARTICIPATION"),
     Variable("A_block", "float64", "1", "direct-effect coefficient A per block", "",
              per_block=True, feature="heterogeneous", per_member=False),
     Variable("B_block", "float64", "1", "evolution-effect coefficient B per block", "",

@@ -12,30 +12,35 @@ import pytest
 from conftest import python_stdout
 
 from sweep import accelerate
-from sweep.kernels import cycles, equations, integrate, layout, steppers
+from sweep.kernels import control, equations, integrate, layout, linalg, record, step, tangent
+from sweep.kernels.classify import cycle, extrema, result, sequences, state, verdicts
+from sweep.kernels.methods import MODULES as METHOD_MODULES
 
 #: The modules of the kernel package that hold jitted functions.
-MODULES = (equations, steppers, cycles, integrate)
-#: The one plain-Python function of the kernels: it builds the grid kernel of a variant.
-FACTORY = "grid_kernel"
+CLASSIFY = (state, sequences, extrema, cycle, verdicts, result)
+MODULES = (equations, step, control, linalg, tangent, *METHOD_MODULES, *CLASSIFY, record, integrate)
+#: The plain-Python functions of the kernels: the one that builds the grid kernel of a
+#: variant, and the one that puts an explicit method's tableau in the tangent's form
+#: when its module is imported.
+PLAIN = ("grid_kernel", "explicit_tableau")
 
 
 def kernel_functions():
     """Every jitted function defined in the kernel modules, found by inspecting them:
-    name → dispatcher."""
+    "module.name" (the module's last name) → dispatcher."""
     return {
-        name: obj
+        f"{module.__name__.rsplit('.', 1)[-1]}.{name}": obj
         for module in MODULES
         for name, obj in vars(module).items()
         if callable(obj) and getattr(obj, "__module__", None) == module.__name__
-        and name != FACTORY
+        and name not in PLAIN and not isinstance(obj, type)
     }  # fmt: skip
 
 
 KERNELS = sorted(kernel_functions())
 #: Helpers of the grid kernels' loop, one per integrator and the classifier's: the
 #: discovery must find at least these (a guard against discovering nothing).
-ENTRY_POINTS = {"update_cycle", "step_rk4", "step_dopri5", "step_dop853", "step_rosenbrock"}
+ENTRY_POINTS = {"extrema.update_cycle", "rk4.step", "dopri5.step", "dop853.step", "rodas4.step"}
 #: Model, law, method, coupling codes and unequal blocks of one variant (quasi-static,
 #: aging, DOPRI5, chain, equal blocks).
 ROOT = Path(__file__).resolve().parents[1]
@@ -85,17 +90,20 @@ from sweep import dispatch
 from sweep.config import load_config, with_changes
 from sweep.grid import build_grid
 from numba.core import types
-from sweep.kernels import cycles, steppers, tangent
+from sweep.kernels import tangent
+from sweep.kernels.classify import extrema, state
+from sweep.kernels.methods import dop853, rodas4
 config = with_changes(load_config(CONFIG), {"integrator": {"method": "dopri5"}})
 grid = build_grid(config)
 dispatch.ready_kernel(grid.params, grid.settings)
-others = {"dense_dop853": steppers.dense_dop853, "step_rosenbrock": steppers.step_rosenbrock,
-          "tangent_step": tangent.tangent_step}
+others = {"dop853.dense": dop853.dense, "rodas4.step": rodas4.step,
+          "rodas4.tangent_step": rodas4.tangent_step,
+          "explicit_tangent_step": tangent.explicit_tangent_step}
 report = {name: len(f.signatures) for name, f in others.items()}
 literal = {name: sorted({str(a) for s in f.signatures for a in s if isinstance(a, types.Literal)})
-           for name, f in {"history_value": cycles.history_value,
-                           "update_cycle": cycles.update_cycle}.items()}
-report.update(history_value=len(cycles.history_value.signatures), literal=literal)
+           for name, f in {"history_value": state.history_value,
+                           "update_cycle": extrema.update_cycle}.items()}
+report.update(history_value=len(state.history_value.signatures), literal=literal)
 print(json.dumps(report))
 """
 
@@ -105,22 +113,33 @@ def test_a_variant_compiles_only_its_own_parts():
     """The codes are constants of the grid kernel's closure, and numba prunes the other
     variants' branches before it inlines and types the helpers: a DOPRI5 kernel
     without the tangent compiles neither DOP853's interpolant nor RODAS4's step, nor
-    the tangent step (each costs seconds of a cold start). Helpers are specialised on
-    the codes they are passed (``update_cycle`` on DOPRI5's) and on no other constant:
-    ``history_value``, called with constant and variable arguments, compiles once."""
+    a tangent step (each costs seconds of a cold start). Helpers are specialised on
+    the codes they are passed and on no other constant: ``history_value``, called with
+    constant and variable arguments, compiles once; ``update_cycle``, which takes the
+    step record and no code, is shared by every method."""
     env = dict(os.environ, SWEEP_NUMBA_CACHE="0", NUMBA_DISABLE_JIT="0")
     code = f"CONFIG = {str(ROOT / 'configs' / 'quick.yaml')!r}\n{PRUNE_PROBE}"
     report = json.loads(python_stdout(code, env=env).splitlines()[-1])
     assert report == {
-        "dense_dop853": 0, "step_rosenbrock": 0, "tangent_step": 0, "history_value": 1,
-        "literal": {"history_value": [], "update_cycle": [f"Literal[int]({layout.DOPRI5})"]},
+        "dop853.dense": 0, "rodas4.step": 0, "rodas4.tangent_step": 0,
+        "explicit_tangent_step": 0, "history_value": 1,
+        "literal": {"history_value": [], "update_cycle": []},
     }  # fmt: skip
 
 
 @NO_JIT
 @pytest.mark.parametrize(
     "name",
-    ["rhs", "step_rk4", "step_dopri5", "step_dop853", "dense_tail", "dense_value", "cycle_arrays"],
+    [
+        "equations.rhs",
+        "rk4.step",
+        "dopri5.step",
+        "dop853.step",
+        "dopri5.dense",
+        "step.dense_tail",
+        "step.dense_value",
+        "state.cycle_arrays",
+    ],
 )
 def test_rhs_and_explicit_steps_are_inlined(name):
     """accelerate.py: the right-hand side and the explicit steps are inlined at numba-IR
@@ -132,13 +151,13 @@ def test_rhs_and_explicit_steps_are_inlined(name):
 def test_the_classifier_update_is_inlined_by_llvm():
     """accelerate.py: the classifier's per-step update is compiled on its own (cached,
     not copied into the kernel by numba's inliner) and inlined by LLVM."""
-    options = cycles.update_cycle.targetoptions
+    options = extrema.update_cycle.targetoptions
     assert options["forceinline"] is True
     assert options.get("inline", "never") == "never"
 
 
 @NO_JIT
-@pytest.mark.parametrize("name", ["dense_dop853", "dense_needed"])
+@pytest.mark.parametrize("name", ["dop853.dense", "extrema.dense_needed"])
 def test_dop853_parts_are_plain_calls(name):
     """accelerate.py: DOP853's interpolant and the test for where it is read are plain
     calls, typed only in DOP853's kernels, so no other kernel compiles them."""
@@ -151,11 +170,17 @@ def test_dop853_parts_are_plain_calls(name):
 # whether it is inlined.
 CACHE_PROBE = """
 import json
-from sweep.kernels import cycles, equations, integrate, steppers
-report = {name: [type(obj._cache).__name__, obj.targetoptions.get("inline") == "always"]
-          for module in (equations, steppers, cycles, integrate)
+from sweep.kernels import control, equations, integrate, linalg, record, step, tangent
+from sweep.kernels.classify import cycle, extrema, result, sequences, state, verdicts
+from sweep.kernels.methods import MODULES
+report = {f"{module.__name__.rsplit('.', 1)[-1]}.{name}":
+          [type(obj._cache).__name__, obj.targetoptions.get("inline") == "always"]
+          for module in (equations, step, control, linalg, tangent, *MODULES, state, sequences,
+                         extrema, cycle, verdicts, result, record, integrate)
           for name, obj in vars(module).items()
-          if getattr(obj, "__module__", None) == module.__name__ and name != "grid_kernel"}
+          if getattr(obj, "__module__", None) == module.__name__
+          and name not in ("grid_kernel", "explicit_tableau")
+          and callable(obj) and not isinstance(obj, type)}
 report["grid_kernel()"] = [type(integrate.grid_kernel(0, 0, 0, 0, False, False)._cache).__name__,
                            False]
 print(json.dumps(report))
@@ -214,14 +239,14 @@ CACHED_RUN = """
 import json, sweep
 from sweep.dispatch import grid_kernel
 from sweep.grid import build_grid
-from sweep.kernels.cycles import close_cycle
+from sweep.kernels.classify.cycle import new_event
 config = sweep.load_config(CONFIG)
 if MODEL:
     config = sweep.with_changes(config, {"model": MODEL, "parameters": {"eta_W": 0.1}})
 ds = sweep.run(config, progress=False)
 g = build_grid(config)
 report = {"n_steps": ds["n_steps"].values.tolist()}
-for name, f in (("kernel", grid_kernel(g.params, g.settings)), ("helper", close_cycle)):
+for name, f in (("kernel", grid_kernel(g.params, g.settings)), ("helper", new_event)):
     report[name] = [sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
 print(json.dumps(report))
 """
@@ -248,7 +273,7 @@ def test_editing_an_inlined_helper_invalidates_the_cached_kernel(tmp_path):
     """numba checks a cache entry against its own file only; the key of every cached
     function also covers every kernel source (``accelerate.source_digest``). A copy of
     the package compiles and caches a kernel, loads it from the cache, then has the
-    step-size controller (``steppers.next_step_size``, inlined from another file)
+    step-size controller (``control.next_step_size``, inlined from another file)
     edited: the next run must compile the kernel and the cached helpers afresh and
     take other steps, not load stale code."""
     copy_package(tmp_path)
@@ -256,7 +281,7 @@ def test_editing_an_inlined_helper_invalidates_the_cached_kernel(tmp_path):
     assert (first["kernel"], again["kernel"]) == ([0, 1], [1, 0])
     assert first["helper"] == [0, 1]
     assert again["n_steps"] == first["n_steps"]
-    helper = tmp_path / "sweep" / "kernels" / "steppers.py"
+    helper = tmp_path / "sweep" / "kernels" / "control.py"
     text = helper.read_text()
     assert text.count("0.9 * max(err, 1e-10)") == 1
     helper.write_text(text.replace("0.9 * max(err, 1e-10)", "0.7 * max(err, 1e-10)"))

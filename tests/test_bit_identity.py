@@ -43,10 +43,10 @@ from conftest import SUBPROCESS_TIMEOUT
 
 from bit_identity_cases import compute_all, flatten
 
-#: The code every number is compared with: DOPRI5 spares extrema within the error scale of
-#: a step's ends by a proved bound of its interpolant (issue 24; it moved friction_drop of
-#: the no_early_exit and three_blocks cases, by at most 1.1e-8).
-REFERENCE_COMMIT = "e5f844c35d8024b3239badf6534a18c5510de93b"
+#: The code every number is compared with: main after issue 36 (the tangent as the exact
+#: derivative of each method's step), the base of issue 38's restructuring of the kernels,
+#: which changes no number.
+REFERENCE_COMMIT = "afbbb92fc115dffa5352ece36208a80a3c4a221d"
 #: That commit's ``sweep/`` and ``tests/bit_identity_cases.py`` (``git archive``).
 REFERENCE_ARCHIVE = Path(__file__).parent / "data" / "bit_identity_reference.tar.gz"
 #: Seconds the reference commit's code may take for the cases (about 100 s cold on two

@@ -19,7 +19,7 @@ The cases, each wrong before the fix (b68918e):
 
 Each was wrong for one reason: the classifier's rows for the other blocks'
 extremes over a cycle are read at the end of the step holding the event
-(``cycles.event_state_row``), so they change with the step grid and differ from one
+(``classify.state.event_state_row``), so they change with the step grid and differ from one
 passage of the same state to the next (the ring's block 2: −0.8506 and −0.8780, where
 its highest ℓ between the events is −1.2221). The cycle's events and its period are
 now told by the rows that are functions of the state at the event.

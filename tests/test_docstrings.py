@@ -397,28 +397,29 @@ def test_the_checks_catch_a_property_read_as_a_type():
 
 
 def test_kernels_package_docstring_names_every_module_and_method():
-    """sweep/kernels/__init__.py lists each module of the package and each integration
-    method (config name and the method's own name); it once listed three of four."""
+    """sweep/kernels/__init__.py lists each module and subpackage of the package (it
+    once listed three methods of four: the methods are now the registry's, and each
+    method's module names its method first)."""
     from sweep import kernels
-    from sweep.config import METHODS
+    from sweep.kernels.methods import MODULES
 
-    names = {"dop853": "DOP853", "dopri5": "DOPRI5", "rk4": "RK4", "rosenbrock": "RODAS4"}
     doc = kernels.__doc__
-    modules = {p.stem for p in Path(kernels.__file__).parent.glob("*.py")} - {"__init__"}
+    here = Path(kernels.__file__).parent
+    modules = {p.stem for p in here.glob("*.py")} - {"__init__"}
+    modules |= {p.parent.name for p in here.glob("*/__init__.py")}
     assert {m for m in modules if f"``{m}``" not in doc} == set()
-    assert set(METHODS) == set(names)
-    assert [m for m in METHODS if f"``{m}``" not in doc or names[m] not in doc] == []
+    assert [m.__name__ for m in MODULES if not m.__doc__.startswith(f"{m.NAME}: ")] == []
 
 
 def test_output_descriptions_state_the_classifiers_limits():
     """The numbers in the output schema's descriptions (written into every file) are the
     classifier's: the longest cycle it recognises and the events it keeps."""
     from sweep.config import MAX_EVENTS
-    from sweep.kernels import cycles
+    from sweep.kernels.classify import state
     from sweep.variables import BY_NAME
 
     (longest,) = re.findall(r"no cycle of up to (\d+) events", BY_NAME["attractor"].description)
-    assert int(longest) == cycles.MAX_CYCLE_EVENTS
+    assert int(longest) == state.MAX_CYCLE_EVENTS
     (kept,) = re.findall(r"the last events kept \(up to (\d+)\)",
                          BY_NAME["lnv_amplitude"].description)  # fmt: skip
-    assert int(kept) == cycles.HISTORY == MAX_EVENTS
+    assert int(kept) == state.HISTORY == MAX_EVENTS

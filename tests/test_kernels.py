@@ -16,7 +16,11 @@ from conftest import (
 from scipy.integrate import solve_ivp
 
 from sweep import physics
-from sweep.kernels import cycles, equations, layout, steppers
+from sweep.kernels import equations, layout
+from sweep.kernels import step as interpolant
+from sweep.kernels.classify import extrema, sequences, state
+from sweep.kernels.control import next_step_size
+from sweep.kernels.methods import bs23, dop853, dopri5
 from sweep.physics import log_form_rhs
 
 A, B = PAPER_A, PAPER_B
@@ -372,12 +376,12 @@ def test_hermite_interpolant_is_exact_for_cubics():
     y0, y1, d0, d1 = cubic(0.2), cubic(0.2 + h), slope(0.2), slope(0.2 + h)
     none = (0.0, 0.0, 0.0, 0.0)
     for theta in (0.0, 0.3, 0.5, 1.0):
-        value = steppers.dense_value(y0, y1, d0, d1, h, none, theta)
+        value = interpolant.dense_value(y0, y1, d0, d1, h, none, theta)
         assert value == pytest.approx(cubic(0.2 + theta * h), abs=1e-15)
-    theta = steppers.dense_extremum(y0, y1, d0, d1, h, none)
+    theta = interpolant.dense_extremum(y0, y1, d0, d1, h, none)
     assert 0.2 + theta * h == pytest.approx((0.6 + math.sqrt(0.21)) / 3, abs=1e-12)
     level = cubic(0.8)
-    theta = steppers.dense_crossing(
+    theta = interpolant.dense_crossing(
         cubic(0.6), cubic(0.9), slope(0.6), slope(0.9), 0.3, none, level
     )
     assert 0.6 + theta * 0.3 == pytest.approx(0.8, abs=1e-12)
@@ -399,20 +403,20 @@ def test_dopri5_dense_output_is_fourth_order():
 
     def step(y, h):
         k, ytmp, ynew, fnew = np.empty((5, 2)), np.empty(2), np.empty(2), np.empty(2)
-        steppers.step_dopri5(
-            y, rhs(y), h, p, *CODES, 1, np.empty(1), k, ytmp, ynew, fnew, 1.0, 1.0
-        )  # fmt: skip
-        return ynew, fnew, (k[1], k[2], k[3], k[4])
+        f, dense = rhs(y), np.zeros((4, 2))
+        dopri5.step(y, f, h, p, *CODES, 1, np.empty(1), k, None, None, ytmp, ynew, fnew, 1.0, 1.0)
+        dopri5.dense(y, f, h, p, *CODES, 1, np.empty(1), k, ytmp, fnew, dense)
+        return ynew, fnew, dense
 
     def mid_errors(h, j):
-        y1, f1, (k3, k4, k5, k6) = step(y0, h)
+        y1, f1, dense = step(y0, h)
         f0 = rhs(y0)
         ref = y0.copy()
         for _ in range(64):
             ref = step(ref, h / 128)[0]
-        r = steppers.dense_tail(layout.DOPRI5, j, h, f0, k3, k4, k5, k6, f1, np.empty((4, 0)))
-        dense = steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, 0.5)
-        hermite = steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, (0.0,) * 4, 0.5)
+        r = tuple(dense[:, j])
+        dense = interpolant.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, 0.5)
+        hermite = interpolant.dense_value(y0[j], y1[j], f0[j], f1[j], h, (0.0,) * 4, 0.5)
         return abs(dense - ref[j]), abs(hermite - ref[j])
 
     for j in (0, 1):
@@ -428,10 +432,10 @@ def dop853_step(y, h, p):
     """One step of the kernels' DOP853 from ``y`` (one quasi-static block): the new state,
     its slope, the interpolant's coefficients r5 … r8 (4, 2) and the error norm."""
     ev, f, ytmp, ynew, fnew = np.empty(1), np.empty(2), np.empty(2), np.empty(2), np.empty(2)
-    k, dense = np.empty((steppers.STAGE_ROWS_DOP853, 2)), np.empty((4, 2))
+    k, dense = np.empty((dop853.STAGE_ROWS, 2)), np.empty((4, 2))
     equations.rhs(y, p, *CODES, 1, ev, f)
-    err = steppers.step_dop853(y, f, h, p, *CODES, 1, ev, k, ytmp, ynew, fnew, 1e-8, 1e-10)
-    steppers.dense_dop853(y, f, h, p, *CODES, 1, ev, k, ytmp, fnew, dense)
+    err = dop853.step(y, f, h, p, *CODES, 1, ev, k, None, None, ytmp, ynew, fnew, 1e-8, 1e-10)
+    dop853.dense(y, f, h, p, *CODES, 1, ev, k, ytmp, fnew, dense)
     return ynew, fnew, dense, err
 
 
@@ -473,12 +477,53 @@ def test_dop853_dense_output_is_seventh_order():
         for _ in range(64):
             ref = dop853_step(ref, h / 128, p)[0]
         r = tuple(dense[:, j])
-        ends = [steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, t) for t in (0.0, 1.0)]
+        ends = [interpolant.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, t) for t in (0.0, 1.0)]
         assert ends == [y0[j], pytest.approx(y1[j], abs=1e-15)]
-        return abs(steppers.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, 0.5) - ref[j])
+        return abs(interpolant.dense_value(y0[j], y1[j], f0[j], f1[j], h, r, 0.5) - ref[j])
 
     for j in (0, 1):
         assert mid_error(0.8, j) / mid_error(0.4, j) > 150
+
+
+def test_bs23_is_third_order(nonlinear_reference):
+    """Fixed steps of the BS23 step (``methods/bs23.py``) over the first 8 D0/V of the
+    nonlinear run (no slip yet): global error ≈ 2³ = 8 times smaller per halving of the
+    step (fitted order 2.8-3.2)."""
+    p = one_block_params(0.9 * KAPPA_C)
+    exact = nonlinear_reference.sol(8.0)
+    steps = np.array([0.2, 0.1, 0.05])
+    errors = []
+    for h in steps:
+        y, ev, f = np.array([math.log(1.05), 0.0]), np.empty(1), np.empty(2)
+        k, ytmp, ynew, fnew = np.empty((bs23.STAGE_ROWS, 2)), np.empty(2), np.empty(2), np.empty(2)
+        for _ in range(round(8.0 / h)):
+            equations.rhs(y, p, *CODES, 1, ev, f)
+            bs23.step(y, f, h, p, *CODES, 1, ev, k, None, None, ytmp, ynew, fnew, 1.0, 1.0)
+            y = ynew.copy()
+        errors.append(np.max(np.abs(y - exact)))
+    order = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert 2.8 <= order <= 3.2, errors
+
+
+def test_bs23_classifies_as_dopri5_away_from_kc():
+    """A method added as one module and one registry line (BS23) runs through the grid
+    kernel: the labels of DOPRI5 at K/Kc 0.8, 0.9 (runaway), 1.1 and 1.2 (steady), the
+    runaway times and the last periods to 1e-6 (order 3 at rtol 1e-8: about 15 times
+    DOPRI5's steps)."""
+    runs = {}
+    for method in ("dopri5", "bs23"):
+        config = make_config(
+            sweep={"K_W": k_values(0.8, 0.9, 1.1, 1.2)},
+            integrator={"method": method, "t_end": 600.0},
+            classification={"lyapunov": "never"},
+        )
+        runs[method] = run_grid(config)[0]
+    a, b = runs["dopri5"], runs["bs23"]
+    regimes = [layout.RUNAWAY, layout.RUNAWAY, layout.STEADY, layout.STEADY]
+    np.testing.assert_array_equal(a[:, layout.R_REGIME], regimes)
+    np.testing.assert_array_equal(b[:, layout.R_REGIME], regimes)
+    for column in (layout.R_TAU_RUNAWAY, layout.R_PERIOD):
+        np.testing.assert_allclose(b[:, column], a[:, column], rtol=1e-6)
 
 
 @pytest.mark.parametrize(
@@ -523,10 +568,10 @@ def test_dense_extremum_brackets_a_zero_of_the_slope():
         r = tuple(rng.normal(size=4) * rng.choice([0.0, 0.1, 1.0]))
         d0, d1 = (abs(rng.normal()) * 10 ** rng.uniform(-12, 1) for _ in range(2))
         d0, d1 = (d0, -d1) if rng.random() < 0.5 else (-d0, d1)
-        theta = steppers.dense_extremum(y0, y1, d0, d1, h, r)
+        theta = interpolant.dense_extremum(y0, y1, d0, d1, h, r)
         assert 0.0 <= theta <= 1.0
         lo, hi = max(theta - 1e-10, 0.0), min(theta + 1e-10, 1.0)
-        slopes = [steppers.dense_slope(y0, y1, d0, d1, h, r, x) for x in (lo, theta, hi)]
+        slopes = [interpolant.dense_slope(y0, y1, d0, d1, h, r, x) for x in (lo, theta, hi)]
         assert slopes[0] * slopes[2] <= 0.0 or slopes[1] == 0.0
 
 
@@ -535,9 +580,9 @@ def test_dense_slope_is_the_derivative_of_the_interpolant():
     form (r5 only) and DOP853's (r5 … r8): against a central difference."""
     for r in ((0.3, 0.0, 0.0, 0.0), (0.3, -0.2, 0.15, 0.05)):
         for theta in (0.1, 0.5, 0.9):
-            value = [steppers.dense_value(0.2, 0.5, 1.1, -0.4, 0.7, r, theta + s * 1e-6)
+            value = [interpolant.dense_value(0.2, 0.5, 1.1, -0.4, 0.7, r, theta + s * 1e-6)
                      for s in (-1, 1)]  # fmt: skip
-            slope = steppers.dense_slope(0.2, 0.5, 1.1, -0.4, 0.7, r, theta)
+            slope = interpolant.dense_slope(0.2, 0.5, 1.1, -0.4, 0.7, r, theta)
             assert slope == pytest.approx((value[1] - value[0]) / 2e-6, rel=1e-7)
 
 
@@ -547,14 +592,14 @@ def test_aitken_limit_is_exact_for_geometric_sequences(q):
     limit from one term to the next is zero (both to round-off, 1e-12)."""
     L, c = 0.7, 0.05
     x = [L + c * q**n for n in range(4)]
-    limit, error = cycles.aitken_limit(*x, 0.0)
+    limit, error = sequences.aitken_limit(*x, 0.0)
     assert limit == pytest.approx(L, abs=1e-12)
     assert error < 1e-12
 
 
 def test_aitken_limit_refuses_sequences_that_do_not_contract():
     """Growing differences (|ratio| ≥ 1) have no limit: infinite error estimate."""
-    limit, error = cycles.aitken_limit(1.0, 1.1, 1.3, 1.7, 0.0)
+    limit, error = sequences.aitken_limit(1.0, 1.1, 1.3, 1.7, 0.0)
     assert math.isinf(error)
 
 
@@ -562,9 +607,9 @@ def history(nb, rows):
     """Cycle history as the kernel keeps it from a list of per-cycle rows
     (max ℓ_i …, min ℓ_i …, period, peak-to-peak of mean ℓ, then ℓ_i at the event of
     blocks 1 … nb − 1; rows without those get zeros)."""
-    hist = np.zeros((cycles.n_observables(nb), cycles.HISTORY))
+    hist = np.zeros((state.n_observables(nb), state.HISTORY))
     for n, row in enumerate(rows):
-        hist[: len(row), n % cycles.HISTORY] = row
+        hist[: len(row), n % state.HISTORY] = row
     return hist, len(rows)
 
 
@@ -577,8 +622,8 @@ def test_decay_is_steady_only_where_steady_sliding_is_linearly_stable():
     rate and never with a positive one (an unstable fixed point is no attractor)."""
     hist, n = history(1, decaying_cycles(0.9))
     args = (hist, n, 1, 1e-3, 1e-6)
-    assert cycles.cycle_verdict(*args, -0.01, 1e-8, 1e-10)[0] == layout.STEADY
-    assert cycles.cycle_verdict(*args, +0.01, 1e-8, 1e-10)[0] != layout.STEADY
+    assert sequences.cycle_verdict(*args, -0.01, 1e-8, 1e-10)[0] == layout.STEADY
+    assert sequences.cycle_verdict(*args, +0.01, 1e-8, 1e-10)[0] != layout.STEADY
 
 
 def test_approach_to_a_small_cycle_is_not_steady():
@@ -587,11 +632,11 @@ def test_approach_to_a_small_cycle_is_not_steady():
     the last cycle is within the accuracy of the limit."""
     far = [[0.045 + 0.02 * 0.8**k, -0.045 - 0.02 * 0.8**k, 4.9, 0.0] for k in range(4)]
     hist, n = history(1, far)
-    verdict, conv = cycles.cycle_verdict(hist, n, 1, 1e-3, 1e-6, -0.01, 1e-8, 1e-10)
+    verdict, conv = sequences.cycle_verdict(hist, n, 1, 1e-3, 1e-6, -0.01, 1e-8, 1e-10)
     assert verdict == -1 and conv > 1e-3
     near = [[0.045 + 1e-6 * 0.8**k, -0.045 - 1e-6 * 0.8**k, 4.9, 0.0] for k in range(4)]
     hist, n = history(1, near)
-    verdict, conv = cycles.cycle_verdict(hist, n, 1, 1e-3, 1e-6, +0.01, 1e-8, 1e-10)
+    verdict, conv = sequences.cycle_verdict(hist, n, 1, 1e-3, 1e-6, +0.01, 1e-8, 1e-10)
     assert verdict == layout.STICK_SLIP and conv < 1e-3
 
 
@@ -643,7 +688,7 @@ def test_early_exit_never_changes_a_settled_regime():
         assert not np.any(regimes[0] == layout.UNDECIDED)
 
 
-# --- cycles of several events (cycles.multi_event_verdict) --------------------------
+# --- cycles of several events (sequences.multi_event_verdict) --------------------------
 
 
 def period_n_cycles(peaks, intervals, count, q=0.7, offset=0.02):
@@ -664,8 +709,8 @@ def test_a_cycle_of_n_events_is_found_with_its_n(n):
     rng = np.random.default_rng(n)
     peaks, intervals = 1.0 + rng.uniform(0, 1, n), 20 + 200 * rng.uniform(0, 1, n)
     hist, count = history(1, period_n_cycles(peaks, intervals, 4 * n + 8, q=0.5, offset=1e-3))
-    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
-    events, conv = cycles.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
+    limits = np.empty((hist.shape[0], state.MAX_CYCLE_EVENTS))
+    events, conv = sequences.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
     assert events == n and conv <= 1e-3
 
 
@@ -675,8 +720,8 @@ def test_a_simple_cycle_approached_in_alternation_is_left_to_the_simple_test():
     so every simple cycle keeps its numbers)."""
     rows = [[1.0 + 0.01 * (-0.95) ** k, -1.0, 30.0, 0.0] for k in range(40)]
     hist, count = history(1, rows)
-    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
-    events, _ = cycles.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
+    limits = np.empty((hist.shape[0], state.MAX_CYCLE_EVENTS))
+    events, _ = sequences.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
     assert events == 0
 
 
@@ -688,8 +733,8 @@ def test_a_cycle_whose_limits_repeat_sooner_is_the_shorter_cycle():
         d = 0.01 * 0.6 ** (k // 4) * (1 if k % 4 < 2 else -1)
         rows.append([(1.2, 1.5)[k % 2] + d, -1.0, (30.0, 90.0)[k % 2], 0.0])
     hist, count = history(1, rows)
-    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
-    events, _ = cycles.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
+    limits = np.empty((hist.shape[0], state.MAX_CYCLE_EVENTS))
+    events, _ = sequences.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
     assert events == 2
 
 
@@ -700,8 +745,8 @@ def test_an_irregular_sequence_has_no_cycle():
         x = 4 * x * (1 - x)
         rows.append([1.0 + x, -1.0, 30.0 + 10 * x, 0.0])
     hist, count = history(1, rows)
-    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
-    events, conv = cycles.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
+    limits = np.empty((hist.shape[0], state.MAX_CYCLE_EVENTS))
+    events, conv = sequences.multi_event_verdict(hist, count, 1, 1e-3, 1e-8, 1e-10, limits)
     assert events == 0 and not conv <= 1e-3
 
 
@@ -717,10 +762,10 @@ def test_a_drifting_phase_between_blocks_is_no_simple_cycle():
     periods) are not on a simple cycle; with the phase repeating they are."""
     wandering = two_block_rows(np.sin(0.7 * np.arange(12)))
     hist, count = history(2, wandering)
-    assert cycles.cycle_verdict(hist, count, 2, 1e-3, 1e-6, 0.01, 1e-8, 1e-10)[0] == -1
+    assert sequences.cycle_verdict(hist, count, 2, 1e-3, 1e-6, 0.01, 1e-8, 1e-10)[0] == -1
     locked = two_block_rows(np.full(12, 0.3))
     hist, count = history(2, locked)
-    assert cycles.cycle_verdict(hist, count, 2, 1e-3, 1e-6, 0.01, 1e-8, 1e-10)[0] == (
+    assert sequences.cycle_verdict(hist, count, 2, 1e-3, 1e-6, 0.01, 1e-8, 1e-10)[0] == (
         layout.STICK_SLIP
     )
 
@@ -730,7 +775,7 @@ def step_grid_rows(count, pattern, max_l1, min_l0=(-1.5, -1.5), l1_event=(0.3, 0
     in-phase amplitude, ℓ_1 at the event) whose event state repeats every 2 events
     (``pattern``: ℓ_0 at the event and the interval of each; ``min_l0``, ``l1_event``)
     while block 1's highest ℓ over a cycle, ``max_l1``, repeats with its own pattern:
-    read off the step grid at a cycle's end (``cycles.event_state_row``)."""
+    read off the step grid at a cycle's end (``state.event_state_row``)."""
     rows = []
     for k in range(count):
         peak, interval = pattern[k % 2]
@@ -746,8 +791,8 @@ def test_a_cycle_of_two_events_whose_extremes_repeat_every_four_has_two_events()
     −1.2221, is the same each time): a cycle of 2 events, not 4 (b68918e, on the ring: 4)."""
     rows = step_grid_rows(48, [(0.7845, 6.0665), (1.3136, 1.0974)], [-0.8506, 4.95, -0.8780, 4.95])
     hist, count = history(2, rows)
-    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
-    events, conv = cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)
+    limits = np.empty((hist.shape[0], state.MAX_CYCLE_EVENTS))
+    events, conv = sequences.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)
     assert (events, conv) == (2, 0.0)
     # the same cycle with the step grid's reading wandering without a pattern: still 2
     rng = np.random.default_rng(1)
@@ -756,7 +801,7 @@ def test_a_cycle_of_two_events_whose_extremes_repeat_every_four_has_two_events()
     for k in range(1, 48, 2):
         rows[k][1] = 4.95
     hist, count = history(2, rows)
-    assert cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 2
+    assert sequences.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 2
 
 
 def test_a_simple_cycle_whose_extremes_alternate_with_the_step_grid_is_simple():
@@ -765,13 +810,13 @@ def test_a_simple_cycle_whose_extremes_alternate_with_the_step_grid_is_simple():
     here (``(1, convergence)``), since the simple cycle's own test, which needs that row
     to converge, never settles it (b68918e: a cycle of 2 events), approached with
     alternating overshoots so that 2 events are a candidate at all."""
-    limits = np.empty((7, cycles.MAX_CYCLE_EVENTS))
+    limits = np.empty((7, state.MAX_CYCLE_EVENTS))
     for max_l1, events in (([-0.8506, -0.8780], 1), ([-0.86], 0)):
         rows = step_grid_rows(48, [(1.3, 5.9), (1.3, 5.9)], max_l1)
         for k, row in enumerate(rows):  # approached with alternating overshoots
             row[0] += 1e-4 * (-0.9) ** k
         hist, count = history(2, rows)
-        verdict = cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)
+        verdict = sequences.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)
         # with that row repeating too, it is left to the simple test, as before
         assert verdict[0] == events and verdict[1] < 1e-3
 
@@ -789,13 +834,13 @@ def test_close_to_a_simple_cycle_every_row_must_settle_the_classes():
     for row in near:
         row[3] = -17.58 + 0.05 * rng.uniform(-1, 1)  # block 1's lowest ℓ: not settled
     hist, count = history(2, near)
-    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
-    assert cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 0
+    limits = np.empty((hist.shape[0], state.MAX_CYCLE_EVENTS))
+    assert sequences.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 0
     far = step_grid_rows(48, [(0.7845, 6.0665), (1.3136, 1.0974)], [1.308])
     for row in far:
         row[3] = -17.58 + 0.05 * rng.uniform(-1, 1)
     hist, count = history(2, far)
-    assert cycles.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 2
+    assert sequences.multi_event_verdict(hist, count, 2, 1e-3, 1e-8, 1e-10, limits)[0] == 2
 
 
 def test_noise_floor_cycle_is_settled_at_the_end_but_a_slow_drift_is_not():
@@ -806,11 +851,11 @@ def test_noise_floor_cycle_is_settled_at_the_end_but_a_slow_drift_is_not():
     rng = np.random.default_rng(0)
     noisy = [[1.0 + 1e-6 * rng.standard_normal(), -1.0, 30.0, 0.0] for _ in range(40)]
     hist, count = history(1, noisy)
-    limits = np.empty((hist.shape[0], cycles.MAX_CYCLE_EVENTS))
-    assert cycles.simple_cycle_within_spread(hist, count, 1, 1e-3, 1e-8, 1e-10, limits) < 1e-3
+    limits = np.empty((hist.shape[0], state.MAX_CYCLE_EVENTS))
+    assert sequences.simple_cycle_within_spread(hist, count, 1, 1e-3, 1e-8, 1e-10, limits) < 1e-3
     drift = [[1.0 + 1e-6 * k, -1.0 - 1e-6 * k, 30.0, 0.0] for k in range(40)]
     hist, count = history(1, drift)
-    assert np.isinf(cycles.simple_cycle_within_spread(hist, count, 1, 1e-3, 1e-8, 1e-10, limits))
+    assert np.isinf(sequences.simple_cycle_within_spread(hist, count, 1, 1e-3, 1e-8, 1e-10, limits))
 
 
 # --- turning points: extrema must stand out of the local error scale ---------------
@@ -818,9 +863,9 @@ def test_noise_floor_cycle_is_settled_at_the_end_but_a_slow_drift_is_not():
 
 def count_turns(values, noise, start=0.0):
     """Alternating extrema (max, min, max, … starting with a maximum) through
-    :func:`cycles.count_turn` → which of them counted."""
+    :func:`extrema.count_turn` → which of them counted."""
     turns = np.array([[start], [start], [0.0]])
-    return [bool(cycles.count_turn(turns, 0, v, k % 2 == 0, noise)) for k, v in enumerate(values)]
+    return [bool(extrema.count_turn(turns, 0, v, k % 2 == 0, noise)) for k, v in enumerate(values)]
 
 
 def test_extrema_within_the_error_scale_are_not_turns():
@@ -844,11 +889,8 @@ def dopri5_step(y, h, p):
     ev, f, ytmp, ynew, fnew = np.empty(1), np.empty(2), np.empty(2), np.empty(2), np.empty(2)
     k, dense = np.empty((5, 2)), np.zeros((4, 2))
     equations.rhs(y, p, *CODES, 1, ev, f)
-    err = steppers.step_dopri5(y, f, h, p, *CODES, 1, ev, k, ytmp, ynew, fnew, 1e-8, 1e-10)
-    for j in (0, 1):
-        dense[:, j] = steppers.dense_tail(
-            layout.DOPRI5, j, h, f, k[1], k[2], k[3], k[4], fnew, np.empty((4, 0))
-        )  # fmt: skip
+    err = dopri5.step(y, f, h, p, *CODES, 1, ev, k, None, None, ytmp, ynew, fnew, 1e-8, 1e-10)
+    dopri5.dense(y, f, h, p, *CODES, 1, ev, k, ytmp, fnew, dense)
     return ynew, fnew, dense, err
 
 
@@ -857,12 +899,12 @@ def step_extrema(method, ratio, t_end):
     run of one block with ``method`` (the kernels' stepper, interpolant and step size
     control, rtol 1e-8, atol 1e-10) from ℓ = ln 1.05, ψ = 0 to ``t_end`` D0/V or the cap
     v = 1e6 V: per step where a slope changes sign, (its excursion bound
-    :func:`steppers.dense_excursion`, how far the located extremum lies beyond the
-    step's ends, the tolerance ``tol`` of :func:`cycles.extremum_matters`, whether the
-    kernels locate it (:func:`cycles.lnv_extremum_matters`, the turns fed as the kernel
+    :func:`step.excursion`, how far the located extremum lies beyond the
+    step's ends, the tolerance ``tol`` of :func:`extrema.extremum_matters`, whether the
+    kernels locate it (:func:`extrema.lnv_extremum_matters`, the turns fed as the kernel
     does) and whether it counts as a turn (ℓ only))."""
-    steppings = {"dop853": (layout.DOP853, dop853_step), "dopri5": (layout.DOPRI5, dopri5_step)}
-    code, step = steppings[method]
+    steppings = {"dop853": (dop853, dop853_step), "dopri5": (dopri5, dopri5_step)}
+    module, step = steppings[method]
     p = one_block_params(ratio * KAPPA_C)
     rtol, atol = 1e-8, 1e-10
     y = np.array([math.log(1.05), 0.0])
@@ -873,31 +915,35 @@ def step_extrema(method, ratio, t_end):
     while t < t_end and y[0] < math.log(1e6):
         h = min(h, t_end - t)
         ynew, fnew, dense, err = step(y, h, p)
-        h_next = steppers.next_step_size(code, h, err, math.inf)
+        h_next = next_step_size(module.EXPONENT, h, err, math.inf)
         if err <= 1.0:
             for name, c in (("lnv", (1.0, 0.0)), ("mu", (A, B))):
                 x0, x1 = c[0] * y[0] + c[1] * y[1], c[0] * ynew[0] + c[1] * ynew[1]
                 d0, d1 = c[0] * f[0] + c[1] * f[1], c[0] * fnew[0] + c[1] * fnew[1]
                 if (d0 > 0.0) != (d1 > 0.0):
                     r = tuple(c[0] * dense[:, 0] + c[1] * dense[:, 1])
-                    val = steppers.dense_value(
-                        x0, x1, d0, d1, h, r, steppers.dense_extremum(x0, x1, d0, d1, h, r)
+                    val = interpolant.dense_value(
+                        x0, x1, d0, d1, h, r, interpolant.dense_extremum(x0, x1, d0, d1, h, r)
                     )  # fmt: skip
                     beyond = max(val - max(x0, x1), min(x0, x1) - val, 0.0)
-                    span = steppers.dense_excursion(code, x0, x1, d0, d1, h, r[0])
+                    span = interpolant.excursion(module.EXCURSION, x0, x1, d0, d1, h, r[0])
                     if name == "lnv":
                         tol = atol + rtol * abs(x1)
-                        wanted = cycles.lnv_extremum_matters(0, span, y, ynew, f, turns, rtol, atol)
-                        noise = cycles.TURN_FACTOR * (atol + rtol * abs(val))
-                        counts = cycles.count_turn(turns.copy(), 0, val, d0 > 0.0, noise)
+                        wanted = extrema.lnv_extremum_matters(
+                            0, span, y, ynew, f, turns, rtol, atol
+                        )
+                        noise = extrema.TURN_FACTOR * (atol + rtol * abs(val))
+                        counts = extrema.count_turn(turns.copy(), 0, val, d0 > 0.0, noise)
                         if wanted:
-                            cycles.count_turn(turns, 0, val, d0 > 0.0, noise)
+                            extrema.count_turn(turns, 0, val, d0 > 0.0, noise)
                         else:
                             end = max(x0, x1) if d0 > 0.0 else min(x0, x1)
-                            cycles.hold_extreme(turns, 0, end, d0 > 0.0)
+                            extrema.hold_extreme(turns, 0, end, d0 > 0.0)
                     else:
-                        tol = cycles.friction_tolerance(A, B, ynew[0], ynew[1], rtol, atol)
-                        wanted = cycles.extremum_matters(code, x0, x1, d0, d1, h, r[0], tol)
+                        tol = extrema.friction_tolerance(A, B, ynew[0], ynew[1], rtol, atol)
+                        wanted = extrema.extremum_matters(
+                            module.EXCURSION, x0, x1, d0, d1, h, r[0], tol
+                        )
                         counts = False
                     out[name].append((span, beyond, tol, wanted, counts))
             t, y, f = t + h, ynew, fnew
@@ -910,30 +956,30 @@ def step_extrema(method, ratio, t_end):
 def test_an_extremum_strays_from_the_step_ends_by_less_than_its_bound(method, ratio, t_end):
     """The kernels locate an extremum in a step only where it can stray from the step's
     ends by more than ``TURN_FACTOR`` × the tolerance or count as a turn. The bound they
-    judge by (:func:`steppers.dense_excursion`) holds for every extremum of ℓ and
+    judge by (:func:`step.excursion`) holds for every extremum of ℓ and
     friction of a run with slip events up to v = 1e6 V (K/Kc 0.97) and of one that
     decays below the tolerance (1.1), where it spares most extrema (the wiggles) and
     none that counts as a turn. DOP853's bound is measured (without its factor
     ``EXCURSION_FACTOR`` it fails on the wiggles, by up to 8.4×), DOPRI5's proved."""
-    extrema = step_extrema(method, ratio, t_end)
-    for name, rows in extrema.items():
+    found = step_extrema(method, ratio, t_end)
+    for name, rows in found.items():
         span, beyond, tol, wanted, counts = rows.T
         spared = ~wanted.astype(bool)
         assert len(rows) > 20, name
         assert (beyond <= span).all(), name
-        assert (beyond[spared] <= cycles.TURN_FACTOR * tol[spared]).all(), name
+        assert (beyond[spared] <= extrema.TURN_FACTOR * tol[spared]).all(), name
         assert not counts[spared].any(), name
     if ratio < 1.0:  # growing oscillation: every extremum of ℓ is located
-        assert extrema["lnv"][:, 3].all()
-        assert extrema["mu"][:, 3].mean() > 0.95
+        assert found["lnv"][:, 3].all()
+        assert found["mu"][:, 3].mean() > 0.95
     else:
-        assert extrema["lnv"][:, 3].mean() < 0.5 and extrema["mu"][:, 3].mean() < 0.5
+        assert found["lnv"][:, 3].mean() < 0.5 and found["mu"][:, 3].mean() < 0.5
 
 
 def test_dopri5s_excursion_bound_holds_and_is_sharp():
     """Over random steps whose slope changes sign (ends, slopes and r5 of every scale,
     r5 = 0 for a quarter of them) the extremum of DOPRI5's interpolant lies within
-    :func:`steppers.dense_excursion` of the step's ends, and the bound is close to sharp
+    :func:`step.excursion` of the step's ends, and the bound is close to sharp
     (the worst case reaches 90 % of it)."""
     rng = np.random.default_rng(7)
     worst = 0.0
@@ -947,9 +993,9 @@ def test_dopri5s_excursion_bound_holds_and_is_sharp():
             d0, d1 = -d0, -d1
         r5 = rng.standard_normal() * scale[3] if rng.random() < 0.75 else 0.0
         h = 10.0 ** rng.uniform(-3, 1)
-        values = steppers.dense_value(y0, y1, d0, d1, h, (r5, 0.0, 0.0, 0.0), theta)
+        values = interpolant.dense_value(y0, y1, d0, d1, h, (r5, 0.0, 0.0, 0.0), theta)
         beyond = max(values.max() - max(y0, y1), min(y0, y1) - values.min(), 0.0)
-        bound = steppers.dense_excursion(layout.DOPRI5, y0, y1, d0, d1, h, r5)
+        bound = interpolant.excursion(interpolant.PROVED, y0, y1, d0, d1, h, r5)
         assert beyond <= bound * (1.0 + 1e-12) + 1e-15 * max(abs(y0), abs(y1))
         worst = max(worst, beyond / bound)
     assert worst > 0.9
@@ -964,10 +1010,10 @@ def test_an_extremum_that_could_count_as_a_turn_is_located():
 
     def wanted(low, last, h=1e-3, slope=1.0):
         turns = np.array([[low], [low], [last]])
-        span = steppers.dense_excursion(
-            layout.DOP853, y[0], ynew[0], slope * f[0], slope * fnew[0], h, 0.0
+        span = interpolant.excursion(
+            interpolant.MEASURED, y[0], ynew[0], slope * f[0], slope * fnew[0], h, 0.0
         )  # fmt: skip
-        return cycles.lnv_extremum_matters(0, span, y, ynew, slope * f, turns, 1e-8, 1e-10)
+        return extrema.lnv_extremum_matters(0, span, y, ynew, slope * f, turns, 1e-8, 1e-10)
 
     assert wanted(-1.0, -1.0)
     assert not wanted(-1.0, 1.0)

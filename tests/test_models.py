@@ -31,7 +31,8 @@ from conftest import (
 from scipy.integrate import solve_ivp
 
 from sweep import physics
-from sweep.kernels import equations, layout, steppers
+from sweep.kernels import equations, layout
+from sweep.kernels.methods import rodas4
 from sweep.runner import compute
 
 A, B = PAPER_A, PAPER_B
@@ -238,7 +239,7 @@ def test_rosenbrock_is_fourth_order(model_name, y0, extra):
         work = (np.empty(nb), np.empty((6, n)), np.empty((n, n)), np.empty(n, np.int64))
         ynew, fnew, ytmp = np.empty(n), np.empty(n), np.empty(n)
         for k in range(n_steps):
-            err = steppers.step_rosenbrock(
+            err = rodas4.step(
                 y,
                 f,
                 h,

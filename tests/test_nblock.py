@@ -7,7 +7,6 @@ import pytest
 from conftest import KC_W, config_dict
 
 import sweep
-from sweep import linear
 from sweep.variables import REGIMES
 
 STEADY = REGIMES.index("steady")
@@ -123,8 +122,7 @@ def test_linear_theory_is_computed_once_per_parameter_set():
     """Repeated rows (an ensemble, a swept K) share one critical-stiffness search."""
     cfg = sweep.load_config(nblock(3, "chain", parameters={"D0": [1.0, 1.3, 0.8]},
                                    sweep={"K_W": [0.04, 0.05, 0.06]}))  # fmt: skip
-    phys = sweep.grid.physical_parameters(cfg)
-    kc = linear.theory(cfg, phys)["kappa_c"]
+    kc = sweep.grid.build_grid(cfg).linear["kappa_c"]
     assert np.unique(kc).size == 1
 
 

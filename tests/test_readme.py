@@ -434,9 +434,6 @@ def test_readme_and_models_page_state_the_same_numbers(pattern):
 
 # --- defaults and counts the pages state, against the code (issue 40 §6) -----------------
 
-#: How the pages name each ``integrator.method``.
-METHOD_NAMES = {"dop853": "DOP853", "dopri5": "DOPRI5", "rk4": "RK4", "rosenbrock": "RODAS4"}
-
 
 def default_method(model):
     """``integrator.method`` of a config that does not set it, for ``model``."""
@@ -451,21 +448,23 @@ def default_method(model):
 
 def test_readme_names_each_models_default_method():
     """The README's "by default `dop853` …; `rosenbrock` (RODAS4 …) for the stiff
-    inertial model" is what a config that names no method gets, model by model, and
-    names every method the parser accepts."""
+    inertial model" is what a config that names no method gets, model by model, and the
+    sentence names every method the parser accepts (the method's own name: its module's
+    ``NAME``)."""
     from sweep.config import METHODS
+    from sweep.kernels.methods import MODULES
     from sweep.physics import MODELS
 
     readme = " ".join((ROOT / "README.md").read_text().split())
     sentence = (r"by default `(\w+)`[^;]*; `(\w+)` \((\w+),[^)]*\) for the stiff inertial "
-                r"model; `(\w+)` and the paper's fixed-step `(\w+)`")  # fmt: skip
+                r"model; ([^)]*) on request\)")  # fmt: skip
     match = re.search(sentence, readme)
     assert match, "README: the sentence naming the default methods is gone"
-    default, inertial, inertial_name, *others = match.groups()
+    default, inertial, inertial_name, others = match.groups()
     for model in MODELS:
         assert default_method(model) == (inertial if model == "inertial" else default), model
-    assert METHOD_NAMES[inertial] == inertial_name
-    assert {default, inertial, *others} == set(METHODS) == set(METHOD_NAMES)
+    assert dict(zip(METHODS, (m.NAME for m in MODULES), strict=True))[inertial] == inertial_name
+    assert {default, inertial, *re.findall(r"`(\w+)`", others)} == set(METHODS)
 
 
 def test_models_page_names_each_models_default_method():
@@ -482,11 +481,11 @@ def test_stated_event_counts_are_the_codes():
     run (large sweeps), the longest cycle the classifier recognises (internals), and
     the events a chaotic run's amplitude spans (outputs), against the code."""
     from sweep.config import MAX_EVENTS
-    from sweep.kernels import cycles
+    from sweep.kernels.classify import state
 
     (kept,) = doc_numbers(r"half of it the (\d+) event maxima and intervals kept per run")
     assert int(kept) == Classification().events
     (longest,) = doc_numbers(r"return-map verdicts for cycles of 1 to (\d+) events")
-    assert int(longest) == cycles.MAX_CYCLE_EVENTS
+    assert int(longest) == state.MAX_CYCLE_EVENTS
     (spanned,) = doc_numbers(r"the last kept events \(up to (\d+)\) of chaotic")
-    assert int(spanned) == cycles.HISTORY == MAX_EVENTS
+    assert int(spanned) == state.HISTORY == MAX_EVENTS

@@ -10,8 +10,11 @@ import pytest
 from conftest import KC_W, PAPER_A, PAPER_B, kc_w, make_config, run_grid
 
 from sweep import dispatch
+from sweep.codes import METHODS as CODE_TABLE
+from sweep.codes import code
 from sweep.grid import build_grid
-from sweep.kernels import equations, layout, steppers, tangent
+from sweep.kernels import equations, layout, tangent
+from sweep.kernels.methods import MODULES
 from sweep.runner import compute
 from sweep.variables import ATTRACTORS
 
@@ -25,29 +28,20 @@ def fresh_dispatch(monkeypatch):
 
 CODES = {"quasi-static": layout.QUASI_STATIC, "quasi-dynamic": layout.QUASI_DYNAMIC,
          "inertial": layout.INERTIAL}  # fmt: skip
-METHODS = {"dopri5": layout.DOPRI5, "rk4": layout.RK4, "rosenbrock": layout.ROSENBROCK,
-           "dop853": layout.DOP853}  # fmt: skip
+METHODS = {name: code(CODE_TABLE, name) for name in CODE_TABLE}
 
 
 def take_step(method, y, h, p, model, nb):
-    """One step of ``method`` from ``y`` (the kernels' own steppers): its end, and the
-    slope at y, the explicit stages, RODAS4's stages and LU factors it leaves."""
+    """One step of ``method`` from ``y`` (the kernels' own step): its end, and the slope
+    at y, the stages and (RODAS4) the LU factors it leaves."""
     n = y.size
+    module = MODULES[method]
     ev, f, ytmp, ynew, fnew = np.empty(nb), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    k, ros_k = np.empty((15, n)), np.empty((6, n))
-    lu, perm = np.empty((n, n)), np.empty(n, np.int64)
+    k, lu, perm = np.empty((module.STAGE_ROWS, n)), np.empty((n, n)), np.empty(n, np.int64)
     codes = (model, layout.AGING, layout.CHAIN, False)
     equations.rhs(y, p, *codes, nb, ev, f)
-    if method == layout.DOPRI5:
-        steppers.step_dopri5(y, f, h, p, *codes, nb, ev, k, ytmp, ynew, fnew, 1e-8, 1e-10)
-    elif method == layout.DOP853:
-        steppers.step_dop853(y, f, h, p, *codes, nb, ev, k, ytmp, ynew, fnew, 1e-8, 1e-10)
-    elif method == layout.RK4:
-        steppers.step_rk4(y, f, h, p, *codes, nb, ev, k, ytmp, ynew)
-    else:
-        steppers.step_rosenbrock(y, f, h, p, *codes, nb, ev, ros_k, lu, perm, ytmp, ynew, fnew,
-                                 1e-8, 1e-10)  # fmt: skip
-    return ynew, (f, k, ros_k, lu, perm)
+    module.step(y, f, h, p, *codes, nb, ev, k, lu, perm, ytmp, ynew, fnew, 1e-8, 1e-10)
+    return ynew, (f, k, lu, perm)
 
 
 def step_jacobian(method, y, h, p, model, nb, steps):
@@ -84,10 +78,11 @@ TANGENT_STATES = {
     "model, method, state",  # every method, every model (each pair compiles its own tangent step)
     [("quasi-static", "dopri5", "slip"), ("quasi-static", "rk4", "slip"),
      ("inertial", "dopri5", "slip"), ("inertial", "rosenbrock", "slip"),
-     ("quasi-dynamic", "dop853", "slip"), ("inertial", "rosenbrock", "stick")],
+     ("quasi-dynamic", "dop853", "slip"), ("inertial", "rosenbrock", "stick"),
+     ("quasi-static", "bs23", "slip")],
 )  # fmt: skip
 def test_tangent_step_is_the_derivative_of_the_step_map(model, method, state):
-    """``tangent_step`` carries δ by the derivative of the method's step map, formed from
+    """A method's ``tangent_step`` carries δ by the derivative of the method's step map, formed from
     the step's own stages: against central differences of the step map, column by
     column, to 1e-5 (the differences' own error: ~1e-8 in a slip, ~5e-7 in the stick,
     where the step crosses the inertial force's decay, rate A e^25/M̂ ~ 2e9, thousands of
@@ -101,12 +96,12 @@ def test_tangent_step_is_the_derivative_of_the_step_map(model, method, state):
     delta /= np.linalg.norm(delta)
     steps = [step] * 2 * nb + [z_step] * (n - 2 * nb)
     expected = step_jacobian(method, y, h, p, m, nb, steps) @ delta
-    _, (f, k, ros_k, lu, perm) = take_step(method, y, h, p, m, nb)
-    d, work, dk, blocks, _ = tangent.tangent_arrays(method, n, nb)
+    _, (f, k, lu, perm) = take_step(method, y, h, p, m, nb)
+    d, work, dk, blocks, _ = tangent.tangent_arrays(MODULES[method].TANGENT_ROWS, n, nb)
     d[:] = delta
-    growth, rate = tangent.tangent_step(
-        y, f, h, k, ros_k, lu, perm, d, work, dk, blocks, p, nb, np.empty(nb),
-        m, layout.AGING, method, layout.CHAIN, False,
+    growth, rate = MODULES[method].tangent_step(
+        y, f, h, k, lu, perm, d, work, dk, blocks, p, nb, np.empty(nb),
+        m, layout.AGING, layout.CHAIN, False,
     )  # fmt: skip
     np.testing.assert_allclose(np.exp(growth) * d, expected, rtol=1e-5,
                                atol=1e-5 * np.abs(expected).max())  # fmt: skip

@@ -2,16 +2,19 @@
 
 - ``layout``: codes and the columns of the kernels' arrays (plain Python, no numba):
   what the grid builder writes and the Dataset constructor reads.
+- ``stack``: fixed-size scratch arrays on the stack, for kernels of one small state size.
 - ``equations``: the log-form right-hand side, its analytic Jacobian, and the
   Jacobian's products the tangent needs.
-- ``steppers``: the four methods' steps (RK4, DOPRI5, DOP853 and RODAS4,
-  ``integrator.method`` ``rk4``, ``dopri5``, ``dop853`` and ``rosenbrock``) and their
-  dense output.
-- ``tableau_dop853``: DOP853's coefficients (Hairer's ``dop853.f``).
-- ``cycles``: the cycle classifier (per-cycle statistics, return-map verdicts).
+- ``linalg``: LU factors and solves of the implicit method.
+- ``step``: the step record the loop hands on and the interpolant read from it.
+- ``control``: the step-size controller of the adaptive methods.
 - ``tangent``: the tangent vector and the largest Lyapunov exponent (Benettin et al.).
-- ``integrate``: the integration loop of one system and the per-variant grid kernel.
-- ``stack``: fixed-size scratch arrays on the stack, for kernels of one small state size.
+- ``methods``: the integration methods, one module each, and the registry mapping the
+  config's names (``sweep/codes.py``, ``METHODS``) to them.
+- ``classify``: the cycle classifier, split by job (its state, the per-step extrema,
+  the per-cycle and end-of-run verdicts, the result row).
+- ``record``: the recorder of traces.
+- ``integrate``: the per-variant grid kernel, the integration loop.
 
 (``tests/test_docstrings.py`` checks that this list names every module and method.)
 

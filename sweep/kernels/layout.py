@@ -2,24 +2,52 @@
 
 Plain Python (no numba): the grid builder, the Dataset constructor and the tests
 read results with these names without compiling anything. In the kernels they are
-compile-time constants.
+compile-time constants. The codes are those of the tables in ``sweep/codes.py``.
 
 State of one system with ``nb`` blocks: ``y[i] = ℓ_i`` (ln v/V), ``y[nb+i] = ψ_i``
 (ln VΦ/D0) and, for the inertial model, ``y[2nb+i] = z_i`` (inertial force
 m dv/dt per unit normal load). Time τ is in units of D0/V.
 """
 
-# --- codes -------------------------------------------------------------------
-QUASI_STATIC, QUASI_DYNAMIC, INERTIAL = 0, 1, 2
-AGING, SLIP = 0, 1
-DOPRI5, RK4, ROSENBROCK, DOP853 = 0, 1, 2, 3
-STEADY, STICK_SLIP, RUNAWAY, UNDECIDED = 0, 1, 2, 3
-CHAIN, RING, ALL = 0, 1, 2  # coupling springs: neighbours of a chain, of a ring, every pair
-# what a run settled on (R_ATTRACTOR); names in sweep/variables.py
-FIXED_POINT, PERIODIC, QUASI_PERIODIC, CHAOTIC, UNRESOLVED, UNBOUNDED = range(6)
-# when the tangent for λ1 is carried (S_LYAPUNOV): never, from t_end for runs not settled
-# by then, or over every whole run
-LYAP_NEVER, LYAP_UNSETTLED, LYAP_ALWAYS = range(3)
+from ..codes import (
+    ATTRACTORS,
+    COUPLINGS,
+    LYAPUNOV_MODES,
+    METHODS,
+    MODELS,
+    REGIMES,
+    STATE_LAWS,
+    code,
+)
+
+# --- codes: each name of the tables of sweep/codes.py, as the kernels take it --------
+QUASI_STATIC = code(MODELS, "quasi-static")
+QUASI_DYNAMIC = code(MODELS, "quasi-dynamic")
+INERTIAL = code(MODELS, "inertial")
+AGING = code(STATE_LAWS, "aging")
+SLIP = code(STATE_LAWS, "slip")
+DOPRI5 = code(METHODS, "dopri5")
+RK4 = code(METHODS, "rk4")
+ROSENBROCK = code(METHODS, "rosenbrock")
+DOP853 = code(METHODS, "dop853")
+CHAIN = code(COUPLINGS, "chain")
+RING = code(COUPLINGS, "ring")
+ALL = code(COUPLINGS, "all")
+# when the tangent for λ1 is carried (S_LYAPUNOV)
+LYAP_NEVER = code(LYAPUNOV_MODES, "never")
+LYAP_UNSETTLED = code(LYAPUNOV_MODES, "unsettled")
+LYAP_ALWAYS = code(LYAPUNOV_MODES, "always")
+STEADY = code(REGIMES, "steady")
+STICK_SLIP = code(REGIMES, "stick_slip")
+RUNAWAY = code(REGIMES, "runaway")
+UNDECIDED = code(REGIMES, "undecided")
+# what a run settled on (R_ATTRACTOR)
+FIXED_POINT = code(ATTRACTORS, "fixed_point")
+PERIODIC = code(ATTRACTORS, "periodic")
+QUASI_PERIODIC = code(ATTRACTORS, "quasi_periodic")
+CHAOTIC = code(ATTRACTORS, "chaotic")
+UNRESOLVED = code(ATTRACTORS, "unresolved")
+UNBOUNDED = code(ATTRACTORS, "unbounded")
 
 
 def values_per_block(model):
@@ -28,6 +56,7 @@ def values_per_block(model):
 
 
 # --- columns of the per-system parameter array (all dimensionless) ----------
+N_PARAMS = 11
 (
     P_A,  # direct effect
     P_B,  # evolution effect
@@ -40,20 +69,20 @@ def values_per_block(model):
     P_MAX_STEP,  # largest adaptive step (D0/V)
     P_TAU_MAX,  # unsettled runs continue up to this time (D0/V), ≥ P_TAU_END
     P_LIN_GROWTH,  # max Re λ of the linearisation at steady sliding (V/D0)
-) = range(11)
-N_PARAMS = 11
+) = range(N_PARAMS)
 # Rows whose blocks differ have N_BLOCK_PARAMS × nb more columns after N_PARAMS:
 # column N_PARAMS + k nb + i holds quantity k of block i (B_* below). Without them
 # (p.size == N_PARAMS) every block takes P_A, P_B, P_KAPPA1 and rate factor 1.
+N_BLOCK_PARAMS = 4
 (
     B_A,  # direct effect of block i
     B_B,  # evolution effect of block i
     B_KAPPA1,  # driving stiffness K_i D0/W (D0: the reference D0)
     B_RATE,  # state-rate factor D0/D0_i
-) = range(4)
-N_BLOCK_PARAMS = 4
+) = range(N_BLOCK_PARAMS)
 
 # --- entries of the settings array, shared by all systems of a sweep --------
+N_SETTINGS = 16
 (
     S_MODEL,  # QUASI_STATIC | QUASI_DYNAMIC | INERTIAL
     S_LAW,  # AGING | SLIP
@@ -71,10 +100,10 @@ N_BLOCK_PARAMS = 4
     S_COUPLING,  # CHAIN | RING | ALL
     S_LYAPUNOV,  # LYAP_NEVER | LYAP_UNSETTLED | LYAP_ALWAYS
     S_EVENTS,  # events whose ℓ_0 maxima and intervals each run reports (columns after R_*)
-) = range(16)
-N_SETTINGS = 16
+) = range(N_SETTINGS)
 
 # --- columns of the per-system statistics array -----------------------------
+N_RESULTS = 22
 (
     R_REGIME,  # STEADY | STICK_SLIP | RUNAWAY | UNDECIDED
     R_TAU_FINAL,  # time the run stopped (D0/V)
@@ -98,8 +127,7 @@ N_SETTINGS = 16
     R_CYCLE_EVENTS,  # events (maxima of ℓ_0) per cycle of a periodic run, else 0
     R_LYAPUNOV,  # largest Lyapunov exponent (V/D0); NaN where the tangent was not carried
     R_LYAPUNOV_ERROR,  # its standard error (V/D0)
-) = range(22)
-N_RESULTS = 22
+) = range(N_RESULTS)
 # After the R_* columns: the last S_EVENTS events' maxima of ℓ_0, then their intervals
 # from the event before (D0/V), oldest first, NaN before the first.
 

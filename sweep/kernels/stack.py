@@ -4,7 +4,7 @@ numba's arrays live on the heap behind a reference-counted pointer, which LLVM c
 keep in registers; an array of a compile-time size on the stack (``alloca``) it can.
 In a micro-benchmark of RK4 on one block that reaches the speed of code written with
 scalars (76 vs 96 ns per step); the grid kernels of one and two blocks run 1.1–1.4×
-faster per step (``docs/performance.md``). The arrays live as long as the function
+faster per step (``docs/internals.md``). The arrays live as long as the function
 that creates them, so only the grid kernel's loop uses them and never returns them.
 """
 

@@ -30,23 +30,8 @@ import math
 import numpy as np
 from numba import literally
 
-from ..accelerate import jit
-from . import tableau_dop853
-from .equations import rhs_curvature, rhs_jvp
-from .layout import DOP853, DOPRI5, ROSENBROCK
-from .steppers import (
-    _A21,
-    _B1,
-    _B3,
-    _B4,
-    _B5,
-    _B6,
-    _DP_A,
-    _RODAS_A,
-    _RODAS_C,
-    ROS_STAGE_ROWS,
-    lu_solve,
-)
+from ..accelerate import jit, jit_inline
+from .equations import rhs_jvp
 
 #: Blocks a Lyapunov window is cut into; the first is the transient.
 LYAP_BLOCKS = 8
@@ -59,9 +44,10 @@ LYAP_BLOCKS = 8
 TANGENT_TURN = 0.5
 
 
-def _explicit_tableau(a_rows, b):
-    """Butcher tableau (A, b) of an explicit method with stage 0 = f(y): row s of A holds
-    the coefficients of stages 0 … s − 1 in stage s's argument y + h Σ a_sr K_r."""
+def explicit_tableau(a_rows, b):
+    """Butcher tableau (A, b) of an explicit method in the form of
+    :func:`explicit_tangent_step`, stage 0 = f(y): row s of A holds the coefficients of
+    stages 0 … s − 1 in stage s's argument y + h Σ a_sr K_r (``a_rows``, from row 1)."""
     b = np.asarray(b, float)
     a = np.zeros((b.size, b.size))
     for s, row in enumerate(a_rows, start=1):
@@ -69,17 +55,8 @@ def _explicit_tableau(a_rows, b):
     return a, b
 
 
-# The steppers' tableaus in that one form (steppers.py: the stages K_1 … sit in the rows
-# of their scratch ``k``, K_0 is f).
-_DP5_A, _DP5_B = _explicit_tableau([[_A21], *[list(r) for r in _DP_A]],
-                                   [_B1, 0.0, _B3, _B4, _B5, _B6])  # fmt: skip
-_RK4_A, _RK4_B = _explicit_tableau([[0.5], [0.0, 0.5], [0.0, 0.0, 1.0]],
-                                   [1 / 6, 1 / 3, 1 / 3, 1 / 6])  # fmt: skip
-_DOP853_A = np.ascontiguousarray(tableau_dop853.A[: tableau_dop853.N_STAGES,
-                                                  : tableau_dop853.N_STAGES])  # fmt: skip
-_DOP853_B = np.ascontiguousarray(tableau_dop853.B)
-
 # --- entries of the accumulator ``ly`` ----------------------------------------
+N_LYAP = 20
 (
     L_ON,  # 1 while the tangent is carried
     L_T0,  # start of the window (D0/V)
@@ -101,25 +78,22 @@ _DOP853_B = np.ascontiguousarray(tableau_dop853.B)
     L_BWTS,
     L_T_LAST,  # time of the last sample (D0/V)
     L_RATE,  # |J δ| at the start of the last tangent step (V/D0; 0: none yet)
-) = range(20)
-N_LYAP = 20
+) = range(N_LYAP)
 #: Rows of the tangent's ``work`` scratch (see :func:`tangent_arrays`).
 TANGENT_WORK_ROWS = 4
-#: Rows of the tangent's stage scratch: DOP853's 12 stages, else up to 6 (DOPRI5, RODAS4).
-TANGENT_STAGE_ROWS, TANGENT_STAGE_ROWS_DOP853 = ROS_STAGE_ROWS, tableau_dop853.N_STAGES
 
 
 @jit
-def tangent_arrays(method, n, nb):
+def tangent_arrays(stage_rows, n, nb):
     """Scratch of the tangent for a state of ``n`` values, ``nb`` blocks: δ (n,); the rows
     of ``work`` (``TANGENT_WORK_ROWS``, n): a stage's argument, its direction, and two
     rows for RODAS4's right-hand side and curvature; the stages' derivatives
-    (``TANGENT_STAGE_ROWS`` or, for DOP853, ``TANGENT_STAGE_ROWS_DOP853`` rows of n);
-    per-block scratch (3, nb); the accumulator ``ly`` (``L_*``)."""
+    (``stage_rows``: the method's ``TANGENT_ROWS``, of n); per-block scratch (3, nb); the
+    accumulator ``ly`` (``L_*``)."""
     return (
         np.empty(n),
         np.empty((TANGENT_WORK_ROWS, n)),
-        np.empty((TANGENT_STAGE_ROWS_DOP853 if method == DOP853 else TANGENT_STAGE_ROWS, n)),
+        np.empty((stage_rows, n)),
         np.empty((3, nb)),
         np.zeros(N_LYAP),
     )
@@ -146,92 +120,68 @@ def lyapunov_start(ly, delta, t, block):
     ly[L_T_LAST] = t
 
 
+@jit_inline
+def turn_step(ly):
+    """The longest step while the tangent is carried (D0/V): ``TANGENT_TURN`` / |J δ| at
+    the last step (``ly[L_RATE]``), unbounded before one is known."""
+    return TANGENT_TURN / ly[L_RATE] if ly[L_RATE] > 0.0 else math.inf
+
+
 @jit
-def tangent_step(
-    y, f, h, k, ros_k, ros_lu, ros_perm, delta, work, dk, blocks, p, nb, ev,
-    model, law, method, coupling, het,
+def explicit_tangent_step(
+    a, b, y, f, h, k, delta, work, dk, blocks, p, nb, ev, model, law, coupling, het
 ):  # fmt: skip
     """Carry δ (unit length) over the accepted step of size ``h`` from ``y`` (slope
-    ``f``) and renormalise it; returns the logarithm of its growth and |J δ| at ``y``
-    (V/D0).
+    ``f``) of an explicit method with tableau ``a``, ``b`` (:func:`explicit_tableau`;
+    its stages K_1 … in the rows of ``k``) and renormalise it; returns the logarithm of
+    its growth and |J δ| at ``y`` (V/D0).
 
-    The derivative of the step along δ (module docstring), from the step's own stages:
-    ``k`` the explicit methods' (K_1 … in its rows), or RODAS4's ``ros_k`` with the LU
-    factors ``ros_lu``/``ros_perm`` of its matrix. ``work``, ``dk`` and ``blocks`` are
-    the scratch of :func:`tangent_arrays`. Compiled per variant (``literally``): its
-    codes are constants of the grid kernel.
+    K_s = f(Y_s), Y_s = y + h Σ a_sr K_r, y1 = y + h Σ b_s K_s: along δ, dK_s = J(Y_s)
+    (δ + h Σ a_sr dK_r), the derivative of the step (module docstring). ``work``,
+    ``dk`` and ``blocks`` are the scratch of :func:`tangent_arrays`. Compiled per variant
+    (``literally``): its codes are constants of the grid kernel.
     """
     literally(model)
     literally(law)
-    literally(method)
     literally(coupling)
     literally(het)
     n = y.size
-    arg, direction, acc, curv = work[0], work[1], work[2], work[3]
+    arg, direction = work[0], work[1]
     rate = 0.0
-    if method == ROSENBROCK:
-        # (I/(γh) − J) k_s = f(Y_s) + Σ c_sr k_r / h, Y_s = y + Σ a_sr k_r, y1 = Y_5 + k_5:
-        # along δ, (I/(γh) − J) dk_s = J(Y_s) dY_s + Σ c_sr dk_r / h + f''(y)[δ, k_s]
-        stages = ROS_STAGE_ROWS
-        for s in range(stages):
-            for j in range(n):
-                ya = y[j]
-                da = delta[j]
-                for r in range(s):
-                    ya += _RODAS_A[s, r] * ros_k[r, j]
-                    da += _RODAS_A[s, r] * dk[r, j]
-                arg[j] = ya
-                direction[j] = da
-            rhs_jvp(arg, direction, p, model, law, coupling, het, nb, ev, blocks[0], acc)
-            if s == 0:
-                for j in range(n):
-                    rate += acc[j] ** 2
-            rhs_curvature(y, delta, ros_k[s], p, model, law, coupling, het, nb, ev, blocks, curv)
-            for j in range(n):
-                c = 0.0
-                for r in range(s):
-                    c += _RODAS_C[s, r] * dk[r, j]
-                acc[j] += c / h + curv[j]
-            lu_solve(ros_lu, ros_perm, acc, dk[s])
-        last = stages - 1
+    stages = b.size
+    for s in range(stages):
         for j in range(n):
-            delta[j] = direction[j] + dk[last, j]
-    else:
-        # K_s = f(Y_s), Y_s = y + h Σ a_sr K_r, y1 = y + h Σ b_s K_s: along δ,
-        # dK_s = J(Y_s) (δ + h Σ a_sr dK_r)
-        if method == DOPRI5:
-            a, b = _DP5_A, _DP5_B
-        elif method == DOP853:
-            a, b = _DOP853_A, _DOP853_B
-        else:
-            a, b = _RK4_A, _RK4_B
-        stages = b.size
-        for s in range(stages):
+            ya = 0.0
+            da = 0.0
+            for r in range(s):
+                if a[s, r] != 0.0:
+                    ya += a[s, r] * (f[j] if r == 0 else k[r - 1, j])
+                    da += a[s, r] * dk[r, j]
+            arg[j] = y[j] + h * ya
+            direction[j] = delta[j] + h * da
+        rhs_jvp(arg, direction, p, model, law, coupling, het, nb, ev, blocks[0], dk[s])
+        if s == 0:
             for j in range(n):
-                ya = 0.0
-                da = 0.0
-                for r in range(s):
-                    if a[s, r] != 0.0:
-                        ya += a[s, r] * (f[j] if r == 0 else k[r - 1, j])
-                        da += a[s, r] * dk[r, j]
-                arg[j] = y[j] + h * ya
-                direction[j] = delta[j] + h * da
-            rhs_jvp(arg, direction, p, model, law, coupling, het, nb, ev, blocks[0], dk[s])
-            if s == 0:
-                for j in range(n):
-                    rate += dk[0, j] ** 2
-        for j in range(n):
-            acc_j = 0.0
-            for r in range(stages):
-                acc_j += b[r] * dk[r, j]
-            delta[j] += h * acc_j
+                rate += dk[0, j] ** 2
+    for j in range(n):
+        acc_j = 0.0
+        for r in range(stages):
+            acc_j += b[r] * dk[r, j]
+        delta[j] += h * acc_j
+    return renormalise(delta), math.sqrt(rate)
+
+
+@jit_inline
+def renormalise(delta):
+    """Scale the tangent ``delta`` to length 1; returns the logarithm of its length before."""
+    n = delta.size
     norm = 0.0
     for j in range(n):
         norm += delta[j] ** 2
     norm = math.sqrt(norm)
     for j in range(n):
         delta[j] /= norm
-    return math.log(norm), math.sqrt(rate)
+    return math.log(norm)
 
 
 @jit

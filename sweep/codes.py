@@ -1,0 +1,40 @@
+"""The code tables: one per choice a config or a result file names.
+
+Each table lists the names a config uses (or a file writes, as CF ``flag_meanings``) in
+code order: a name's code is its place in the table. The config parser checks names
+against these tables, the grid builder turns them into the codes the kernels take
+(``kernels/layout.py`` names each code), and the Dataset writes the regime and
+attractor tables as ``flag_values``/``flag_meanings``. Plain Python: importing it loads
+no numba. The kernels compile these codes in as constants, so this file is part of
+the source their cache is keyed on (``accelerate.source_digest``).
+"""
+
+#: The models (``model:``).
+MODELS = ("quasi-static", "quasi-dynamic", "inertial")
+#: The state evolution laws (``state_law:``).
+STATE_LAWS = ("aging", "slip")
+#: Which blocks a coupling spring k2 joins (``coupling:``): neighbours in an open chain,
+#: neighbours in a closed ring, or every pair.
+COUPLINGS = ("chain", "ring", "all")
+#: When the largest Lyapunov exponent is computed (``classification.lyapunov``): never;
+#: from t_end on, for runs not settled by then; or over every whole run.
+LYAPUNOV_MODES = ("never", "unsettled", "always")
+#: The integration methods (``integrator.method``), each name with its module in
+#: ``sweep/kernels/methods``: the registry of the methods. Adding a method is its
+#: module and a line here.
+METHODS = {
+    "dopri5": "dopri5",
+    "rk4": "rk4",
+    "rosenbrock": "rodas4",
+    "dop853": "dop853",
+    "bs23": "bs23",
+}
+#: Regimes (the ``regime`` variable's flag meanings).
+REGIMES = ("steady", "stick_slip", "runaway", "undecided")
+#: What a run settled on (the ``attractor`` variable's flag meanings).
+ATTRACTORS = ("fixed_point", "periodic", "quasi_periodic", "chaotic", "unresolved", "unbounded")
+
+
+def code(table, name):
+    """The code of ``name`` in ``table`` (its place there; ValueError if absent)."""
+    return list(table).index(name)
