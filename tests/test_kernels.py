@@ -509,7 +509,7 @@ def test_bs23_classifies_as_dopri5_away_from_kc():
     """A method added as one module and one registry line (BS23) runs through the grid
     kernel: the labels of DOPRI5 at K/Kc 0.8, 0.9 (runaway), 1.1 and 1.2 (steady), the
     runaway times and the last periods to 1e-6 (order 3 at rtol 1e-8: about 15 times
-    DOPRI5's steps)."""
+    DOPRI5's steps), and the runaway times SciPy's (DOP853, rtol 1e-10) to 1e-5."""
     runs = {}
     for method in ("dopri5", "bs23"):
         config = make_config(
@@ -524,6 +524,9 @@ def test_bs23_classifies_as_dopri5_away_from_kc():
     np.testing.assert_array_equal(b[:, layout.R_REGIME], regimes)
     for column in (layout.R_TAU_RUNAWAY, layout.R_PERIOD):
         np.testing.assert_allclose(b[:, column], a[:, column], rtol=1e-6)
+    for row, ratio in enumerate((0.8, 0.9)):  # and SciPy's runaway time (DOP853, rtol 1e-10)
+        tau_ref = scipy_runaway_time(ratio, 0.0, math.log(1.01))
+        assert b[row, layout.R_TAU_RUNAWAY] == pytest.approx(tau_ref, rel=1e-5)
 
 
 @pytest.mark.parametrize(
