@@ -61,6 +61,7 @@ NUMERIC_MODULES = (
     "physics.py",
     "linear.py",
     "heterogeneity.py",
+    "codes.py",
     "accelerate.py",
     "dispatch.py",
 )
