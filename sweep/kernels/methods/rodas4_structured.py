@@ -1,6 +1,6 @@
-"""RODAS4 with a structured solve: the steps of ``rodas4.py`` (the same stage loop and
-tangent, ``rodas4.rosenbrock``), whose matrix I/(γh) − J is built, factorised and solved
-in O(N) operations for N blocks instead of the dense O(N³) (issue 39).
+"""RODAS4-structured: the steps of ``rodas4.py`` (the same stage loop and tangent,
+``rodas4.rosenbrock``) with their matrix I/(γh) − J built, factorised and solved in O(N)
+operations for N blocks instead of the dense O(N³) (issue 39).
 
 The matrix is ordered block by block: position q = vpb·pos(i) + c holds component c (ℓ,
 ψ, z) of block i, vpb values per block. Block i couples to others only in its row
@@ -74,6 +74,7 @@ def band_factor(mat, perm, kl, n):
     ``kl`` (both) in ``mat`` (module docstring); ``perm[k]``: the row swapped with row k
     at step k. A zero pivot is not trapped: the caller's error estimate rejects the
     step its non-finite values give."""
+    right = 0  # the last column rows below k may hold (LAPACK's JU)
     for k in range(n):
         last = min(k + kl, n - 1)
         pk = k
@@ -81,7 +82,7 @@ def band_factor(mat, perm, kl, n):
             if abs(mat[i, k - i + kl]) > abs(mat[pk, k - pk + kl]):
                 pk = i
         perm[k] = pk
-        right = min(k + 2 * kl, n - 1)
+        right = max(right, min(pk + kl, n - 1))
         if pk != k:
             for c in range(k, right + 1):
                 tmp = mat[k, c - k + kl]
