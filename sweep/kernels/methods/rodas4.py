@@ -59,9 +59,9 @@ def rosenbrock(name, factorise, solve):
     """RODAS4's ``step`` and ``tangent_step`` for a matrix I/(γh) − J built and
     factorised by ``factorise(y, f, diag, p, model, law, coupling, het, nb, ev, mat,
     perm)`` (``diag`` = 1/(γh), V/D0) and solved by ``solve(mat, perm, b, x, nb, model,
-    coupling)`` (x = (I/(γh) − J)⁻¹ b, ``x`` ≠ ``b``): one stage loop for every way of
-    solving. Each function is named after ``name`` (``accelerate``: the disk cache keys
-    on the name)."""
+    coupling)`` (x = (I/(γh) − J)⁻¹ b, ``x`` ≠ ``b``, ``b`` may be overwritten): one
+    stage loop for every way of solving. Each function is named after ``name``
+    (``accelerate``: the disk cache keys on the name)."""
 
     def step(y, f, h, p, model, law, coupling, het, nb, ev, k, mat, perm, ytmp, ynew, fnew,
              rtol, atol):  # fmt: skip

@@ -19,7 +19,8 @@ The band is factorised with partial pivoting as LAPACK's dgbtf2 does (upper half
 kl + ku after the interchanges, the multipliers of each column kept in place, the
 interchanges applied in order by the solve). ``mat`` row q holds the entry of column c at
 ``mat[q, c − q + kl]`` (kl = ku), in 3kl + 1 columns; for all-to-all three more columns
-hold a, w and z by state index.
+hold a, w and z in band order. The solve gathers its right-hand side into band order
+and scatters the solution back.
 """
 
 import numpy as np
@@ -98,30 +99,25 @@ def band_factor(mat, perm, kl, n):
 
 
 @jit
-def band_substitute(mat, perm, kl, x, nb, model, coupling):
-    """x ← B⁻¹ x in place from the factors of :func:`band_factor`; ``x`` is in state
-    order (its band position q at :func:`state_index`)."""
+def band_substitute(mat, perm, kl, x):
+    """x ← B⁻¹ x in place (``x`` in band order) from the factors of :func:`band_factor`."""
     n = x.size
-    vpb = 3 if model == INERTIAL else 2
     for k in range(n):
-        jk = state_index(coupling, nb, vpb, k)
         pk = perm[k]
         if pk != k:
-            jp = state_index(coupling, nb, vpb, pk)
-            tmp = x[jk]
-            x[jk] = x[jp]
-            x[jp] = tmp
-        xk = x[jk]
+            tmp = x[k]
+            x[k] = x[pk]
+            x[pk] = tmp
+        xk = x[k]
         if xk != 0.0:
             for i in range(k + 1, min(k + kl, n - 1) + 1):
-                x[state_index(coupling, nb, vpb, i)] -= mat[i, k - i + kl] * xk
+                x[i] -= mat[i, k - i + kl] * xk
     for ii in range(n):
         i = n - 1 - ii
-        ji = state_index(coupling, nb, vpb, i)
-        acc = x[ji]
+        acc = x[i]
         for c in range(i + 1, min(i + 2 * kl, n - 1) + 1):
-            acc -= mat[i, c - i + kl] * x[state_index(coupling, nb, vpb, c)]
-        x[ji] = acc / mat[i, kl]
+            acc -= mat[i, c - i + kl] * x[c]
+        x[i] = acc / mat[i, kl]
 
 
 @jit
@@ -165,30 +161,37 @@ def structured_factorise(y, f, diag, p, model, law, coupling, het, nb, ev, mat, 
                 p, ev, right, denom)  # fmt: skip
         else:  # M = B − a wᵀ: B keeps the block's own coupling term
             mat[r, q - r + kl] += coupling_entry(p, ev, i, denom)
-            mat[2 * nb + i if model == INERTIAL else i, width] = 1.0 / denom
-            mat[i, width + 1] = coupling_entry(p, ev, i, 1.0)
+            mat[r, width] = 1.0 / denom
+            mat[q, width + 1] = coupling_entry(p, ev, i, 1.0)
     band_factor(mat, perm, kl, n)
     if coupling == ALL:
         for j in range(n):
             mat[j, width + 2] = mat[j, width]
-        band_substitute(mat, perm, kl, mat[:, width + 2], nb, model, coupling)
+        band_substitute(mat, perm, kl, mat[:, width + 2])
 
 
 @jit
 def structured_solve(mat, perm, b, x, nb, model, coupling):
-    """x = (I/(γh) − J)⁻¹ b from the factors of :func:`structured_factorise`."""
+    """x = (I/(γh) − J)⁻¹ b from the factors of :func:`structured_factorise`; ``b`` is
+    overwritten (the solution in band order)."""
+    n = b.size
+    vpb = 3 if model == INERTIAL else 2
     width = mat.shape[1] - (RANK_ONE_COLUMNS if coupling == ALL else 0)
-    for j in range(b.size):
-        x[j] = b[j]
-    band_substitute(mat, perm, (width - 1) // 3, x, nb, model, coupling)
+    for q in range(n):
+        x[q] = b[state_index(coupling, nb, vpb, q)]
+    band_substitute(mat, perm, (width - 1) // 3, x)
     if coupling == ALL:  # Sherman–Morrison; w is nonzero at the ℓ_j only
         wx, wz = 0.0, 0.0
-        for j in range(nb):
-            wx += mat[j, width + 1] * x[j]
-            wz += mat[j, width + 1] * mat[j, width + 2]
+        for q in range(0, n, vpb):
+            wx += mat[q, width + 1] * x[q]
+            wz += mat[q, width + 1] * mat[q, width + 2]
         scale = wx / (1.0 - wz)
-        for j in range(b.size):
-            x[j] += mat[j, width + 2] * scale
+        for q in range(n):
+            x[q] += mat[q, width + 2] * scale
+    for q in range(n):
+        b[state_index(coupling, nb, vpb, q)] = x[q]
+    for j in range(n):
+        x[j] = b[j]
 
 
 step, tangent_step = rodas4.rosenbrock("rodas4_structured", structured_factorise,
