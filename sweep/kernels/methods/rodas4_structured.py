@@ -172,8 +172,8 @@ def structured_factorise(y, f, diag, p, model, law, coupling, het, nb, ev, mat, 
 
 @jit
 def structured_solve(mat, perm, b, x, nb, model, coupling):
-    """x = (I/(γh) − J)⁻¹ b from the factors of :func:`structured_factorise`; ``b`` is
-    overwritten (the solution in band order)."""
+    """x = (I/(γh) − J)⁻¹ b from the factors of :func:`structured_factorise`, solved in
+    band order in ``x``; ``b`` is overwritten (with the solution)."""
     n = b.size
     vpb = 3 if model == INERTIAL else 2
     width = mat.shape[1] - (RANK_ONE_COLUMNS if coupling == ALL else 0)
