@@ -12,6 +12,9 @@ Prints and writes ``results/bench.json``:
   arithmetic written as plainly as possible;
 * throughput per block-step of chains and rings of 2 and 32 blocks (the issue's
   target: 32 blocks within 2x of 2 blocks per block-step);
+* the inertial model's RODAS4 step in a chain, ring and all-to-all of 8, 32 and 128
+  blocks, with its dense LU and its structured solve (issue 39's target: 128 blocks
+  within 2x of 8 per block-step);
 * the cost of classifying beyond the simple cycle: runs that settle as before, with
   and without the Lyapunov tangent and event bookkeeping, and a step that carries the
   tangent against a plain step (DOPRI5, RODAS4);
@@ -262,6 +265,47 @@ def bench_block_scaling(n_systems, t_end, sizes=(2, 32)):
         base = "inertial rodas4 chain" if key.startswith("inertial") else "chain"
         reference = out[f"{base}/{sizes[0]}"]["block_steps_per_second"]
         value["relative_to_smallest_chain"] = value["block_steps_per_second"] / reference
+    return out
+
+
+def bench_implicit_scaling(n_systems, t_end, sizes=(8, 32, 128)):
+    """µs per step and ns per block-step (accepted and rejected steps, 1 thread) of the
+    inertial model's RODAS4 with its dense LU (``rosenbrock``) and its structured solve
+    (``rosenbrock-structured``, issue 39: O(N) per step), in a chain, ring and
+    all-to-all of ``sizes`` blocks, each per block-step relative to its own smallest
+    size (the target: within 2x at 128 blocks), and structured against dense.
+
+    Identical blocks below their Kc (m/W = 1 s²/µm, K/Kc = 0.95, k2/W = 0.05 µm⁻¹),
+    started with Φ_i/Φss = 1.01 + 0.005 sin(1.7 i), run to ``t_end`` without early exit.
+    """
+    extra = {"m_W": 1.0}
+    k_values = np.linspace(0.95, 0.95 * 1.01, n_systems) * _critical_k_w("inertial", extra)
+    out = {}
+    for coupling in ("chain", "ring", "all"):
+        for method in ("rosenbrock", "rosenbrock-structured"):
+            for blocks in sizes:
+                config = with_changes(
+                    one_block_config(k_values, t_end, "inertial", blocks, extra, early=False,
+                                     method=method),
+                    {"coupling": coupling,
+                     "initial": {"phi_over_phi_ss": [1.01 + 0.005 * math.sin(1.7 * i)
+                                                     for i in range(blocks)]}},
+                )  # fmt: skip
+                results, seconds = engine_run(config, threads=1)
+                steps = results[:, layout.R_N_STEPS].sum() + results[:, layout.R_N_REJECTED].sum()
+                out[f"{coupling} {method}/{blocks}"] = {
+                    "steps": int(steps),
+                    "us_per_step": 1e6 * seconds / steps,
+                    "ns_per_block_step": 1e9 * seconds / (steps * blocks),
+                }
+    for key, value in out.items():
+        case, blocks = key.rsplit("/", 1)
+        value["relative_to_smallest"] = (
+            value["ns_per_block_step"] / out[f"{case}/{sizes[0]}"]["ns_per_block_step"]
+        )
+        if "structured" in case:
+            dense = out[f"{case.replace('-structured', '')}/{blocks}"]
+            value["dense_over_structured"] = dense["us_per_step"] / value["us_per_step"]
     return out
 
 
@@ -761,19 +805,19 @@ SIZES = {
     "full": {"scipy": (41, 2000), "single_purpose": (401, 2000), "scipy_hard": (101, 2000),
              "attractors": (201, 2000),
              "threads_large": (10_000, 2000), "throughput": (16, 500), "rk4": 2_000_000,
-             "block_scaling": (8, 500),
+             "block_scaling": (8, 500), "implicit_scaling": (2, 100),
              "configs": ("oneblock", "twoblock"), "dask": "twoblock", "compile": "twoblock",
              "refine": (("unequal_qd", 8),)},
     "quick": {"scipy": (6, 300), "single_purpose": (21, 300), "scipy_hard": (5, 2000),
               "attractors": (21, 300),
               "threads_large": (200, 2000), "throughput": (2, 50), "rk4": 10_000,
-              "block_scaling": (2, 50),
+              "block_scaling": (2, 50), "implicit_scaling": (1, 30),
               "configs": ("quick", "quick"), "dask": "quick", "compile": "quick",
               "refine": (("unequal_qd", 2),)},
     "smoke": {"scipy": (3, 100), "single_purpose": (3, 100), "scipy_hard": (2, 100),
               "attractors": (3, 100),
               "threads_large": (4, 100), "throughput": (1, 10), "rk4": 1_000,
-              "block_scaling": (1, 10),
+              "block_scaling": (1, 10), "implicit_scaling": (1, 2),
               "configs": ("quick",), "dask": "quick", "compile": "quick",
               "refine": (("quick", 2),)},
 }  # fmt: skip
@@ -842,6 +886,8 @@ def main(argv=None):
     _print_throughput(figures["throughput"])
     figures["block_scaling"] = bench_block_scaling(*size["block_scaling"])
     _print_block_scaling(figures["block_scaling"])
+    figures["implicit_scaling"] = bench_implicit_scaling(*size["implicit_scaling"])
+    _print_implicit_scaling(figures["implicit_scaling"])
     figures["rk4"] = r = bench_rk4_reference(size["rk4"])
     print(
         f"RK4 kernel {r['engine_ns_per_step']:.0f} ns/step vs plain loop "
@@ -1003,6 +1049,18 @@ def _print_block_scaling(b):
             f"{coupling:<21} {blocks:>2} blocks: {value['block_steps_per_second'] / 1e6:5.2f} M "
             f"block-steps/s per core, {value['ns_per_step']:.0f} ns per step "
             f"({value['relative_to_smallest_chain']:.2f}x the smallest chain per block-step)"
+        )
+
+
+def _print_implicit_scaling(b):
+    for key, value in b.items():
+        case, blocks = key.rsplit("/", 1)
+        versus = value.get("dense_over_structured")
+        print(
+            f"inertial {case:<29} {blocks:>3} blocks: {value['us_per_step']:8.1f} us per step, "
+            f"{value['ns_per_block_step']:6.0f} ns per block-step "
+            f"({value['relative_to_smallest']:.2f}x the smallest)"
+            + (f", {versus:.1f}x faster than dense" if versus else "")
         )
 
 

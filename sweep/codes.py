@@ -28,6 +28,7 @@ METHODS = {
     "rosenbrock": "rodas4",
     "dop853": "dop853",
     "bs23": "bs23",
+    "rosenbrock-structured": "rodas4_structured",
 }
 #: Regimes (the ``regime`` variable's flag meanings).
 REGIMES = ("steady", "stick_slip", "runaway", "undecided")

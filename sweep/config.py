@@ -33,9 +33,9 @@ from .physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
 #: spends 2e7 steps on the first 30 D0/V) and their stability-limited ripple adds false
 #: maxima; the linearly implicit rosenbrock stepper needs ~1e3 steps per cycle.
 DEFAULT_METHODS = {"inertial": "rosenbrock"}
-#: Default step-size cap (D0/V) of the methods that have one: RODAS4 reads extrema from
-#: a cubic Hermite interpolant, whose error grows with the step.
-DEFAULT_MAX_STEPS = {"rosenbrock": 0.5}
+#: Default step-size cap (D0/V) of the methods that have one: RODAS4 (either way of
+#: solving) reads extrema from a cubic Hermite interpolant, whose error grows with the step.
+DEFAULT_MAX_STEPS = {"rosenbrock": 0.5, "rosenbrock-structured": 0.5}
 TIME_UNITS = ("D0/V", "s")
 #: Most events whose maxima a run can report: the cycles the classifier keeps
 #: (``kernels.classify.state.HISTORY``; a test checks the two agree).

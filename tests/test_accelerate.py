@@ -20,9 +20,10 @@ from sweep.kernels.methods import MODULES as METHOD_MODULES
 CLASSIFY = (state, sequences, extrema, cycle, verdicts, result)
 MODULES = (equations, step, control, linalg, tangent, *METHOD_MODULES, *CLASSIFY, record, integrate)
 #: The plain-Python functions of the kernels: the one that builds the grid kernel of a
-#: variant, and the one that puts an explicit method's tableau in the tangent's form
-#: when its module is imported.
-PLAIN = ("grid_kernel", "explicit_tableau")
+#: variant, the one that puts an explicit method's tableau in the tangent's form when its
+#: module is imported, the one that builds RODAS4's steps from a way of solving, and an
+#: implicit method's matrix columns (read when a grid kernel is built).
+PLAIN = ("grid_kernel", "explicit_tableau", "rosenbrock", "matrix_columns")
 
 
 def kernel_functions():
@@ -179,7 +180,7 @@ report = {f"{module.__name__.rsplit('.', 1)[-1]}.{name}":
                          extrema, cycle, verdicts, result, record, integrate)
           for name, obj in vars(module).items()
           if getattr(obj, "__module__", None) == module.__name__
-          and name not in ("grid_kernel", "explicit_tableau")
+          and name not in ("grid_kernel", "explicit_tableau", "rosenbrock", "matrix_columns")
           and callable(obj) and not isinstance(obj, type)}
 report["grid_kernel()"] = [type(integrate.grid_kernel(0, 0, 0, 0, False, False)._cache).__name__,
                            False]

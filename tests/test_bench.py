@@ -66,7 +66,8 @@ def test_every_benchmark_runs_at_smoke_size(tmp_path):
     assert run.returncode == 0, run.stderr[-3000:]
     figures = json.loads(out.read_text())
     sections = {"scipy", "single_purpose", "scipy_hard", "threads_large", "throughput", "rk4",
-                "oneblock", "dask", "compile", "attractors", "refine"}  # fmt: skip
+                "oneblock", "dask", "compile", "attractors", "refine",
+                "implicit_scaling"}  # fmt: skip
     assert sections <= set(figures)
     for section in sections:
         values = dict(numbers(figures[section]))

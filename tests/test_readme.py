@@ -464,7 +464,7 @@ def test_readme_names_each_models_default_method():
     for model in MODELS:
         assert default_method(model) == (inertial if model == "inertial" else default), model
     assert dict(zip(METHODS, (m.NAME for m in MODULES), strict=True))[inertial] == inertial_name
-    assert {default, inertial, *re.findall(r"`(\w+)`", others)} == set(METHODS)
+    assert {default, inertial, *re.findall(r"`([\w-]+)`", others)} == set(METHODS)
 
 
 def test_models_page_names_each_models_default_method():

@@ -5,7 +5,7 @@
 - ``stack``: fixed-size scratch arrays on the stack, for kernels of one small state size.
 - ``equations``: the log-form right-hand side, its analytic Jacobian, and the
   Jacobian's products the tangent needs.
-- ``linalg``: LU factors and solves of the implicit method.
+- ``linalg``: dense LU factors and solves of the implicit method (``rosenbrock``).
 - ``step``: the step record the loop hands on and the interpolant read from it.
 - ``control``: the step-size controller of the adaptive methods.
 - ``tangent``: the tangent vector and the largest Lyapunov exponent (Benettin et al.).

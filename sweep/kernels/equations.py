@@ -80,76 +80,105 @@ def rhs(y, p, model, law, coupling, het, nb, ev, dydt):
         dydt[nb + i] = dpsi
 
 
-@jit
-def jacobian(y, f, p, model, law, coupling, het, nb, ev, jac):
-    """Analytic Jacobian ∂(dy/dτ)/∂y of :func:`rhs` at ``y`` into ``jac`` (n × n).
+@jit_inline
+def block_jacobian(y, f, p, model, law, coupling, het, nb, ev, i):
+    """Block ``i``'s entries of the Jacobian of :func:`rhs` (V/D0 per unit of state)
+    but its coupling to other blocks, shared by :func:`jacobian` and the structured
+    matrix of ``methods/rodas4_structured.py``: ``(psi_l, psi_psi, l_l, l_z, row_l,
+    row_z, row_psi, denom)``.
 
-    ``f`` = rhs(y) (its ℓ rows enter the quasi-dynamic and inertial entries);
-    ``ev`` is scratch for e^ℓ (length nb).
+    ψ_i' depends on ℓ_i (``psi_l``) and ψ_i (``psi_psi``). The driving term load − B ψ'
+    enters the block's row ``row`` (z_i inertial, else ℓ_i) divided by ``denom``: that
+    row's entries in ℓ_i (with κ2's own term), ψ_i and z_i are ``row_l``, ``row_psi``,
+    ``row_z``; each coupled block j adds :func:`coupling_entry` in ℓ_j. Inertial only
+    (else 0): ℓ_i''s entries in ℓ_i and z_i, ``l_l`` and ``l_z``. ``f`` = rhs(y) (its
+    ℓ rows enter); ``ev`` holds e^ℓ (length nb).
     """
     A = p[P_A]
     B = p[P_B]
     kappa1 = p[P_KAPPA1]
     kappa2 = p[P_KAPPA2]
+    e = ev[i]
+    if law == AGING:
+        dpsi_dlnv = -e
+        dpsi_dpsi = -np.exp(-y[nb + i])
+    else:
+        dpsi_dlnv = -e * (y[i] + y[nb + i] + 1.0)
+        dpsi_dpsi = -e
+    if het:
+        A = p[N_PARAMS + B_A * nb + i]
+        B = p[N_PARAMS + B_B * nb + i]
+        kappa1 = p[N_PARAMS + B_KAPPA1 * nb + i]
+        rate = p[N_PARAMS + B_RATE * nb + i]
+        dpsi_dlnv *= rate
+        dpsi_dpsi *= rate
+    dload_self = -kappa1 * e
+    if coupling == CHAIN:
+        if i > 0:
+            dload_self -= kappa2 * e
+        if i < nb - 1:
+            dload_self -= kappa2 * e
+    elif coupling == RING:
+        dload_self -= 2.0 * kappa2 * e
+    else:
+        dload_self -= (nb - 1) * kappa2 * e
+    l_l, l_z, row_z = 0.0, 0.0, 0.0
+    if model == INERTIAL:
+        denom = 1.0
+        em = np.exp(-y[i]) / p[P_MASS]
+        l_l, l_z, row_z = -f[i], em, -A * em
+        row_l = A * f[i]
+    else:
+        denom = A if model == QUASI_STATIC else A + p[P_ETA] * e
+        row_l = -f[i] * p[P_ETA] * e / denom if model == QUASI_DYNAMIC else 0.0
+    row_l += (dload_self - B * dpsi_dlnv) / denom
+    return dpsi_dlnv, dpsi_dpsi, l_l, l_z, row_l, row_z, -B * dpsi_dpsi / denom, denom
+
+
+@jit_inline
+def coupling_entry(p, ev, j, denom):
+    """The Jacobian entry of a block's row (``block_jacobian``, divided by ``denom``) in
+    the ℓ_j of a block j coupled to it (V/D0)."""
+    return p[P_KAPPA2] * ev[j] / denom
+
+
+@jit
+def jacobian(y, f, p, model, law, coupling, het, nb, ev, jac):
+    """Analytic Jacobian ∂(dy/dτ)/∂y of :func:`rhs` at ``y`` into ``jac`` (n × n, V/D0).
+
+    ``f`` = rhs(y) (its ℓ rows enter the quasi-dynamic and inertial entries);
+    ``ev`` is scratch for e^ℓ (length nb). A ring's neighbours add up: in a ring of two
+    blocks both are the other block, in a ring of one the block itself.
+    """
     jac[:, :] = 0.0
     for i in range(nb):
         ev[i] = np.exp(y[i])
     for i in range(nb):
-        e = ev[i]
-        if law == AGING:
-            dpsi_dlnv = -e
-            dpsi_dpsi = -np.exp(-y[nb + i])
-        else:
-            dpsi_dlnv = -e * (y[i] + y[nb + i] + 1.0)
-            dpsi_dpsi = -e
-        if het:
-            A = p[N_PARAMS + B_A * nb + i]
-            B = p[N_PARAMS + B_B * nb + i]
-            kappa1 = p[N_PARAMS + B_KAPPA1 * nb + i]
-            rate = p[N_PARAMS + B_RATE * nb + i]
-            dpsi_dlnv *= rate
-            dpsi_dpsi *= rate
-        jac[nb + i, i] = dpsi_dlnv
-        jac[nb + i, nb + i] = dpsi_dpsi
-        # the driving term load − B ψ' of block i: its own ℓ, ψ and its coupled
-        # neighbours' ℓ, into row ``row`` divided by ``denom``
-        dload_self = -kappa1 * e
-        if coupling == CHAIN:
-            if i > 0:
-                dload_self -= kappa2 * e
-            if i < nb - 1:
-                dload_self -= kappa2 * e
-        elif coupling == RING:
-            dload_self -= 2.0 * kappa2 * e
-        else:
-            dload_self -= (nb - 1) * kappa2 * e
+        psi_l, psi_psi, l_l, l_z, row_l, row_z, row_psi, denom = block_jacobian(
+            y, f, p, model, law, coupling, het, nb, ev, i)  # fmt: skip
+        jac[nb + i, i] = psi_l
+        jac[nb + i, nb + i] = psi_psi
+        row = i
         if model == INERTIAL:
             row = 2 * nb + i
-            denom = 1.0
-            em = np.exp(-y[i]) / p[P_MASS]
-            jac[i, i] = -f[i]
-            jac[i, row] = em
-            jac[row, i] = A * f[i]
-            jac[row, row] = -A * em
-        else:
-            row = i
-            denom = A if model == QUASI_STATIC else A + p[P_ETA] * e
-            if model == QUASI_DYNAMIC:
-                jac[i, i] = -f[i] * p[P_ETA] * e / denom
-        jac[row, i] += (dload_self - B * dpsi_dlnv) / denom
-        jac[row, nb + i] = -B * dpsi_dpsi / denom
+            jac[i, i] = l_l
+            jac[i, row] = l_z
+            jac[row, row] = row_z
+        jac[row, i] = row_l
+        jac[row, nb + i] = row_psi
         if coupling == CHAIN:
             if i > 0:
-                jac[row, i - 1] = kappa2 * ev[i - 1] / denom
+                jac[row, i - 1] += coupling_entry(p, ev, i - 1, denom)
             if i < nb - 1:
-                jac[row, i + 1] = kappa2 * ev[i + 1] / denom
+                jac[row, i + 1] += coupling_entry(p, ev, i + 1, denom)
         elif coupling == RING:
-            jac[row, i - 1 if i > 0 else nb - 1] = kappa2 * ev[i - 1 if i > 0 else nb - 1] / denom
-            jac[row, i + 1 if i < nb - 1 else 0] = kappa2 * ev[i + 1 if i < nb - 1 else 0] / denom
+            left, right = i - 1 if i > 0 else nb - 1, i + 1 if i < nb - 1 else 0
+            jac[row, left] += coupling_entry(p, ev, left, denom)
+            jac[row, right] += coupling_entry(p, ev, right, denom)
         else:
             for j in range(nb):
                 if j != i:
-                    jac[row, j] = kappa2 * ev[j] / denom
+                    jac[row, j] = coupling_entry(p, ev, j, denom)
 
 
 @jit_inline

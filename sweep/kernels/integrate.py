@@ -88,15 +88,17 @@ def runaway_index(ynew, fnew, nb, lnv_cap):
 
 
 @jit
-def heap_scratch(n, k_rows, matrix):
+def heap_scratch(n, k_rows, matrix, mat_cols):
     """Scratch of a step for a state of ``n`` values on the heap: f, ynew, fnew, ytmp, the
     stages as the rows of one array (``k_rows`` of n), the matrix and pivots of an
-    implicit method (n × n and n where ``matrix``, else empty) and the interpolant's
-    coefficients (``step.DENSE_ROWS`` of n, zero)."""
+    implicit method (n rows of ``mat_cols`` columns, 0: n, and n pivots where
+    ``matrix``, else empty) and the interpolant's coefficients (``step.DENSE_ROWS`` of n,
+    zero)."""
     mat_n = n if matrix else 0
+    mat_c = (mat_cols if mat_cols > 0 else n) if matrix else 0
     return (
         np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty((k_rows, n)),
-        np.empty((mat_n, mat_n)), np.empty(mat_n, np.int64), np.zeros((DENSE_ROWS, n)),
+        np.empty((mat_n, mat_c)), np.empty(mat_n, np.int64), np.zeros((DENSE_ROWS, n)),
     )  # fmt: skip
 
 
@@ -125,24 +127,26 @@ def read_settings(settings):
 
 
 @jit_inline
-def system_scratch(y0_row, n, nb, n_fixed, nb_fixed, k_rows, matrix, dk_rows, tangent):
+def system_scratch(y0_row, n, nb, n_fixed, nb_fixed, k_rows, matrix, mat_cols, dk_rows,
+                   tangent):  # fmt: skip
     """The scratch of one system's run: its state (from ``y0_row``), its slope, the state
     and slope after a step, a stage's argument, the blocks' scratch ``ev``, the stages
-    (``k_rows`` of n), an implicit method's matrix and pivots (``matrix``), the
-    interpolant's coefficients (zero), and the tangent's (``tangent.tangent_arrays``,
-    empty without ``tangent``), after the number of blocks. On the stack for a kernel of
-    fixed size ``n_fixed`` (``nb_fixed`` blocks; ``stack.py``, inlined into the kernel),
-    else on the heap (``nb`` blocks)."""
+    (``k_rows`` of n), an implicit method's matrix (``mat_cols`` columns, 0: n) and
+    pivots (``matrix``), the interpolant's coefficients (zero), and the tangent's
+    (``tangent.tangent_arrays``, empty without ``tangent``), after the number of blocks.
+    On the stack for a kernel of fixed size ``n_fixed`` (``nb_fixed`` blocks;
+    ``stack.py``, inlined into the kernel), else on the heap (``nb`` blocks)."""
     t_n = n if tangent and n_fixed == 0 else 0
     delta, work, dk, t_blocks, ly = tangent_arrays(dk_rows, t_n, nb if t_n else 0)
     if n_fixed > 0:
         nb = np.int64(nb_fixed)
         mat_n = n_fixed if matrix else 0
+        mat_c = (mat_cols if mat_cols > 0 else n_fixed) if matrix else 0
         y, f, ynew, fnew, ytmp, ev = (
             stack_vector(n_fixed), stack_vector(n_fixed), stack_vector(n_fixed),
             stack_vector(n_fixed), stack_vector(n_fixed), stack_vector(nb_fixed),
         )  # fmt: skip
-        k, mat, dense = (stack_matrix(k_rows, n_fixed), stack_matrix(mat_n, mat_n),
+        k, mat, dense = (stack_matrix(k_rows, n_fixed), stack_matrix(mat_n, mat_c),
                          stack_matrix(DENSE_ROWS, n_fixed))  # fmt: skip
         perm = np.empty(mat_n, np.int64)
         dense[:, :] = 0.0
@@ -153,7 +157,7 @@ def system_scratch(y0_row, n, nb, n_fixed, nb_fixed, k_rows, matrix, dk_rows, ta
             dk, t_blocks = stack_matrix(dk_rows, n_fixed), stack_matrix(3, nb_fixed)
     else:
         y = y0_row.copy()
-        f, ynew, fnew, ytmp, k, mat, perm, dense = heap_scratch(n, k_rows, matrix)
+        f, ynew, fnew, ytmp, k, mat, perm, dense = heap_scratch(n, k_rows, matrix, mat_cols)
         ev = np.empty(nb)
     return nb, y, f, ynew, fnew, ytmp, ev, k, mat, perm, dense, delta, work, dk, t_blocks, ly
 
@@ -208,6 +212,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                                                   m.STAGE_ROWS, m.TANGENT_ROWS)  # fmt: skip
     dense_rows, dense_stages, tangent_cap = m.DENSE_ROWS, m.DENSE_STAGES, m.TANGENT_CAP
     nb_fixed, matrix = n_fixed // values_per_block(model), m.MATRIX
+    mat_cols = m.matrix_columns(model, coupling) if matrix else 0  # 0: n, the dense square
 
     def integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y):
         if n_fixed > 0 and y0.shape[0] > 0 and y0.shape[1] != n_fixed:
@@ -220,7 +225,8 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
             p = params[s]
             A, B, tau_end, tau_max, max_step, lin_growth = read_params(p, early_exit)
             nb, y, f, ynew, fnew, ytmp, ev, k, mat, perm, dense, delta, work, dk, t_blocks, ly = (
-                system_scratch(y0[s], n, nb, n_fixed, nb_fixed, k_rows, matrix, dk_rows, tangent)
+                system_scratch(y0[s], n, nb, n_fixed, nb_fixed, k_rows, matrix, mat_cols, dk_rows,
+                               tangent)  # fmt: skip
             )  # fmt: skip
             step = Step(y, ynew, f, fnew, dense, bound)
             win, past, past_cs, hist, limits, section, cs, slipped, turns = cycle_arrays(

@@ -10,7 +10,8 @@ Each module states, as module-level names the grid kernel reads when it is built
   it takes the fixed step ``P_DT``); ``EXPONENT``: its controller's exponent −1/(q+1),
   q the order of its error estimate (``control.next_step_size``).
 - ``STAGE_ROWS``: rows of its stage scratch ``k`` (n columns); ``MATRIX``: whether it
-  needs an n × n matrix and pivots (``mat``, ``perm``).
+  needs a matrix and n pivots (``mat``, ``perm``), and then ``matrix_columns(model,
+  coupling)`` (plain Python, codes): the columns of its n rows (0: n, the dense n × n).
 - ``step(y, f, h, p, model, law, coupling, het, nb, ev, k, mat, perm, ytmp, ynew, fnew,
   rtol, atol)``: one step from y (slope f) into ynew (slope fnew); returns its error
   norm (acceptable when ≤ 1; 0 for a fixed-step method).

@@ -55,97 +55,130 @@ _RODAS_C = np.array(
 )  # fmt: skip
 
 
-@jit
-def step(y, f, h, p, model, law, coupling, het, nb, ev, k, mat, perm, ytmp, ynew, fnew, rtol, atol):
-    """One linearly implicit RODAS4 step (order 4, embedded order 3, L-stable).
+def rosenbrock(name, factorise, solve):
+    """RODAS4's ``step`` and ``tangent_step`` for a matrix I/(γh) − J built and
+    factorised by ``factorise(y, f, diag, p, model, law, coupling, het, nb, ev, mat,
+    perm)`` (``diag`` = 1/(γh), V/D0) and solved by ``solve(mat, perm, b, x, nb, model,
+    coupling)`` (x = (I/(γh) − J)⁻¹ b, ``x`` ≠ ``b``, ``b`` may be overwritten): one
+    stage loop for every way of solving. Each function is named after ``name``
+    (``accelerate``: the disk cache keys on the name)."""
 
-    Solves (I/(γh) − J) k_s = f(y + Σ a_sj k_j) + Σ c_sj k_j / h for six stages
-    with the analytic Jacobian J at y; the stiff decay of the inertial force
-    towards force balance in stick phases (rate A e^(−ℓ)/M̂) costs nothing.
-    ``f`` = rhs(y) on entry; ``k`` is (6, n) scratch, ``mat`` (n, n), ``perm`` (n).
-    On return ``ynew`` holds the solution and ``fnew`` = rhs(ynew); returns the
-    scaled RMS error estimate (acceptable when ≤ 1, non-finite on overflow).
-    """
+    def step(y, f, h, p, model, law, coupling, het, nb, ev, k, mat, perm, ytmp, ynew, fnew,
+             rtol, atol):  # fmt: skip
+        """One linearly implicit RODAS4 step (order 4, embedded order 3, L-stable).
+
+        Solves (I/(γh) − J) k_s = f(y + Σ a_sj k_j) + Σ c_sj k_j / h for six stages
+        with the analytic Jacobian J at y; the stiff decay of the inertial force
+        towards force balance in stick phases (rate A e^(−ℓ)/M̂) costs nothing.
+        ``f`` = rhs(y) on entry; ``k`` is (6, n) scratch, ``mat``/``perm`` the method's.
+        On return ``ynew`` holds the solution and ``fnew`` = rhs(ynew); returns the
+        scaled RMS error estimate (acceptable when ≤ 1, non-finite on overflow).
+        """
+        n = y.size
+        factorise(y, f, 1.0 / (_RODAS_GAMMA * h), p, model, law, coupling, het, nb, ev, mat,
+                  perm)  # fmt: skip
+        for s in range(6):
+            if s == 0:
+                for j in range(n):
+                    fnew[j] = f[j]
+            else:
+                for j in range(n):
+                    acc = y[j]
+                    for r in range(s):
+                        acc += _RODAS_A[s, r] * k[r, j]
+                    ytmp[j] = acc
+                rhs(ytmp, p, model, law, coupling, het, nb, ev, fnew)
+            for j in range(n):
+                acc = 0.0
+                for r in range(s):
+                    acc += _RODAS_C[s, r] * k[r, j]
+                fnew[j] += acc / h
+            solve(mat, perm, fnew, k[s], nb, model, coupling)
+        err2 = 0.0
+        for j in range(n):
+            ynew[j] = ytmp[j] + k[5, j]
+            scale = atol + rtol * max(abs(y[j]), abs(ynew[j]))
+            err2 += (k[5, j] / scale) ** 2
+        rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
+        return math.sqrt(err2 / n)
+
+    def tangent_step(y, f, h, k, mat, perm, delta, work, dk, blocks, p, nb, ev, model, law,
+                     coupling, het):  # fmt: skip
+        """Carry δ (unit length) over the accepted step of size ``h`` from ``y`` (slope
+        ``f``) and renormalise it; returns the logarithm of its growth and |J δ| at ``y``
+        (V/D0). The step's stages ``k`` and the factors ``mat``/``perm`` of its matrix
+        give the derivative of the step along δ; ``work``, ``dk`` and ``blocks`` are the
+        scratch of ``tangent.tangent_arrays``. Compiled per variant (``literally``): its
+        codes are constants of the grid kernel.
+
+        (I/(γh) − J) k_s = f(Y_s) + Σ c_sr k_r / h, Y_s = y + Σ a_sr k_r, y1 = Y_5 + k_5:
+        along δ, (I/(γh) − J) dk_s = J(Y_s) dY_s + Σ c_sr dk_r / h + f''(y)[δ, k_s].
+        """
+        literally(model)
+        literally(law)
+        literally(coupling)
+        literally(het)
+        n = y.size
+        arg, direction, acc, curv = work[0], work[1], work[2], work[3]
+        rate = 0.0
+        for s in range(STAGE_ROWS):
+            for j in range(n):
+                ya = y[j]
+                da = delta[j]
+                for r in range(s):
+                    ya += _RODAS_A[s, r] * k[r, j]
+                    da += _RODAS_A[s, r] * dk[r, j]
+                arg[j] = ya
+                direction[j] = da
+            rhs_jvp(arg, direction, p, model, law, coupling, het, nb, ev, blocks[0], acc)
+            if s == 0:
+                for j in range(n):
+                    rate += acc[j] ** 2
+            rhs_curvature(y, delta, k[s], p, model, law, coupling, het, nb, ev, blocks, curv)
+            for j in range(n):
+                c = 0.0
+                for r in range(s):
+                    c += _RODAS_C[s, r] * dk[r, j]
+                acc[j] += c / h + curv[j]
+            solve(mat, perm, acc, dk[s], nb, model, coupling)
+        last = STAGE_ROWS - 1
+        for j in range(n):
+            delta[j] = direction[j] + dk[last, j]
+        return renormalise(delta), math.sqrt(rate)
+
+    step.__qualname__ = f"{name}_step"
+    tangent_step.__qualname__ = f"{name}_tangent_step"
+    return jit(step), jit(tangent_step)
+
+
+@jit
+def dense_factorise(y, f, diag, p, model, law, coupling, het, nb, ev, mat, perm):
+    """The dense matrix I/(γh) − J at ``y`` (``diag`` = 1/(γh), V/D0) into ``mat``
+    (n × n), factorised in place (``linalg.lu_factor``, pivots ``perm``)."""
     n = y.size
     jacobian(y, f, p, model, law, coupling, het, nb, ev, mat)
-    diag = 1.0 / (_RODAS_GAMMA * h)
     for i in range(n):
         for j in range(n):
             mat[i, j] = -mat[i, j]
         mat[i, i] += diag
     lu_factor(mat, perm)
-    for s in range(6):
-        if s == 0:
-            for j in range(n):
-                fnew[j] = f[j]
-        else:
-            for j in range(n):
-                acc = y[j]
-                for r in range(s):
-                    acc += _RODAS_A[s, r] * k[r, j]
-                ytmp[j] = acc
-            rhs(ytmp, p, model, law, coupling, het, nb, ev, fnew)
-        for j in range(n):
-            acc = 0.0
-            for r in range(s):
-                acc += _RODAS_C[s, r] * k[r, j]
-            fnew[j] += acc / h
-        lu_solve(mat, perm, fnew, k[s])
-    err2 = 0.0
-    for j in range(n):
-        ynew[j] = ytmp[j] + k[5, j]
-        scale = atol + rtol * max(abs(y[j]), abs(ynew[j]))
-        err2 += (k[5, j] / scale) ** 2
-    rhs(ynew, p, model, law, coupling, het, nb, ev, fnew)
-    return math.sqrt(err2 / n)
+
+
+@jit
+def dense_solve(mat, perm, b, x, nb, model, coupling):
+    """x = (I/(γh) − J)⁻¹ b from the factors of :func:`dense_factorise`."""
+    lu_solve(mat, perm, b, x)
+
+
+def matrix_columns(model, coupling):
+    """Columns of the method's matrix for ``model`` and ``coupling`` (codes): 0, n (the
+    dense n × n matrix)."""
+    return 0
+
+
+step, tangent_step = rosenbrock("rodas4", dense_factorise, dense_solve)
 
 
 @jit_inline
 def dense(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense):
     """None: the cubic Hermite interpolant needs no coefficient beyond the step's ends."""
-
-
-@jit
-def tangent_step(y, f, h, k, mat, perm, delta, work, dk, blocks, p, nb, ev, model, law,
-                 coupling, het):  # fmt: skip
-    """Carry δ (unit length) over the accepted step of size ``h`` from ``y`` (slope
-    ``f``) and renormalise it; returns the logarithm of its growth and |J δ| at ``y``
-    (V/D0). The step's stages ``k`` and the LU factors ``mat``/``perm`` of its matrix
-    give the derivative of the step along δ; ``work``, ``dk`` and ``blocks`` are the
-    scratch of ``tangent.tangent_arrays``. Compiled per variant (``literally``): its codes
-    are constants of the grid kernel.
-
-    (I/(γh) − J) k_s = f(Y_s) + Σ c_sr k_r / h, Y_s = y + Σ a_sr k_r, y1 = Y_5 + k_5:
-    along δ, (I/(γh) − J) dk_s = J(Y_s) dY_s + Σ c_sr dk_r / h + f''(y)[δ, k_s].
-    """
-    literally(model)
-    literally(law)
-    literally(coupling)
-    literally(het)
-    n = y.size
-    arg, direction, acc, curv = work[0], work[1], work[2], work[3]
-    rate = 0.0
-    for s in range(STAGE_ROWS):
-        for j in range(n):
-            ya = y[j]
-            da = delta[j]
-            for r in range(s):
-                ya += _RODAS_A[s, r] * k[r, j]
-                da += _RODAS_A[s, r] * dk[r, j]
-            arg[j] = ya
-            direction[j] = da
-        rhs_jvp(arg, direction, p, model, law, coupling, het, nb, ev, blocks[0], acc)
-        if s == 0:
-            for j in range(n):
-                rate += acc[j] ** 2
-        rhs_curvature(y, delta, k[s], p, model, law, coupling, het, nb, ev, blocks, curv)
-        for j in range(n):
-            c = 0.0
-            for r in range(s):
-                c += _RODAS_C[s, r] * dk[r, j]
-            acc[j] += c / h + curv[j]
-        lu_solve(mat, perm, acc, dk[s])
-    last = STAGE_ROWS - 1
-    for j in range(n):
-        delta[j] = direction[j] + dk[last, j]
-    return renormalise(delta), math.sqrt(rate)
