@@ -104,8 +104,9 @@ def statistics(mag, blocks, start, nb, completeness=None):
         whole = kept & (blocks == nb)
         mean_int, cv = recurrence(np.where(whole, start, np.nan))
         frac = whole.sum(axis=1) / kept.sum(axis=1)
-    counts = np.stack([np.histogram(np.clip(m[k], MAGNITUDE_EDGES[0], MAGNITUDE_EDGES[-1]),
-                                    MAGNITUDE_EDGES)[0] for m, k in zip(mag, kept)])  # fmt: skip
+    lo, hi = MAGNITUDE_EDGES[0], MAGNITUDE_EDGES[-1]
+    counts = [np.histogram(np.clip(m[k], lo, hi), MAGNITUDE_EDGES)[0]
+              for m, k in zip(mag, kept, strict=True)]  # fmt: skip
     return {
         "b_value": np.where(ok, b, np.nan),
         "b_value_error": np.where(ok, b_err, np.nan),
@@ -113,7 +114,7 @@ def statistics(mag, blocks, start, nb, completeness=None):
         "recurrence_mean": mean_int,
         "recurrence_cv": cv,
         "system_wide_fraction": frac,
-        "magnitude_count": counts.reshape(len(mag), len(MAGNITUDE_EDGES) - 1),
+        "magnitude_count": np.reshape(counts, (len(mag), len(MAGNITUDE_EDGES) - 1)),
     }
 
 
