@@ -113,8 +113,14 @@ def test_chaotic_chain_statistics_agree_within_sampling_error():
     ones). With each run's smallest magnitude as m_c the b-values differ by 6 of those
     errors: the smallest event of a run is an extreme value, not a completeness."""
     K_W, k2_W, t_end = 0.02, 0.02, 3000.0
-    config = chain_config("quasi-dynamic", K_W, k2_W, t_end, after=0.1,
-                          catalogue={"capacity": 2000, "after": 0.1, "completeness": 0.5})
+    config = chain_config(
+        "quasi-dynamic",
+        K_W,
+        k2_W,
+        t_end,
+        after=0.1,
+        catalogue={"capacity": 2000, "after": 0.1, "completeness": 0.5},
+    )
     ds = sweep.run(config).squeeze()
     model, d0_ref = reference_model(config, K_W, k2_W)
     sol = model.run(grid.build_grid(config).y0[0], t_end, method="DOP853")
@@ -226,3 +232,32 @@ def test_bad_catalogue_settings_are_refused(key, value, says):
     with pytest.raises(ConfigError, match=says):
         one_block(sweep={"K_W": {"start": 0.01, "stop": 0.05, "num": 2000}},
                   catalogue={key: value})  # fmt: skip
+
+
+def test_catalogue_figures_and_cli(tmp_path, capsys):
+    """plot_catalogue draws one run's events and size-frequency (with the b-value's line);
+    plot_variable maps a statistic over the sweep; the CLI's plot --catalogue writes the
+    figure and refuses a result without a catalogue or an unknown axis, exit 2."""
+    from sweep.cli import main
+
+    catalogue = {"capacity": 500, "after": 0.2, "completeness": 0.3}
+    config = chain_config("quasi-dynamic", 0.02, None, 600.0, n=6, catalogue=catalogue,
+                          sweep={"K_W": [0.02, 0.03], "k2_W": [0.02, 0.05]})  # fmt: skip
+    ds = sweep.run(config, progress=False)
+    fig = sweep.plot_catalogue(ds, {"K_W": 0.021, "k2_W": 0.02})
+    space, sizes = fig.axes[:2]
+    assert len(space.patches) == min(int(ds.slip_event_count[0, 0]), 500) > 0
+    assert any("b = " in t.get_text() for t in sizes.get_legend().get_texts())
+    assert sweep.plot_variable(ds, "b_value").axes
+    path = tmp_path / "cat.nc"
+    write_netcdf(ds, path)
+    assert (
+        main(["plot", str(path), "--catalogue", "K_W=0.03", "--out", str(tmp_path / "c.png")]) == 0
+    )
+    assert (tmp_path / "c.png").stat().st_size > 0
+    assert main(["plot", str(path), "--catalogue", "eta=1", "--out", str(tmp_path / "d.png")]) == 2
+    assert "not a sweep axis" in capsys.readouterr().err
+    plain = tmp_path / "plain.nc"
+    write_netcdf(sweep.run(one_block(), progress=False), plain)
+    assert main(["plot", str(plain), "--catalogue", "--out", str(tmp_path / "e.png")]) == 2
+    assert "no slip-event catalogue" in capsys.readouterr().err
