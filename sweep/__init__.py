@@ -12,7 +12,8 @@ Importing the package compiles nothing; kernels compile on first use::
 Kernels: :func:`compile_kernels` (warm numba's cache before job arrays);
 configs: :func:`load_config`, :func:`with_changes`, :func:`examples.names`;
 figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
-:func:`plot_orbit_diagram`, :func:`plot_trace` (``sweep/plots.py``);
+:func:`plot_orbit_diagram`, :func:`plot_trace` (``sweep/plots.py``), :func:`plot_catalogue`
+(``sweep/catalogue_plots.py``); slip-event statistics: :func:`catalogue_statistics`;
 traces: ``sweep.trace.compute_trace``; refined results: :func:`to_grid`,
 :func:`boundaries`.
 """
@@ -30,6 +31,8 @@ _LAZY = {
     "plot_orbit_diagram": "plots",
     "plot_trace": "plots",
     "save_figure": "plots",
+    "plot_catalogue": "catalogue_plots",
+    "catalogue_statistics": "catalogue",
     "to_grid": "refined_dataset",
     "boundaries": "phase_boundaries",
 }
@@ -47,6 +50,7 @@ def __getattr__(name):
 __all__ = [
     "compile_kernels",
     "Config",
+    "catalogue_statistics",
     "ConfigError",
     "InputError",
     "RunError",
@@ -54,6 +58,7 @@ __all__ = [
     "load_config",
     "parse_config",
     "plot_bifurcation",
+    "plot_catalogue",
     "plot_orbit_diagram",
     "plot_result",
     "plot_trace",

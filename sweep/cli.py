@@ -224,6 +224,15 @@ def add_figure_commands(sub):
         "exponent along AXIS (default: the first sweep axis)",
     )
     plot.add_argument(
+        "--catalogue",
+        type=_assignment,
+        nargs="*",
+        metavar="AXIS=VALUE",
+        help="one run's slip events in space and time and their size-frequency plot instead "
+        "(a result with catalogue.capacity > 0): the run nearest these sweep-axis values "
+        "(member=INDEX for an ensemble; axes not given at their first value)",
+    )
+    plot.add_argument(
         "--out", help="output .png, .pdf or .svg (default: the result's path with .png)"
     )
     _add_dpi(plot)
@@ -467,9 +476,13 @@ def cmd_plot(args):
     from .plots import plot_orbit_diagram, plot_result, plot_variable
 
     ds = read_result(args.result)
-    if args.var and args.orbit is not None:
-        raise InputError(args.result, ["give --var or --orbit, not both"])
-    if args.orbit is not None:
+    if sum((bool(args.var), args.orbit is not None, args.catalogue is not None)) > 1:
+        raise InputError(args.result, ["give one of --var, --orbit and --catalogue"])
+    if args.catalogue is not None:
+        from .catalogue_plots import plot_catalogue
+
+        suffix, draw = "_catalogue.png", functools.partial(plot_catalogue, ds, dict(args.catalogue))
+    elif args.orbit is not None:
         suffix, draw = "_orbit.png", functools.partial(plot_orbit_diagram, ds, args.orbit or None)
     elif args.var:
         suffix, draw = f"_{args.var}.png", functools.partial(plot_variable, ds, args.var)

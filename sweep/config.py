@@ -25,6 +25,7 @@ import yaml
 from .codes import COUPLINGS, LYAPUNOV_MODES, METHODS
 from .errors import ConfigError
 from .heterogeneity import DISTRIBUTIONS, PER_BLOCK, SPREAD_AXES, SPREAD_PREFIX, spread_pattern
+from .kernels.layout import N_EVENT_FIELDS
 from .physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
 
 #: Default integrator per model where it is not dop853: the inertial model is stiff
@@ -53,6 +54,7 @@ TOP_LEVEL_KEYS = (
     "initial",
     "integrator",
     "classification",
+    "catalogue",
     "refine",
     "output",
 )
@@ -216,6 +218,30 @@ class Classification:
     )  # fmt: skip
 
 
+#: Most events a run's catalogue can keep (``catalogue.capacity``).
+MAX_CATALOGUE = 1_000_000
+#: Largest catalogue of a whole sweep, in bytes (``catalogue.capacity`` × runs ×
+#: ``kernels.layout.N_EVENT_FIELDS`` × 8): past it the config is refused.
+MAX_CATALOGUE_BYTES = 4 * 2**30
+
+
+@dataclass(frozen=True)
+class Catalogue:
+    """The catalogue of slip events of each run (``sweep/catalogue.py``). An event lasts
+    while any block slips (v/V above ``classification.slip_v_over_V``, the threshold of
+    ``slip_participation``); each run keeps its first ``capacity`` events that start after
+    ``after`` × t_end (0: the catalogue is off) and counts them all."""
+
+    capacity: int = setting(0, "slip events each run keeps (0: no catalogue)",
+                            f"[0, {MAX_CATALOGUE}]")  # fmt: skip
+    after: float = setting(0.0, "fraction of t_end before which events are not catalogued "
+                           "(the transient)", "[0, 1)")  # fmt: skip
+    completeness: float = setting(
+        None, "magnitude above which the b-value is estimated (Aki-Utsu)", "(-inf, inf)",
+        default_text="the smallest magnitude of each run's catalogue",
+    )  # fmt: skip
+
+
 #: Outputs whose change between neighbouring runs splits a cell, unless ``refine.outputs``
 #: says otherwise: the labels of a run; with an initial-condition ensemble the share of its
 #: members in each regime (the members' labels differ by start).
@@ -287,6 +313,8 @@ class Config:
     classification: Classification
     #: Result path, ``.nc`` (NetCDF) or ``.zarr`` (default ``results/<name>.nc``).
     output: str
+    #: The catalogue of slip events (``catalogue:``); off by default.
+    catalogue: Catalogue = Catalogue()
     #: Free text (``description:``); the result's ``description`` attribute.
     description: str = ""
     #: ``chain``, ``ring`` or ``all`` as given; None when not given (an open chain,
@@ -319,7 +347,7 @@ class Config:
     def features(self) -> tuple[str, ...]:
         """Which optional output groups a result has (``variables.Variable.feature``)."""
         return output_features(self.blocks, self.heterogeneous, self.initial.ensemble,
-                               self.classification.events)  # fmt: skip
+                               self.classification.events, self.catalogue.capacity)  # fmt: skip
 
     @property
     def members(self) -> int:
@@ -349,14 +377,16 @@ def blocks_may_differ(block_parameters, spread, axes):
     )
 
 
-def output_features(blocks, heterogeneous, ensemble, events):
+def output_features(blocks, heterogeneous, ensemble, events, catalogue=0):
     """The optional output groups (``variables.Variable.feature``) of a sweep of ``blocks``
-    blocks, unequal or not, with an ``ensemble`` of starts and ``events`` kept per run."""
+    blocks, unequal or not, with an ``ensemble`` of starts, ``events`` kept per run and a
+    ``catalogue`` of that many slip events per run."""
     flags = (
         ("nblock", blocks > 1),
         ("heterogeneous", heterogeneous),
         ("ensemble", ensemble > 0),
         ("events", events > 0),
+        ("catalogue", catalogue > 0),
     )
     return tuple(name for name, on in flags if on)
 
@@ -602,12 +632,14 @@ def _validate(raw, text, source):
         _check_spread_values(c, params, spread, axes, blocks)
     integrator = _parse_integrator(c, raw, model)
     classification = _parse_classification(c, raw, integrator.t_end)
+    catalogue = _parse_catalogue(c, raw, axes, initial)
     output = raw.get("output", f"results/{name}.nc")
     if not isinstance(output, str) or not output.endswith((".nc", ".zarr")):
         c.add(f"output must be a path ending in .nc (NetCDF) or .zarr (Zarr), got {output!r}")
         output = f"results/{name}.nc"
     heterogeneous = blocks_may_differ(lists, spread, axes)
-    features = output_features(blocks, heterogeneous, initial.ensemble, classification.events)
+    features = output_features(blocks, heterogeneous, initial.ensemble, classification.events,
+                               catalogue.capacity)  # fmt: skip
     refine = _parse_refine(c, raw, axes, initial, blocks, model, features, output)
     if c.problems:
         raise ConfigError(source, c.problems)
@@ -624,6 +656,7 @@ def _validate(raw, text, source):
         integrator=integrator,
         classification=classification,
         output=output,
+        catalogue=catalogue,
         description=description,
         coupling_key=coupling,
         block_parameters=tuple(lists.items()),
@@ -656,6 +689,8 @@ def config_mapping(config):
         "integrator": dataclasses.asdict(config.integrator),
         "classification": dataclasses.asdict(config.classification),
     }
+    if config.catalogue != Catalogue():
+        raw["catalogue"] = dataclasses.asdict(config.catalogue)
     if config.coupling_key is not None:
         raw["coupling"] = config.coupling_key
     sp = config.spread
@@ -1045,6 +1080,24 @@ def _parse_classification(c, raw, t_end):
     if not max_ok or None in (v for k, v in values.items() if k != "max_t_end"):
         return d
     return Classification(**values)
+
+
+def _parse_catalogue(c, raw, axes, initial):
+    spec = c.mapping(raw.get("catalogue", {}), "catalogue")
+    d = Catalogue()
+    c.unknown(spec, "catalogue", tuple(Catalogue.__dataclass_fields__))
+    given = {} if spec.get("completeness") is not None else {"completeness": None}
+    values = c.section(spec, "catalogue.", Catalogue, d, given)
+    if None in (v for k, v in values.items() if k != "completeness"):
+        return d
+    runs = math.prod(len(a.values) for a in axes) * max(1, initial.ensemble)
+    size = values["capacity"] * runs * N_EVENT_FIELDS * 8
+    if size > MAX_CATALOGUE_BYTES:
+        c.add(f"catalogue.capacity {values['capacity']} over {runs} runs needs "
+              f"{size / 2**30:.1f} GiB (at most {MAX_CATALOGUE_BYTES / 2**30:.0f}): keep fewer "
+              "events per run or split the sweep")  # fmt: skip
+        return d
+    return Catalogue(**values)
 
 
 def _parse_refine(c, raw, axes, initial, blocks, model, features, output):

@@ -19,6 +19,7 @@ import xarray as xr
 
 from . import heterogeneity
 from ._version import __version__
+from .catalogue import MAGNITUDE_EDGES, catalogue_fields
 from .config import parse_config
 from .errors import ConfigError, InputError
 from .physics import PARAMETERS
@@ -66,12 +67,21 @@ def derived_fields(grid, results, y_final):
         start = layout.N_RESULTS
         fields["event_lnv_peak"] = r[:, start : start + m]
         fields["event_interval"] = r[:, start + m : start + 2 * m] * time_unit[:, None]
+    if config.catalogue.capacity:
+        fields |= catalogue_fields(grid, results)
     if config.model == "inertial":
         fields["inertial_force_final"] = y_final[:, 2 * nb : 3 * nb]
     if config.heterogeneous:
         for name, values in grid.blocks.items():
             fields[f"{name}_block"] = values
     return fields
+
+
+def trailing_length(config, dim):
+    """Length of a variable's trailing dimension ``dim`` (``variables.Variable.dim``)."""
+    if dim == "slip_event":
+        return config.catalogue.capacity
+    return len(MAGNITUDE_EDGES) - 1
 
 
 def regime_fractions(regime):
@@ -115,6 +125,19 @@ def parameter_coords(config):
             np.arange(1 - m, 1, dtype=np.int32),
             {"long_name": "event counted back from the last (0: the last event of the run)",
              "units": "1"},
+        )  # fmt: skip
+    if config.catalogue.capacity:
+        coords["slip_event"] = (
+            "slip_event",
+            np.arange(config.catalogue.capacity, dtype=np.int32),
+            {"long_name": "slip event of the run's catalogue, in order of time", "units": "1"},
+        )
+        centres = (MAGNITUDE_EDGES[:-1] + MAGNITUDE_EDGES[1:]) / 2
+        coords["magnitude"] = (
+            "magnitude",
+            centres,
+            {"long_name": "centre of the magnitude bin (width 0.2; the end bins hold the events "
+             "beyond)", "units": "1"},
         )  # fmt: skip
     if config.initial.ensemble:
         coords["member"] = (
@@ -180,12 +203,16 @@ def data_variables(config, fields, shape=None, dims=None):
         else:
             block = (config.blocks,) if var.per_block else ()
             block += (config.classification.events,) if var.per_event else ()
+            block += (trailing_length(config, var.dim),) if var.dim else ()
             data = fields[var.name].reshape(run_shape + block)
             var_dims = run_dims + (("block",) if var.per_block else ())
             var_dims += ("event",) if var.per_event else ()
+            var_dims += (var.dim,) if var.dim else ()
             if ensemble and not var.per_member:  # the same for every member: the first
                 data = data[(..., 0) + (slice(None),) * len(block)]
                 var_dims = dims + var_dims[len(run_dims) :]
+        if var.feature == "catalogue" and var.dtype == "int32":
+            attrs["_FillValue"] = np.int32(-1)  # no event
         data_vars[var.name] = (var_dims, data.astype(var.dtype), attrs)
     for name, meanings in (("regime", REGIMES), ("attractor", ATTRACTORS)):
         attrs = data_vars[name][2]
@@ -238,6 +265,7 @@ def provenance(config, command="run"):
         "initial_phi_over_phi_ss": np.asarray(config.initial.phi_over_phi_ss, float),
         **settings_attrs("integrator", integ),
         **settings_attrs("classification", cls),
+        **(catalogue_attrs(config.catalogue) if config.catalogue.capacity else {}),
         "package_version": __version__,
         "numba_version": numba.__version__,
         "numpy_version": np.__version__,
@@ -277,6 +305,14 @@ def settings_attrs(section, settings):
             value = np.int32(value)
         attrs[f"{section}_{field.name}"] = value
     return attrs
+
+
+def catalogue_attrs(catalogue):
+    """File attributes ``catalogue_<name>`` of the catalogue's settings (a completeness
+    of None, each run's smallest magnitude, is left out)."""
+    values = dataclasses.asdict(catalogue).items()
+    return {f"catalogue_{k}": np.int32(v) if isinstance(v, int) else v
+            for k, v in values if v is not None}  # fmt: skip
 
 
 def utc_now():

@@ -71,6 +71,8 @@ def settings_array(config):
     s[layout.S_COUPLING] = codes.code(codes.COUPLINGS, config.coupling)
     s[layout.S_LYAPUNOV] = codes.code(codes.LYAPUNOV_MODES, cls.lyapunov)
     s[layout.S_EVENTS] = cls.events
+    s[layout.S_CATALOGUE] = config.catalogue.capacity
+    s[layout.S_CATALOGUE_AFTER] = config.catalogue.after
     return s
 
 

@@ -8,7 +8,9 @@ models (empty: every model); ``feature``: written only for sweeps with that
 feature (``Config.features``: ``nblock``, ``heterogeneous``, ``ensemble``,
 ``events``); ``per_member``: one value per run (with an ensemble, a ``member``
 dimension), else one per grid point; ``per_regime``: a trailing ``regime_name``
-dimension; ``per_event``: a trailing ``event`` dimension (the last events of each run).
+dimension; ``per_event``: a trailing ``event`` dimension (the last events of each run);
+``dim``: another trailing dimension, ``slip_event`` (the events of the run's catalogue)
+or ``magnitude`` (its magnitude bins; ``sweep/catalogue.py``).
 ``column``: the column of the kernels' results it is read from (the name of a
 ``kernels.layout`` ``R_*`` index; empty: computed from several), ``scale`` its
 conversion to physical units (:data:`SCALES`).
@@ -45,6 +47,7 @@ class Variable:
     per_member: bool = True
     per_regime: bool = False
     per_event: bool = False
+    dim: str = ""
     column: str = ""
     scale: str = ""
 
@@ -162,6 +165,59 @@ VARIABLES = (
     Variable("event_interval", "float64", "s", "time from the previous event",
              "interval between each of the last events and the event before it",
              feature="events", per_event=True),
+    Variable("slip_event_count", "int32", "1", "slip events",
+             "slip events that began after catalogue_after x t_end (kept or not); an event lasts "
+             "while any block's v/V exceeds classification_slip_v_over_V",
+             feature="catalogue"),
+    Variable("slip_event_start", "float64", "s", "start of the slip event",
+             "time from the run's start at which the first block's v rose through the slip "
+             "threshold; NaN beyond the events kept", feature="catalogue", dim="slip_event"),
+    Variable("slip_event_duration", "float64", "s", "duration of the slip event",
+             "from its start to where the last block's v fell through the threshold",
+             feature="catalogue", dim="slip_event"),
+    Variable("slip_event_first_block", "int32", "1", "block where the slip event began",
+             "-1: no event", feature="catalogue", dim="slip_event"),
+    Variable("slip_event_blocks", "int32", "1", "blocks that slipped in the slip event",
+             "blocks whose v exceeded the threshold during the event; -1: no event",
+             feature="catalogue", dim="slip_event"),
+    Variable("slip_event_extent", "int32", "1", "extent of the slip event",
+             "blocks spanned by those that slipped: lowest to highest index (chain), the "
+             "shortest arc holding them (ring), their number (all); -1: no event",
+             feature="catalogue", dim="slip_event"),
+    Variable("slip_event_block_low", "int32", "1", "lowest block that slipped", "-1: no event",
+             feature="catalogue", dim="slip_event"),
+    Variable("slip_event_block_high", "int32", "1", "highest block that slipped", "-1: no event",
+             feature="catalogue", dim="slip_event"),
+    Variable("slip_event_slip", "float64", "um", "slip of the slip event",
+             "sum over the blocks that slipped of each one's slip during the event (integral "
+             "of v over it, integrated with the solution): a moment-like size, the potency "
+             "per block area", feature="catalogue", dim="slip_event"),
+    Variable("slip_event_magnitude", "float64", "1", "magnitude of the slip event",
+             "(2/3) log10(slip_event_slip / D0), the moment magnitude's scaling",
+             feature="catalogue", dim="slip_event"),
+    Variable("slip_event_v_peak", "float64", "um s-1", "peak slip velocity of the slip event",
+             "largest v of any block during the event", feature="catalogue", dim="slip_event"),
+    Variable("b_value", "float64", "1", "Gutenberg-Richter b-value",
+             "Aki-Utsu maximum-likelihood estimate log10(e) / (mean m - m_c) over the kept "
+             "events with magnitude m >= m_c; NaN with fewer than two", feature="catalogue"),
+    Variable("b_value_error", "float64", "1", "standard error of the b-value",
+             "Shi & Bolt (1982): 2.30 b^2 sqrt(sum (m - mean m)^2 / (n (n - 1)))",
+             feature="catalogue"),
+    Variable("magnitude_completeness", "float64", "1", "completeness magnitude m_c",
+             "catalogue_completeness, or the smallest magnitude of the run's kept events",
+             feature="catalogue"),
+    Variable("recurrence_mean", "float64", "s", "mean recurrence interval of system-wide events",
+             "mean interval between the starts of kept events in which every block slipped; "
+             "NaN with fewer than two intervals", feature="catalogue"),
+    Variable("recurrence_cv", "float64", "1", "coefficient of variation of the recurrence",
+             "sample standard deviation / mean of those intervals: 0 periodic, 1 Poissonian",
+             feature="catalogue"),
+    Variable("system_wide_fraction", "float64", "1", "fraction of system-wide events",
+             "fraction of the kept events in which every block slipped (the whole chain)",
+             feature="catalogue"),
+    Variable("magnitude_count", "int32", "1", "slip events per magnitude bin",
+             "kept events whose magnitude falls in each bin (size-frequency)",
+             feature="catalogue", dim="magnitude"),
     Variable("linear_growth_rate", "float64", "s-1", "linear growth rate",
              "max Re(lambda) of the system linearised about steady sliding (analytic normal modes "
              "for identical blocks, eigenvalues of the Jacobian for unequal ones)",

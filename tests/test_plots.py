@@ -431,7 +431,7 @@ def test_orbit_diagram_plots_each_runs_events_by_attractor(one_d, two_d, tmp_pat
     assert_png(tmp_path / "q_orbit.png")
     capsys.readouterr()
     assert main(["plot", str(path), "--orbit", "--var", "period"]) == 2
-    assert "give --var or --orbit" in capsys.readouterr().err
+    assert "give one of --var, --orbit and --catalogue" in capsys.readouterr().err
 
 
 # --- refined results ---------------------------------------------------------------------------

@@ -37,7 +37,14 @@ from scipy.integrate import solve_ivp
 from test_classification import ANTI
 
 from sweep import figures, run
-from sweep.config import Classification, Integrator, config_mapping, load_config, parse_config
+from sweep.config import (
+    Catalogue,
+    Classification,
+    Integrator,
+    config_mapping,
+    load_config,
+    parse_config,
+)
 from sweep.physics import log_form_rhs
 from sweep.runner import compute
 from sweep.trace import compute_trace, pin_config
@@ -250,7 +257,8 @@ def setting_comments(section):
 
 
 @pytest.mark.parametrize("section, cls", [("integrator", Integrator),
-                                          ("classification", Classification)])  # fmt: skip
+                                          ("classification", Classification),
+                                          ("catalogue", Catalogue)])  # fmt: skip
 def test_config_reference_states_each_setting_as_declared(section, cls):
     """The annotated config names every integrator and classification setting with the
     interval or choices and the unit declared once in ``sweep.config`` (its field's

@@ -254,10 +254,10 @@ def test_lyapunov_estimate_needs_two_blocks_after_the_transient():
     ly = np.zeros(tangent.N_LYAP)
     tangent.lyapunov_start(ly, np.empty(4), 0.0, 10.0)
     for k in range(1, 25):  # S(t) = 0.3 t sampled every 1: 2.4 blocks in all
-        tangent.lyapunov_add(ly, float(k), 1.0, 0.3)
+        tangent.lyapunov_add(ly, float(k), 1.0, 0.3, 0.0)
     assert np.isnan(tangent.lyapunov_estimate(ly)[0])
     for k in range(25, 41):
-        tangent.lyapunov_add(ly, float(k), 1.0, 0.3)
+        tangent.lyapunov_add(ly, float(k), 1.0, 0.3, 0.0)
     lam, err, span = tangent.lyapunov_estimate(ly)
     assert lam == pytest.approx(0.3) and err == pytest.approx(0.0, abs=1e-12)
     assert span == pytest.approx(30.0)

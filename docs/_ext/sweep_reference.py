@@ -39,12 +39,12 @@ class _Generated(SphinxDirective):
 
 
 class ConfigKeys(_Generated):
-    """One ``confkey`` per model parameter and per integrator, classification and refine
-    setting."""
+    """One ``confkey`` per model parameter and per integrator, classification, catalogue
+    and refine setting."""
 
     def lines(self):
         from sweep import physics
-        from sweep.config import Classification, Integrator, Refine
+        from sweep.config import Catalogue, Classification, Integrator, Refine
 
         out = []
         for name, info in physics.PARAMETERS.items():
@@ -53,7 +53,7 @@ class ConfigKeys(_Generated):
             text += f"`parameters`, or swept under `sweep.{name}`"
             out += _entry("confkey", f"parameters.{name}", parts, text)
         sections = (("integrator", Integrator), ("classification", Classification),
-                    ("refine", Refine))  # fmt: skip
+                    ("catalogue", Catalogue), ("refine", Refine))  # fmt: skip
         for section, cls in sections:
             for field in dataclasses.fields(cls):
                 spec = field.metadata["setting"]

@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from ..accelerate import jit, jit_inline
+from .catalogue import K_CAPACITY, catalogue_arrays, catalogue_reads, catalogue_step
 from .classify.cycle import new_event
 from .classify.extrema import cap_crossing, classify_step, dense_needed
 from .classify.result import finish_run
@@ -63,7 +64,6 @@ from .stack import stack_matrix, stack_vector
 from .step import DENSE_ROWS, Step
 from .tangent import (
     L_ON,
-    L_RATE,
     LYAP_BLOCKS,
     TANGENT_WORK_ROWS,
     lyapunov_add,
@@ -217,8 +217,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
     def integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y):
         if n_fixed > 0 and y0.shape[0] > 0 and y0.shape[1] != n_fixed:
             raise ValueError("the state size differs from the one this kernel is compiled for")
-        # a constant for LLVM, typed int64 for numba: helpers taking n are compiled once
-        n = np.int64(n_fixed) if n_fixed > 0 else y0.shape[1]
+        n = np.int64(n_fixed) if n_fixed > 0 else y0.shape[1]  # LLVM: a constant; numba: int64
         for s in range(params.shape[0]):  # settings read per system: 3 % faster per step
             (nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit,
              slip_lnv, lyap, n_events) = read_settings(settings)  # fmt: skip
@@ -234,10 +233,11 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
             needs_tangent, tau_max, t_settle = lyapunov_plan(lyap, tangent, ly, delta,
                                                              tau_end, tau_max)  # fmt: skip
             n_rec = record_start(y, rec_t, rec_y)
+            cat, cat_blocks = catalogue_arrays(results[s], settings, nb, tau_end)
             rhs(y, p, model, law, coupling, het, nb, ev, f)
             t, h = 0.0, min(1e-3, max_step, tau_end) if adaptive else p[P_DT]
-            n_steps, n_rejected, regime, tau_runaway = 0, 0, -1, np.nan
-            tau_stop = tau_end  # unsettled at tau_end: go on (settling early) up to tau_max
+            # tau_stop: tau_end, then (unsettled there, settling early) tau_max
+            n_steps, n_rejected, regime, tau_runaway, tau_stop = 0, 0, -1, np.nan, tau_end
             while t < tau_max:
                 if t >= tau_stop:
                     tau_stop = tau_max
@@ -268,22 +268,22 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                         tau_runaway = cap_crossing(step, crossed, t, h, nb, lnv_cap, win, cs)
                         t += h
                     break
-                if tangent and ly[L_ON] > 0.0:
-                    growth, rate = m.tangent_step(y, f, h, k, mat, perm, delta, work, dk, t_blocks,
-                                                  p, nb, ev, model, law, coupling, het)  # fmt: skip
-                    ly[L_RATE] = rate
-                    lyapunov_add(ly, t + h, h, growth)
+                if tangent and ly[L_ON] > 0.0:  # the log growth of δ and |J δ|
+                    lyapunov_add(ly, t + h, h, *m.tangent_step(y, f, h, k, mat, perm, delta, work,
+                                 dk, t_blocks, p, nb, ev, model, law, coupling, het))  # fmt: skip
                 # the interpolant's coefficients; where they cost stages, only where read
                 if dense_rows > 0 and (dense_stages == 0 or n_rec > 0 or dense_needed(
-                        step, h, p, nb, A, B, turns, rtol, atol)):  # fmt: skip
+                        step, h, p, nb, A, B, turns, rtol, atol) or (cat[K_CAPACITY] > 0.0 and
+                        catalogue_reads(cat, ynew, nb, slip_lnv))):  # fmt: skip
                     m.dense(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense)
                 new_peak, theta_peak = classify_step(step, t, h, p, nb, A, B, win, cs,
                                                      slipped, slip_lnv, turns, section, rtol,
                                                      atol)  # fmt: skip
                 if n_rec > 0:
                     n_rec = record_step(step, t, h, rec_dt, rec_t, rec_y, n_rec)
-                t_new_peak = t + theta_peak * h
-                t += h
+                if cat[K_CAPACITY] > 0.0:
+                    catalogue_step(step, t, h, nb, slip_lnv, coupling, cat, cat_blocks, results[s])
+                t_new_peak, t = t + theta_peak * h, t + h
                 for j in range(n):
                     y[j] = ynew[j]
                     f[j] = fnew[j]
@@ -301,6 +301,6 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
             y_final[s] = y
             results[s, R_N_RECORDED] = record_end(t, y, rec_t, rec_y, n_rec)
 
-    codes = "_".join(str(int(c)) for c in (model, law, method, coupling, het, tangent, n_fixed))
-    integrate_grid.__qualname__ = f"{integrate_grid.__qualname__}_{codes}"
+    variant = (model, law, method, coupling, het, tangent, n_fixed)
+    integrate_grid.__qualname__ += "".join(f"_{int(c)}" for c in variant)
     return jit(integrate_grid)

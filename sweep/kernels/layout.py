@@ -82,7 +82,7 @@ N_BLOCK_PARAMS = 4
 ) = range(N_BLOCK_PARAMS)
 
 # --- entries of the settings array, shared by all systems of a sweep --------
-N_SETTINGS = 16
+N_SETTINGS = 18
 (
     S_MODEL,  # QUASI_STATIC | QUASI_DYNAMIC | INERTIAL
     S_LAW,  # AGING | SLIP
@@ -100,6 +100,8 @@ N_SETTINGS = 16
     S_COUPLING,  # CHAIN | RING | ALL
     S_LYAPUNOV,  # LYAP_NEVER | LYAP_UNSETTLED | LYAP_ALWAYS
     S_EVENTS,  # events whose ℓ_0 maxima and intervals each run reports (columns after R_*)
+    S_CATALOGUE,  # slip events each run's catalogue keeps (0: no catalogue)
+    S_CATALOGUE_AFTER,  # events starting before this fraction of tau_end are not catalogued
 ) = range(N_SETTINGS)
 
 # --- columns of the per-system statistics array -----------------------------
@@ -132,9 +134,32 @@ N_RESULTS = 22
 # from the event before (D0/V), oldest first, NaN before the first.
 
 
+# Then, with a catalogue (S_CATALOGUE > 0): the number of slip events the run had (all,
+# kept or not), then S_CATALOGUE events of N_EVENT_FIELDS columns each (E_*), NaN where
+# none (kernels/catalogue.py).
+N_EVENT_FIELDS = 9
+(
+    E_T_START,  # time the first block's v rose through the threshold (D0/V)
+    E_T_END,  # time the last block's v fell through it (D0/V)
+    E_FIRST_BLOCK,  # the block whose v rose through it first
+    E_N_BLOCKS,  # blocks whose v exceeded it during the event
+    E_EXTENT,  # blocks spanned by them along the chain (ring: the shortest arc; all: count)
+    E_BLOCK_LO,  # the lowest index of a block that slipped
+    E_BLOCK_HI,  # the highest
+    E_SLIP,  # Σ over those blocks of their slip during the event, ∫ v_i/V dτ (D0)
+    E_LNV_PEAK,  # the largest ln(v/V) of any block during the event
+) = range(N_EVENT_FIELDS)
+
+
+def catalogue_start(settings):
+    """Column of a run's slip-event count; its catalogue follows (``E_*`` per event)."""
+    return N_RESULTS + 2 * int(settings[S_EVENTS])
+
+
 def result_width(settings):
     """Columns of the statistics array of a run with ``settings`` (``S_*``)."""
-    return N_RESULTS + 2 * int(settings[S_EVENTS])
+    capacity = int(settings[S_CATALOGUE])
+    return catalogue_start(settings) + (1 + capacity * N_EVENT_FIELDS if capacity else 0)
 
 
 # Outcomes of a step's runaway test besides the index of the block that crossed

@@ -191,11 +191,12 @@ def ls_slope(w, wt, ws, wtt, wts):
 
 
 @jit
-def lyapunov_add(ly, t, h, growth):
+def lyapunov_add(ly, t, h, growth, rate):
     """Add the step of size ``h`` ending at ``t`` (D0/V) with log growth ``growth`` of
     the tangent: S and the least-squares sums of the current block and, after the
     transient block, of the window; a block that has ended adds its slope to the
-    blocks' statistics."""
+    blocks' statistics. ``rate``: |J δ| at the step's start (V/D0), kept in ``L_RATE``."""
+    ly[L_RATE] = rate
     while t - ly[L_BLOCK_START] >= ly[L_BLOCK]:
         if ly[L_BLOCKS] >= 1.0 and ly[L_BW] > 0.0:
             slope = ls_slope(ly[L_BW], ly[L_BWT], ly[L_BWS], ly[L_BWTT], ly[L_BWTS])
