@@ -88,14 +88,14 @@ def runaway_index(ynew, fnew, nb, lnv_cap):
 
 
 @jit
-def heap_scratch(n, k_rows, matrix, mat_cols):
+def heap_scratch(n, k_rows, mat_cols):
     """Scratch of a step for a state of ``n`` values on the heap: f, ynew, fnew, ytmp, the
     stages as the rows of one array (``k_rows`` of n), the matrix and pivots of an
-    implicit method (n rows of ``mat_cols`` columns, 0: n, and n pivots where
-    ``matrix``, else empty) and the interpolant's coefficients (``step.DENSE_ROWS`` of n,
+    implicit method (n rows of ``mat_cols`` columns, 0: n, and n pivots; none for
+    ``mat_cols`` < 0) and the interpolant's coefficients (``step.DENSE_ROWS`` of n,
     zero)."""
-    mat_n = n if matrix else 0
-    mat_c = (mat_cols if mat_cols > 0 else n) if matrix else 0
+    mat_n = n if mat_cols >= 0 else 0
+    mat_c = (mat_cols if mat_cols > 0 else n) if mat_cols >= 0 else 0
     return (
         np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty((k_rows, n)),
         np.empty((mat_n, mat_c)), np.empty(mat_n, np.int64), np.zeros((DENSE_ROWS, n)),
@@ -127,12 +127,11 @@ def read_settings(settings):
 
 
 @jit_inline
-def system_scratch(y0_row, n, nb, n_fixed, nb_fixed, k_rows, matrix, mat_cols, dk_rows,
-                   tangent):  # fmt: skip
+def system_scratch(y0_row, n, nb, n_fixed, nb_fixed, k_rows, mat_cols, dk_rows, tangent):
     """The scratch of one system's run: its state (from ``y0_row``), its slope, the state
     and slope after a step, a stage's argument, the blocks' scratch ``ev``, the stages
     (``k_rows`` of n), an implicit method's matrix (``mat_cols`` columns, 0: n) and
-    pivots (``matrix``), the interpolant's coefficients (zero), and the tangent's
+    pivots (none for ``mat_cols`` < 0), the interpolant's coefficients (zero), and the tangent's
     (``tangent.tangent_arrays``, empty without ``tangent``), after the number of blocks.
     On the stack for a kernel of fixed size ``n_fixed`` (``nb_fixed`` blocks;
     ``stack.py``, inlined into the kernel), else on the heap (``nb`` blocks)."""
@@ -140,8 +139,8 @@ def system_scratch(y0_row, n, nb, n_fixed, nb_fixed, k_rows, matrix, mat_cols, d
     delta, work, dk, t_blocks, ly = tangent_arrays(dk_rows, t_n, nb if t_n else 0)
     if n_fixed > 0:
         nb = np.int64(nb_fixed)
-        mat_n = n_fixed if matrix else 0
-        mat_c = (mat_cols if mat_cols > 0 else n_fixed) if matrix else 0
+        mat_n = n_fixed if mat_cols >= 0 else 0
+        mat_c = (mat_cols if mat_cols > 0 else n_fixed) if mat_cols >= 0 else 0
         y, f, ynew, fnew, ytmp, ev = (
             stack_vector(n_fixed), stack_vector(n_fixed), stack_vector(n_fixed),
             stack_vector(n_fixed), stack_vector(n_fixed), stack_vector(nb_fixed),
@@ -157,7 +156,7 @@ def system_scratch(y0_row, n, nb, n_fixed, nb_fixed, k_rows, matrix, mat_cols, d
             dk, t_blocks = stack_matrix(dk_rows, n_fixed), stack_matrix(3, nb_fixed)
     else:
         y = y0_row.copy()
-        f, ynew, fnew, ytmp, k, mat, perm, dense = heap_scratch(n, k_rows, matrix, mat_cols)
+        f, ynew, fnew, ytmp, k, mat, perm, dense = heap_scratch(n, k_rows, mat_cols)
         ev = np.empty(nb)
     return nb, y, f, ynew, fnew, ytmp, ev, k, mat, perm, dense, delta, work, dk, t_blocks, ly
 
@@ -201,6 +200,11 @@ def at_tau_end(cs, lyap, tangent, ly, delta, t, tau_max):
     return -1, False
 
 
+def suffix(*codes):
+    """``_c1_c2…``: a variant's codes, appended to its kernel's name (its cache files')."""
+    return "".join(f"_{int(c)}" for c in codes)
+
+
 @functools.cache
 def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
     """The grid kernel of a variant (codes; ``het``, ``tangent``: bools; ``n_fixed``: the
@@ -211,8 +215,8 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
     adaptive, exponent, bound, k_rows, dk_rows = (m.ADAPTIVE, m.EXPONENT, m.EXCURSION,
                                                   m.STAGE_ROWS, m.TANGENT_ROWS)  # fmt: skip
     dense_rows, dense_stages, tangent_cap = m.DENSE_ROWS, m.DENSE_STAGES, m.TANGENT_CAP
-    nb_fixed, matrix = n_fixed // values_per_block(model), m.MATRIX
-    mat_cols = m.matrix_columns(model, coupling) if matrix else 0  # 0: n, the dense square
+    nb_fixed = n_fixed // values_per_block(model)
+    mat_cols = m.matrix_columns(model, coupling) if m.MATRIX else -1  # 0: n × n; −1: none
 
     def integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y):
         if n_fixed > 0 and y0.shape[0] > 0 and y0.shape[1] != n_fixed:
@@ -224,8 +228,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
             p = params[s]
             A, B, tau_end, tau_max, max_step, lin_growth = read_params(p, early_exit)
             nb, y, f, ynew, fnew, ytmp, ev, k, mat, perm, dense, delta, work, dk, t_blocks, ly = (
-                system_scratch(y0[s], n, nb, n_fixed, nb_fixed, k_rows, matrix, mat_cols, dk_rows,
-                               tangent)  # fmt: skip
+                system_scratch(y0[s], n, nb, n_fixed, nb_fixed, k_rows, mat_cols, dk_rows, tangent)
             )  # fmt: skip
             step = Step(y, ynew, f, fnew, dense, bound)
             win, past, past_cs, hist, limits, section, cs, slipped, turns = cycle_arrays(
@@ -301,6 +304,5 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
             y_final[s] = y
             results[s, R_N_RECORDED] = record_end(t, y, rec_t, rec_y, n_rec)
 
-    variant = (model, law, method, coupling, het, tangent, n_fixed)
-    integrate_grid.__qualname__ += "".join(f"_{int(c)}" for c in variant)
+    integrate_grid.__qualname__ += suffix(model, law, method, coupling, het, tangent, n_fixed)
     return jit(integrate_grid)

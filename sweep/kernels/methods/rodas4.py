@@ -151,7 +151,7 @@ def rosenbrock(name, factorise, solve):
     return jit(step), jit(tangent_step)
 
 
-@jit
+@jit_inline
 def dense_factorise(y, f, diag, p, model, law, coupling, het, nb, ev, mat, perm):
     """The dense matrix I/(γh) − J at ``y`` (``diag`` = 1/(γh), V/D0) into ``mat``
     (n × n), factorised in place (``linalg.lu_factor``, pivots ``perm``)."""
@@ -164,7 +164,7 @@ def dense_factorise(y, f, diag, p, model, law, coupling, het, nb, ev, mat, perm)
     lu_factor(mat, perm)
 
 
-@jit
+@jit_inline
 def dense_solve(mat, perm, b, x, nb, model, coupling):
     """x = (I/(γh) − J)⁻¹ b from the factors of :func:`dense_factorise`."""
     lu_solve(mat, perm, b, x)
