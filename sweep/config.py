@@ -228,9 +228,11 @@ MAX_CATALOGUE_BYTES = 4 * 2**30
 @dataclass(frozen=True)
 class Catalogue:
     """The catalogue of slip events of each run (``sweep/catalogue.py``). An event lasts
-    while any block slips (v/V above ``classification.slip_v_over_V``, the threshold of
-    ``slip_participation``); each run keeps its first ``capacity`` events that start after
-    ``after`` × t_end (0: the catalogue is off) and counts them all."""
+    while any block slips (v/V above ``slip_v_over_V``, by default the threshold of
+    ``slip_participation``, ``classification.slip_v_over_V``); each run keeps its first
+    ``capacity`` events that start after ``after`` × t_end (0: the catalogue is off) and
+    counts them all. In a long chain some block is nearly always above a low threshold:
+    events then never end, and the threshold must be raised."""
 
     capacity: int = setting(0, "slip events each run keeps (0: no catalogue)",
                             f"[0, {MAX_CATALOGUE}]")  # fmt: skip
@@ -239,6 +241,10 @@ class Catalogue:
     completeness: float = setting(
         None, "magnitude above which the b-value is estimated (Aki-Utsu)", "(-inf, inf)",
         default_text="the smallest magnitude of each run's catalogue",
+    )  # fmt: skip
+    slip_v_over_V: float = setting(
+        None, "a block slips in an event while its v/V exceeds this", "(0, inf)",
+        default_text="classification.slip_v_over_V",
     )  # fmt: skip
 
 
@@ -1086,9 +1092,9 @@ def _parse_catalogue(c, raw, axes, initial):
     spec = c.mapping(raw.get("catalogue", {}), "catalogue")
     d = Catalogue()
     c.unknown(spec, "catalogue", tuple(Catalogue.__dataclass_fields__))
-    given = {} if spec.get("completeness") is not None else {"completeness": None}
+    given = {k: None for k in ("completeness", "slip_v_over_V") if spec.get(k) is None}
     values = c.section(spec, "catalogue.", Catalogue, d, given)
-    if None in (v for k, v in values.items() if k != "completeness"):
+    if None in (v for k, v in values.items() if k not in ("completeness", "slip_v_over_V")):
         return d
     runs = math.prod(len(a.values) for a in axes) * max(1, initial.ensemble)
     size = values["capacity"] * runs * N_EVENT_FIELDS * 8

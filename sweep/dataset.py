@@ -265,7 +265,7 @@ def provenance(config, command="run"):
         "initial_phi_over_phi_ss": np.asarray(config.initial.phi_over_phi_ss, float),
         **settings_attrs("integrator", integ),
         **settings_attrs("classification", cls),
-        **(catalogue_attrs(config.catalogue) if config.catalogue.capacity else {}),
+        **(catalogue_attrs(config) if config.catalogue.capacity else {}),
         "package_version": __version__,
         "numba_version": numba.__version__,
         "numpy_version": np.__version__,
@@ -307,10 +307,13 @@ def settings_attrs(section, settings):
     return attrs
 
 
-def catalogue_attrs(catalogue):
-    """File attributes ``catalogue_<name>`` of the catalogue's settings (a completeness
-    of None, each run's smallest magnitude, is left out)."""
-    values = dataclasses.asdict(catalogue).items()
+def catalogue_attrs(config):
+    """File attributes ``catalogue_<name>`` of the catalogue's settings, its threshold as
+    the value it stands for (a completeness of None, each run's smallest magnitude, is
+    left out)."""
+    cat = config.catalogue
+    threshold = cat.slip_v_over_V or config.classification.slip_v_over_V
+    values = dataclasses.asdict(dataclasses.replace(cat, slip_v_over_V=threshold)).items()
     return {f"catalogue_{k}": np.int32(v) if isinstance(v, int) else v
             for k, v in values if v is not None}  # fmt: skip
 

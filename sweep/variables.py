@@ -167,7 +167,8 @@ VARIABLES = (
              feature="events", per_event=True),
     Variable("slip_event_count", "int32", "1", "slip events",
              "slip events that began after catalogue_after x t_end (kept or not); an event lasts "
-             "while any block's v/V exceeds classification_slip_v_over_V",
+             "while any block's v/V exceeds catalogue_slip_v_over_V (by default "
+             "classification_slip_v_over_V)",
              feature="catalogue"),
     Variable("slip_event_start", "float64", "s", "start of the slip event",
              "time from the run's start at which the first block's v rose through the slip "

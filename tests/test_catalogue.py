@@ -164,6 +164,21 @@ def test_one_block_catalogue_agrees_with_the_event_variables():
     assert (ds.system_wide_fraction == 1.0).all()
 
 
+def test_threshold_of_the_catalogue():
+    """A higher ``catalogue.slip_v_over_V`` cuts each event shorter (the same cycle, the
+    same peaks), and the file says which threshold it used."""
+    low = sweep.run(one_block(catalogue={"capacity": 50, "after": 0.5}), progress=False)
+    high = sweep.run(one_block(catalogue={"capacity": 50, "after": 0.5, "slip_v_over_V": 5.0}),
+                     progress=False)  # fmt: skip
+    assert low.attrs["catalogue_slip_v_over_V"] == 2.0
+    assert high.attrs["catalogue_slip_v_over_V"] == 5.0
+    assert (high.slip_event_duration < low.slip_event_duration).sum() > 0
+    assert (high.slip_event_duration <= low.slip_event_duration).all("slip_event").all()
+    np.testing.assert_allclose(high.recurrence_mean, low.recurrence_mean, rtol=1e-7)
+    np.testing.assert_allclose(high.slip_event_v_peak.max("slip_event"),
+                               low.slip_event_v_peak.max("slip_event"), rtol=1e-8)  # fmt: skip
+
+
 def test_capacity_transient_and_fill():
     """A run keeps its first ``capacity`` events after ``after`` × t_end and counts
     them all; the rest of the event dimension is NaN (−1 for integers); a run without

@@ -1,7 +1,7 @@
 """The catalogue of slip events of a run, written as the run goes.
 
 An event lasts while any block slips: it begins where the first block's ℓ_i rises
-through the threshold ``slip_lnv`` (ln of ``classification.slip_v_over_V``) and ends
+through the threshold (``S_CATALOGUE_LNV``: ln of ``catalogue.slip_v_over_V``) and ends
 where the last one's falls through it, both located on the step's interpolant
 (``step.dense_crossing``); like the classifier's slip events, it is seen where some
 block is above the threshold at the end of a step. A block slipped in it if its ℓ_i
@@ -37,14 +37,16 @@ from .layout import (
     N_RESULTS,
     S_CATALOGUE,
     S_CATALOGUE_AFTER,
+    S_CATALOGUE_LNV,
     S_EVENTS,
 )
 from .step import dense_crossing, dense_extremum, dense_tail, dense_value
 
 # The catalogue's running state (``catalogue_arrays``): whether an event is going on,
 # when it began, its first block, its largest ℓ so far, the time before which none is
-# kept (D0/V), the events a run keeps and the column of its count in the results row.
-K_ACTIVE, K_T_START, K_FIRST, K_PEAK, K_AFTER, K_CAPACITY, K_START = range(7)
+# kept (D0/V), the events a run keeps, the column of its count in the results row and
+# the threshold of ℓ above which a block slips.
+K_ACTIVE, K_T_START, K_FIRST, K_PEAK, K_AFTER, K_CAPACITY, K_START, K_LNV = range(8)
 
 # Gauss–Legendre nodes and weights on [0, 1], four points.
 _GL_X = np.array([0.06943184420297371, 0.33000947820757187, 0.6699905217924281,
@@ -59,8 +61,9 @@ def catalogue_arrays(out, settings, nb, tau_end):
     began, D0; row 1: 1 where the block slipped) of a run of ``settings`` (``S_*``) up to
     ``tau_end``; its catalogue in its results row ``out`` is cleared (count 0, NaN)."""
     capacity, start = int(settings[S_CATALOGUE]), N_RESULTS + 2 * int(settings[S_EVENTS])
-    state = np.zeros(7)
+    state = np.zeros(8)
     state[K_AFTER] = settings[S_CATALOGUE_AFTER] * tau_end
+    state[K_LNV] = settings[S_CATALOGUE_LNV]
     state[K_CAPACITY], state[K_START] = capacity, start
     if capacity > 0:
         out[start] = 0.0
@@ -69,9 +72,10 @@ def catalogue_arrays(out, settings, nb, tau_end):
 
 
 @jit
-def catalogue_reads(state, ynew, nb, slip_lnv):
+def catalogue_reads(state, ynew, nb):
     """Whether :func:`catalogue_step` reads the interpolant of this step: an event is
     going on, or some block is above the threshold after it."""
+    slip_lnv = state[K_LNV]
     above = state[K_ACTIVE] > 0.0
     for i in range(nb):
         above = above or ynew[i] > slip_lnv
@@ -177,12 +181,13 @@ def _close(t_end, state, blocks, nb, coupling, out):
 
 
 @jit
-def catalogue_step(s, t, h, nb, slip_lnv, coupling, state, blocks, out):
+def catalogue_step(s, t, h, nb, coupling, state, blocks, out):
     """Fold the accepted step ``s`` (``step.Step``) from ``t`` to ``t + h`` into the
     catalogue in the results row ``out`` (module docstring): an event may begin, go on
     or end in it."""
-    if not catalogue_reads(state, s.ynew, nb, slip_lnv):
+    if not catalogue_reads(state, s.ynew, nb):
         return
+    slip_lnv = state[K_LNV]
     above = False
     for i in range(nb):
         above = above or s.ynew[i] > slip_lnv

@@ -277,7 +277,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                 # the interpolant's coefficients; where they cost stages, only where read
                 if dense_rows > 0 and (dense_stages == 0 or n_rec > 0 or dense_needed(
                         step, h, p, nb, A, B, turns, rtol, atol) or (cat[K_CAPACITY] > 0.0 and
-                        catalogue_reads(cat, ynew, nb, slip_lnv))):  # fmt: skip
+                        catalogue_reads(cat, ynew, nb))):  # fmt: skip
                     m.dense(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense)
                 new_peak, theta_peak = classify_step(step, t, h, p, nb, A, B, win, cs,
                                                      slipped, slip_lnv, turns, section, rtol,
@@ -285,7 +285,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                 if n_rec > 0:
                     n_rec = record_step(step, t, h, rec_dt, rec_t, rec_y, n_rec)
                 if cat[K_CAPACITY] > 0.0:
-                    catalogue_step(step, t, h, nb, slip_lnv, coupling, cat, cat_blocks, results[s])
+                    catalogue_step(step, t, h, nb, coupling, cat, cat_blocks, results[s])
                 t_new_peak, t = t + theta_peak * h, t + h
                 for j in range(n):
                     y[j] = ynew[j]

@@ -82,7 +82,7 @@ N_BLOCK_PARAMS = 4
 ) = range(N_BLOCK_PARAMS)
 
 # --- entries of the settings array, shared by all systems of a sweep --------
-N_SETTINGS = 18
+N_SETTINGS = 19
 (
     S_MODEL,  # QUASI_STATIC | QUASI_DYNAMIC | INERTIAL
     S_LAW,  # AGING | SLIP
@@ -102,6 +102,7 @@ N_SETTINGS = 18
     S_EVENTS,  # events whose ℓ_0 maxima and intervals each run reports (columns after R_*)
     S_CATALOGUE,  # slip events each run's catalogue keeps (0: no catalogue)
     S_CATALOGUE_AFTER,  # events starting before this fraction of tau_end are not catalogued
+    S_CATALOGUE_LNV,  # a block slips in the catalogue's events while ℓ_i exceeds this
 ) = range(N_SETTINGS)
 
 # --- columns of the per-system statistics array -----------------------------
