@@ -34,7 +34,9 @@ def catalogue_run(ds, point=None):
     return run.isel(dict.fromkeys(extra, 0))
 
 
-def plot_catalogue(ds: xarray.Dataset, point: Mapping[str, float] | None = None) -> Figure:
+def plot_catalogue(
+    ds: xarray.Dataset, point: Mapping[str, float] | None = None, fig: Figure | None = None
+) -> Figure:
     """One run's slip events: block against time, each event a bar over the blocks it
     spanned from its start to its end, coloured by its magnitude, its first block
     marked; beside it the size–frequency plot (events with magnitude ≥ m) with the
@@ -47,10 +49,13 @@ def plot_catalogue(ds: xarray.Dataset, point: Mapping[str, float] | None = None)
     point : Mapping, optional
         The run: sweep axis → value (the nearest is taken; ``member`` → index);
         axes not named at their first value.
+    fig : matplotlib.figure.Figure or SubFigure, optional
+        Draw there (default: a new figure).
 
     Returns
     -------
     matplotlib.figure.Figure
+        The new figure, or ``fig``.
 
     Raises
     ------
@@ -61,7 +66,7 @@ def plot_catalogue(ds: xarray.Dataset, point: Mapping[str, float] | None = None)
     run = catalogue_run(ds, point)
     count = min(int(run["slip_event_count"]), run.sizes["slip_event"])
     ev = run.isel(slip_event=slice(0, count))
-    fig = new_figure(figsize=(11, 4.6))
+    fig = new_figure(figsize=(11, 4.6)) if fig is None else fig
     space, sizes = fig.subplots(1, 2, width_ratios=(2.2, 1))
     _space_time(fig, space, ev, int(ds.attrs["blocks"]))
     _size_frequency(sizes, ev, run)

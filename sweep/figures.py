@@ -284,6 +284,30 @@ def figure_refined(ds):
     return plot_result(ds, caption)
 
 
+#: The statistics mapped over a long chain's sweep, beside one run's catalogue.
+LONG_CHAIN_MAPS = ("system_wide_fraction", "b_value", "recurrence_cv")
+
+
+def figure_long_chain(ds, point=None):
+    """A long chain's sweep ``ds`` (a result with a catalogue): maps of the fraction of
+    system-wide events, the b-value and the recurrence's coefficient of variation over
+    the sweep (``plots.plot_variable``), above one run's events in space and time and
+    its size–frequency plot (``catalogue_plots.plot_catalogue`` at ``point``; default:
+    the run with the most events); returns the Figure."""
+    from .catalogue_plots import plot_catalogue
+    from .plots import new_figure, plot_variable
+
+    if point is None:
+        busiest = ds["slip_event_count"].argmax(...)
+        point = {dim: float(ds[dim][i]) for dim, i in busiest.items()}
+    fig = new_figure(figsize=(13, 9.5))
+    top, bottom = fig.subfigures(2, 1, height_ratios=(1, 1.15))
+    for ax, name in zip(top.subplots(1, len(LONG_CHAIN_MAPS)), LONG_CHAIN_MAPS, strict=True):
+        plot_variable(ds, name, ax=ax)
+    plot_catalogue(ds, point, fig=bottom)
+    return fig
+
+
 def make_figures(
     paper="paper",
     twoblock="twoblock",
@@ -295,12 +319,14 @@ def make_figures(
     suffix=".png",
     dpi=DPI,
     refined="unequal_qd",
+    long_chain="long_chain",
 ):
     """Regenerate every paper figure into ``out_dir``; returns the file paths.
 
     Configs are paths or names of packaged examples (``sweep/examples.py``), so
     this works from any folder; ``route``: the 1-D sweep whose orbit diagram is drawn;
-    ``refined``: the refined sweep whose cells and boundaries are drawn.
+    ``refined``: the refined sweep whose cells and boundaries are drawn; ``long_chain``:
+    the sweep with a catalogue whose statistics and busiest run are drawn.
     ``suffix``: ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
     """
     from .dispatch import load_kernels
@@ -316,11 +342,12 @@ def make_figures(
     nblock_configs = [load_config(path) for path in nblock]
     route_config = load_config(route)
     refined_config = load_config(refined)
+    chain_config = load_config(long_chain)
     check_writable(out_dir / f"fig1_one_block{suffix}", str(out_dir), "--out-dir", suffix)
     rows = (*ONE_BLOCK_ROWS, *((label, {**c, "k2_W": K2_W}) for label, c in TWO_BLOCK_ROWS))
     trace_configs = [variant(config, f"{config.name}_{r}", **c) for r, (_, c) in enumerate(rows)]
     every = [*trace_configs, phase_config, *bifurcation_configs, *nblock_configs, route_config,
-             refined_config]  # fmt: skip
+             refined_config, chain_config]  # fmt: skip
     # side by side; each variant here also has runs that need the tangent for λ1
     grids = [build_grid(c) for c in every]
     load_kernels([(g.params, g.settings, t) for g in grids for t in (None, True)], threads)
@@ -351,4 +378,6 @@ def make_figures(
     paths.append(save_figure(fig, out_dir / f"route_to_chaos{suffix}", dpi))
     fig = figure_refined(compute(refined_config, threads=threads, show_progress=False))
     paths.append(save_figure(fig, out_dir / f"refined_{refined_config.name}{suffix}", dpi))
+    fig = figure_long_chain(compute(chain_config, threads=threads, show_progress=False))
+    paths.append(save_figure(fig, out_dir / f"{chain_config.name}{suffix}", dpi))
     return paths

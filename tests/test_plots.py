@@ -29,7 +29,7 @@ CONFIGS = ROOT / "configs"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 PAPER_FIGURES = (
     "fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation", "nblock",
-    "route_to_chaos", "refined_unequal_qd",
+    "route_to_chaos", "refined_unequal_qd", "long_chain",
 )  # fmt: skip
 
 
@@ -275,14 +275,17 @@ def test_make_figures_on_small_configs(tmp_path):
                   sweep={"K_W": [0.0042, 0.005]}, classification={"max_t_end": 3000.0})  # fmt: skip
     refined = small(CONFIGS / "unequal_qd.yaml", "unequal_qd", refine={"levels": 2},
                     sweep={"K_W": [0.05, 0.07], "k2_W": [0.005, 0.02]})  # fmt: skip
+    chain = small(CONFIGS / "long_chain.yaml", "long_chain", blocks=8,
+                  sweep={"k2_W": [0.05, 0.2], "spread_D0": [0.0, 0.2]},
+                  integrator={"t_end": 400.0})  # fmt: skip
     paths = []
-    for config in (paper, twoblock, qs, nblock, heterogeneous, route, refined):
+    for config in (paper, twoblock, qs, nblock, heterogeneous, route, refined, chain):
         path = tmp_path / f"{config.name}.yaml"
         path.write_text(config.text)
         paths.append(path)
     out = make_figures(
         paths[0], paths[1], (paths[2],), nblock=paths[3:5], route=paths[5],
-        out_dir=tmp_path / "figures", threads=1, refined=paths[6],
+        out_dir=tmp_path / "figures", threads=1, refined=paths[6], long_chain=paths[7],
     )  # fmt: skip
     assert [p.stem for p in out] == list(PAPER_FIGURES)
     for path in out:
