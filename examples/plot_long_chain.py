@@ -17,14 +17,15 @@ config = sweep.with_changes(
     "long_chain",
     {
         "blocks": 24,
+        "initial": {"v_over_V": 1.0, "phi_over_phi_ss": 1.05},
         "sweep": {"k2_W": [0.3], "spread_D0": [0.0, 0.3]},
         "integrator": {"t_end": 1000.0},
         "catalogue": {"after": 0.2},
     },
 )
 ds = sweep.run(config, progress=False)
-print(ds["slip_event_count"].values)       # events after the transient, per run
-print(ds["system_wide_fraction"].values)   # fraction of them rupturing all 24 blocks
+print(ds["slip_event_count"].values)  # events after the transient, per run
+print(ds["system_wide_fraction"].values)  # fraction of them rupturing all 24 blocks
 
 # %%
 # ``sweep.plot_catalogue`` draws one run: each event a bar over the blocks it spanned

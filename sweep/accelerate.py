@@ -194,6 +194,14 @@ def jit(func):
     return _compiled(func, forceinline=False)
 
 
+def jit_variant(func, *codes):
+    """:func:`jit` of a function built per variant, named after its ``codes``
+    (``_c1_c2…`` appended): the disk cache keys on the name, so each variant's cache
+    files are its own."""
+    func.__qualname__ += "".join(f"_{int(c)}" for c in codes)
+    return jit(func)
+
+
 def jit_inline(func):
     """Compile a small hot helper that numba inlines into every caller (not cached:
     it is compiled into them)."""

@@ -132,12 +132,31 @@ def recurrence(starts):
     return means, cvs
 
 
-def catalogue_statistics(ds, completeness=None):
-    """The statistics of every run of a result ``ds`` with a catalogue, recomputed from
-    its ``slip_event_*`` variables (e.g. with another completeness magnitude ``m_c``):
-    a Dataset of ``b_value``, ``b_value_error``, ``magnitude_completeness``,
-    ``recurrence_mean`` (s), ``recurrence_cv``, ``system_wide_fraction`` and
-    ``magnitude_count`` over the result's grid (and members)."""
+def catalogue_statistics(ds: xr.Dataset, completeness: float | None = None) -> xr.Dataset:
+    """The statistics of every run of a result with a catalogue, recomputed from its
+    ``slip_event_*`` variables (e.g. with another completeness magnitude).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result with a catalogue (config key ``catalogue.capacity``), in memory or
+        opened from its file.
+    completeness : float, optional
+        The magnitude m_c above which the b-value is estimated (default: each run's
+        smallest magnitude).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``b_value``, ``b_value_error``, ``magnitude_completeness``, ``recurrence_mean``
+        (s), ``recurrence_cv``, ``system_wide_fraction`` and ``magnitude_count`` over the
+        result's sweep axes (and members).
+
+    Raises
+    ------
+    ValueError
+        The result has no catalogue.
+    """
     if "slip_event_magnitude" not in ds:
         raise ValueError("this result has no slip-event catalogue (config key catalogue.capacity)")
     mag = ds["slip_event_magnitude"]

@@ -16,7 +16,7 @@ from sweep.config import TOP_LEVEL_KEYS, Initial
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 #: Config sections whose keys the site lists from the code (``{sweep-config-keys}``).
-GENERATED_SECTIONS = {"parameters", "integrator", "classification", "refine"}
+GENERATED_SECTIONS = {"parameters", "integrator", "classification", "catalogue", "refine"}
 
 
 def autosummary_names(text):

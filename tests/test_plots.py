@@ -276,6 +276,7 @@ def test_make_figures_on_small_configs(tmp_path):
     refined = small(CONFIGS / "unequal_qd.yaml", "unequal_qd", refine={"levels": 2},
                     sweep={"K_W": [0.05, 0.07], "k2_W": [0.005, 0.02]})  # fmt: skip
     chain = small(CONFIGS / "long_chain.yaml", "long_chain", blocks=8,
+                  initial={"v_over_V": 1.0, "phi_over_phi_ss": 1.05},
                   sweep={"k2_W": [0.05, 0.2], "spread_D0": [0.0, 0.2]},
                   integrator={"t_end": 400.0})  # fmt: skip
     paths = []

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from ..accelerate import jit, jit_inline
+from ..accelerate import jit, jit_inline, jit_variant
 from .catalogue import K_CAPACITY, catalogue_arrays, catalogue_reads, catalogue_step
 from .classify.cycle import new_event
 from .classify.extrema import cap_crossing, classify_step, dense_needed
@@ -200,11 +200,6 @@ def at_tau_end(cs, lyap, tangent, ly, delta, t, tau_max):
     return -1, False
 
 
-def suffix(*codes):
-    """``_c1_c2…``: a variant's codes, appended to its kernel's name (its cache files')."""
-    return "".join(f"_{int(c)}" for c in codes)
-
-
 @functools.cache
 def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
     """The grid kernel of a variant (codes; ``het``, ``tangent``: bools; ``n_fixed``: the
@@ -304,5 +299,4 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
             y_final[s] = y
             results[s, R_N_RECORDED] = record_end(t, y, rec_t, rec_y, n_rec)
 
-    integrate_grid.__qualname__ += suffix(model, law, method, coupling, het, tangent, n_fixed)
-    return jit(integrate_grid)
+    return jit_variant(integrate_grid, model, law, method, coupling, het, tangent, n_fixed)
