@@ -77,9 +77,9 @@ def config_hash(config):
     """16 hex digits identifying the numbers a config produces.
 
     Built from the validated fields that change results (blocks, coupling, model,
-    law, fixed and per-block parameters, spread, axes in order, initial state, integrator and
-    classification settings), the package version and the source of the
-    numeric modules. Fixed parameters are sorted, since their order in the
+    law, fixed and per-block parameters, spread, axes in order, initial state, integrator,
+    classification and, where there is one, catalogue settings), the package version and
+    the source of the numeric modules. Fixed parameters are sorted, since their order in the
     file does not matter; axis order does (it orders the grid).
     """
     fields = {
@@ -95,6 +95,8 @@ def config_hash(config):
         "integrator": asdict(config.integrator),
         "classification": asdict(config.classification),
     }
+    if config.catalogue.capacity:  # a catalogue's columns are part of each results row
+        fields["catalogue"] = asdict(config.catalogue)
     digest = hashlib.sha256(json.dumps(fields, sort_keys=True).encode())
     digest.update(f"rsf-sweep {__version__} parts {PART_FORMAT}".encode())
     here = Path(__file__).parent

@@ -276,3 +276,18 @@ def test_catalogue_figures_and_cli(tmp_path, capsys):
     write_netcdf(sweep.run(one_block(), progress=False), plain)
     assert main(["plot", str(plain), "--catalogue", "--out", str(tmp_path / "e.png")]) == 2
     assert "no slip-event catalogue" in capsys.readouterr().err
+
+
+def test_resume_does_not_reuse_parts_of_another_catalogue(tmp_path):
+    """Parts of a run whose catalogue differs (here its transient; its rows have the same
+    width) are not taken for another: resumed, the catalogue is the one a fresh run
+    gives."""
+    before = one_block(catalogue={"capacity": 30, "after": 0.5})
+    after = one_block(catalogue={"capacity": 30, "after": 0.2})
+    out = tmp_path / "r.nc"
+    runner.run_sweep(before, out=out, chunk_size=1, shard=(0, 1), show_progress=False)
+    runner.run_sweep(after, out=out, chunk_size=1, resume=True, show_progress=False)
+    fresh = sweep.run(after, progress=False)
+    with xr.open_dataset(out) as resumed:
+        np.testing.assert_array_equal(resumed.slip_event_count, fresh.slip_event_count)
+        np.testing.assert_array_equal(resumed.slip_event_start, fresh.slip_event_start)

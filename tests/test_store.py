@@ -98,6 +98,7 @@ def test_hash_follows_the_numbers_not_the_wording():
         text.replace("output: results/quick.nc", "output: elsewhere/x.nc") + "\n# a comment\n",
         text.replace("description: One block", "description: Another block"),
         text.replace("  A: 0.03\n  B: 0.08\n", "  B: 0.08\n  A: 0.03\n"),  # fixed-parameter order
+        text + "catalogue:\n  capacity: 0\n  after: 0.5\n",  # no catalogue: its settings unused
     ]
     changed = [
         text.replace("t_end: 2000.0", "t_end: 2001.0"),
@@ -105,11 +106,15 @@ def test_hash_follows_the_numbers_not_the_wording():
         text.replace("num: 9", "num: 10"),
         text.replace("phi_over_phi_ss: 1.01", "phi_over_phi_ss: 1.02"),
         text.replace("v_cap_over_V: 1.0e+6", "v_cap_over_V: 1.0e+5"),
+        text + "catalogue:\n  capacity: 10\n",
+        text + "catalogue:\n  capacity: 10\n  after: 0.5\n",
     ]
     for variant in same:
         assert variant != text and store.config_hash(parse_config(variant)) == base
     for variant in changed:
         assert variant != text and store.config_hash(parse_config(variant)) != base
+    hashes = {store.config_hash(parse_config(variant)) for variant in changed}
+    assert len(hashes) == len(changed)
 
 
 def test_truncated_part_is_reported_and_recomputed(quick, quick_reference_file, tmp_path, caplog):
