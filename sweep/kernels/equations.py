@@ -30,6 +30,14 @@ from .layout import (
 
 
 @jit_inline
+def block_parameters(p, nb, i):
+    """Block ``i``'s own A, B, κ1 and state-rate factor D0/D0_i from a parameter row
+    whose blocks differ (``layout``: the columns after N_PARAMS)."""
+    return (p[N_PARAMS + B_A * nb + i], p[N_PARAMS + B_B * nb + i],
+            p[N_PARAMS + B_KAPPA1 * nb + i], p[N_PARAMS + B_RATE * nb + i])  # fmt: skip
+
+
+@jit_inline
 def rhs(y, p, model, law, coupling, het, nb, ev, dydt):
     """Time derivative (per D0/V) of the log-form state ``y`` into ``dydt``.
 
@@ -54,10 +62,8 @@ def rhs(y, p, model, law, coupling, het, nb, ev, dydt):
         else:
             dpsi = -e * (lnv + psi)
         if het:
-            A = p[N_PARAMS + B_A * nb + i]
-            B = p[N_PARAMS + B_B * nb + i]
-            kappa1 = p[N_PARAMS + B_KAPPA1 * nb + i]
-            dpsi *= p[N_PARAMS + B_RATE * nb + i]
+            A, B, kappa1, rate = block_parameters(p, nb, i)
+            dpsi *= rate
         load = kappa1 * (1.0 - e)
         if coupling == CHAIN:
             if i > 0:
@@ -106,10 +112,7 @@ def block_jacobian(y, f, p, model, law, coupling, het, nb, ev, i):
         dpsi_dlnv = -e * (y[i] + y[nb + i] + 1.0)
         dpsi_dpsi = -e
     if het:
-        A = p[N_PARAMS + B_A * nb + i]
-        B = p[N_PARAMS + B_B * nb + i]
-        kappa1 = p[N_PARAMS + B_KAPPA1 * nb + i]
-        rate = p[N_PARAMS + B_RATE * nb + i]
+        A, B, kappa1, rate = block_parameters(p, nb, i)
         dpsi_dlnv *= rate
         dpsi_dpsi *= rate
     dload_self = -kappa1 * e
@@ -231,10 +234,7 @@ def rhs_jvp(y, u, p, model, law, coupling, het, nb, ev, work, out):
             dpsi = -e * (lnv + psi)
             d_dpsi = -de * (lnv + psi) - e * (u[i] + u[nb + i])
         if het:
-            A = p[N_PARAMS + B_A * nb + i]
-            B = p[N_PARAMS + B_B * nb + i]
-            kappa1 = p[N_PARAMS + B_KAPPA1 * nb + i]
-            rate = p[N_PARAMS + B_RATE * nb + i]
+            A, B, kappa1, rate = block_parameters(p, nb, i)
             dpsi *= rate
             d_dpsi *= rate
         load = kappa1 * (1.0 - e) + kappa2 * coupled_sum(coupling, nb, i, ev, e, total)
@@ -297,10 +297,7 @@ def rhs_curvature(y, u, w, p, model, law, coupling, het, nb, ev, work, out):
             dw_dpsi = -e * (wl * (s + 1.0) + wp)
             d2_dpsi = -e * (ul * wl * (s + 2.0) + wl * up + ul * wp)
         if het:
-            A = p[N_PARAMS + B_A * nb + i]
-            B = p[N_PARAMS + B_B * nb + i]
-            kappa1 = p[N_PARAMS + B_KAPPA1 * nb + i]
-            rate = p[N_PARAMS + B_RATE * nb + i]
+            A, B, kappa1, rate = block_parameters(p, nb, i)
             dpsi *= rate
             du_dpsi *= rate
             dw_dpsi *= rate
