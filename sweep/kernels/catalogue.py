@@ -185,12 +185,12 @@ def catalogue_step(s, t, h, nb, coupling, state, blocks, out):
     """Fold the accepted step ``s`` (``step.Step``) from ``t`` to ``t + h`` into the
     catalogue in the results row ``out`` (module docstring): an event may begin, go on
     or end in it."""
-    if not catalogue_reads(state, s.ynew, nb):
-        return
     slip_lnv = state[K_LNV]
     above = False
     for i in range(nb):
         above = above or s.ynew[i] > slip_lnv
+    if state[K_ACTIVE] == 0.0 and not above:  # catalogue_reads: nothing to read
+        return
     th0, th1 = 0.0, 1.0
     if state[K_ACTIVE] == 0.0:
         th0, first = _edge(s, h, nb, slip_lnv, True)
