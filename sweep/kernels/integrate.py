@@ -296,7 +296,8 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
             finish_run(results[s], regime, t, tau_stop, y, n_steps, n_rejected, tau_runaway, nb,
                        win, past, past_cs, hist, limits, cs, steady_amp, lin_growth, accuracy,
                        rtol, atol, ly, lyap, n_events, needs_tangent)  # fmt: skip
-            y_final[s] = y
+            for j in range(n):  # not y_final[s] = y: numba compiles its error message
+                y_final[s, j] = y[j]
             results[s, R_N_RECORDED] = record_end(t, y, rec_t, rec_y, n_rec)
 
     return jit_variant(integrate_grid, model, law, method, coupling, het, tangent, n_fixed)

@@ -9,6 +9,8 @@ State of one system with ``nb`` blocks: ``y[i] = ℓ_i`` (ln v/V), ``y[nb+i] = �
 m dv/dt per unit normal load). Time τ is in units of D0/V.
 """
 
+import itertools
+
 from ..codes import (
     ATTRACTORS,
     COUPLINGS,
@@ -55,82 +57,81 @@ def values_per_block(model):
     return 3 if model == INERTIAL else 2
 
 
+# Each table below is numbered in the order it is written, and its N_* count is the
+# number after its last entry: a column is added (or removed) by its own line alone.
+
 # --- columns of the per-system parameter array (all dimensionless) ----------
-N_PARAMS = 11
-(
-    P_A,  # direct effect
-    P_B,  # evolution effect
-    P_KAPPA1,  # driving stiffness K D0/W
-    P_KAPPA2,  # coupling stiffness k2 D0/W
-    P_ETA,  # radiation damping ηV/W
-    P_MASS,  # mass mV²/(W D0)
-    P_TAU_END,  # end time (D0/V)
-    P_DT,  # fixed step of rk4 (D0/V)
-    P_MAX_STEP,  # largest adaptive step (D0/V)
-    P_TAU_MAX,  # unsettled runs continue up to this time (D0/V), ≥ P_TAU_END
-    P_LIN_GROWTH,  # max Re λ of the linearisation at steady sliding (V/D0)
-) = range(N_PARAMS)
+_p = itertools.count()
+P_A = next(_p)  # direct effect
+P_B = next(_p)  # evolution effect
+P_KAPPA1 = next(_p)  # driving stiffness K D0/W
+P_KAPPA2 = next(_p)  # coupling stiffness k2 D0/W
+P_ETA = next(_p)  # radiation damping ηV/W
+P_MASS = next(_p)  # mass mV²/(W D0)
+P_TAU_END = next(_p)  # end time (D0/V)
+P_DT = next(_p)  # fixed step of rk4 (D0/V)
+P_MAX_STEP = next(_p)  # largest adaptive step (D0/V)
+P_TAU_MAX = next(_p)  # unsettled runs continue up to this time (D0/V), ≥ P_TAU_END
+P_LIN_GROWTH = next(_p)  # max Re λ of the linearisation at steady sliding (V/D0)
+N_PARAMS = next(_p)
 # Rows whose blocks differ have N_BLOCK_PARAMS × nb more columns after N_PARAMS:
 # column N_PARAMS + k nb + i holds quantity k of block i (B_* below). Without them
 # (p.size == N_PARAMS) every block takes P_A, P_B, P_KAPPA1 and rate factor 1.
-N_BLOCK_PARAMS = 4
-(
-    B_A,  # direct effect of block i
-    B_B,  # evolution effect of block i
-    B_KAPPA1,  # driving stiffness K_i D0/W (D0: the reference D0)
-    B_RATE,  # state-rate factor D0/D0_i
-) = range(N_BLOCK_PARAMS)
+_b = itertools.count()
+B_A = next(_b)  # direct effect of block i
+B_B = next(_b)  # evolution effect of block i
+B_KAPPA1 = next(_b)  # driving stiffness K_i D0/W (D0: the reference D0)
+B_RATE = next(_b)  # state-rate factor D0/D0_i
+N_BLOCK_PARAMS = next(_b)
 
 # --- entries of the settings array, shared by all systems of a sweep --------
-N_SETTINGS = 19
-(
-    S_MODEL,  # QUASI_STATIC | QUASI_DYNAMIC | INERTIAL
-    S_LAW,  # AGING | SLIP
-    S_METHOD,  # DOPRI5 | RK4 | ROSENBROCK | DOP853
-    S_NBLOCKS,  # number of blocks
-    S_RTOL,  # relative tolerance of the adaptive methods
-    S_ATOL,  # absolute tolerance of the adaptive methods
-    S_MAX_STEPS,  # step budget per run (accepted + rejected)
-    S_LNV_CAP,  # runaway when any ln(v/V) exceeds this
-    S_STEADY_AMP,  # steady when every |state variable| falls below this
-    S_ACCURACY,  # relative accuracy of the extrapolated limit that settles a run
-    S_CONFIRM_CYCLES,  # consecutive cycles a verdict must hold to settle a run early
-    S_EARLY_EXIT,  # 1: stop as soon as the regime is settled
-    S_SLIP_LNV,  # a block slips (slip events, R_SLIP_PARTICIPATION) while ℓ_i exceeds this
-    S_COUPLING,  # CHAIN | RING | ALL
-    S_LYAPUNOV,  # LYAP_NEVER | LYAP_UNSETTLED | LYAP_ALWAYS
-    S_EVENTS,  # events whose ℓ_0 maxima and intervals each run reports (columns after R_*)
-    S_CATALOGUE,  # slip events each run's catalogue keeps (0: no catalogue)
-    S_CATALOGUE_AFTER,  # events starting before this fraction of tau_end are not catalogued
-    S_CATALOGUE_LNV,  # a block slips in the catalogue's events while ℓ_i exceeds this
-) = range(N_SETTINGS)
+_s = itertools.count()
+S_MODEL = next(_s)  # QUASI_STATIC | QUASI_DYNAMIC | INERTIAL
+S_LAW = next(_s)  # AGING | SLIP
+S_METHOD = next(_s)  # DOPRI5 | RK4 | ROSENBROCK | DOP853
+S_NBLOCKS = next(_s)  # number of blocks
+S_RTOL = next(_s)  # relative tolerance of the adaptive methods
+S_ATOL = next(_s)  # absolute tolerance of the adaptive methods
+S_MAX_STEPS = next(_s)  # step budget per run (accepted + rejected)
+S_LNV_CAP = next(_s)  # runaway when any ln(v/V) exceeds this
+S_STEADY_AMP = next(_s)  # steady when every |state variable| falls below this
+S_ACCURACY = next(_s)  # relative accuracy of the extrapolated limit that settles a run
+S_CONFIRM_CYCLES = next(_s)  # consecutive cycles a verdict must hold to settle a run early
+S_EARLY_EXIT = next(_s)  # 1: stop as soon as the regime is settled
+S_SLIP_LNV = next(_s)  # a block slips (slip events, R_SLIP_PARTICIPATION) while ℓ_i exceeds this
+S_COUPLING = next(_s)  # CHAIN | RING | ALL
+S_LYAPUNOV = next(_s)  # LYAP_NEVER | LYAP_UNSETTLED | LYAP_ALWAYS
+S_EVENTS = next(_s)  # events whose ℓ_0 maxima and intervals each run reports (columns after R_*)
+S_CATALOGUE = next(_s)  # slip events each run's catalogue keeps (0: no catalogue)
+S_CATALOGUE_AFTER = next(_s)  # events starting before this fraction of tau_end are not catalogued
+S_CATALOGUE_LNV = next(_s)  # a block slips in the catalogue's events while ℓ_i exceeds this
+N_SETTINGS = next(_s)
 
 # --- columns of the per-system statistics array -----------------------------
-N_RESULTS = 22
-(
-    R_REGIME,  # STEADY | STICK_SLIP | RUNAWAY | UNDECIDED
-    R_TAU_FINAL,  # time the run stopped (D0/V)
-    R_N_STEPS,  # accepted steps
-    R_N_REJECTED,  # rejected steps
-    R_LNV_MAX,  # max ln(v/V) over blocks, final window
-    R_LNV_MIN,  # min ln(v/V) over blocks, final window
-    R_PERIOD,  # last peak-to-peak time of ℓ_0 (D0/V)
-    R_GROWTH,  # envelope growth rate from the last two cycles (V/D0)
-    R_FRICTION_DROP,  # max over blocks of max − min friction in the final window
-    R_TAU_RUNAWAY,  # time ℓ crossed the cap or went non-finite (D0/V)
-    R_SYNC_ERROR,  # max |ℓ_i − ℓ_0| over blocks, final window
-    R_PHASE_LAG,  # (t peak of ℓ_last − t peak of ℓ_0) / period, in [−0.5, 0.5)
-    R_N_PEAKS,  # maxima of ℓ_0 seen
-    R_LNV_MAX_RUN,  # max ln(v/V) over the whole run
-    R_N_RECORDED,  # points written to the recording buffers
-    R_CONVERGENCE,  # estimated relative distance of the last cycle to its limit
-    R_SYNC_ORDER,  # Kuramoto order parameter of the blocks' phases, final window
-    R_SLIP_PARTICIPATION,  # mean fraction of blocks slipping per slip event, final window
-    R_ATTRACTOR,  # FIXED_POINT | PERIODIC | QUASI_PERIODIC | CHAOTIC | UNRESOLVED | UNBOUNDED
-    R_CYCLE_EVENTS,  # events (maxima of ℓ_0) per cycle of a periodic run, else 0
-    R_LYAPUNOV,  # largest Lyapunov exponent (V/D0); NaN where the tangent was not carried
-    R_LYAPUNOV_ERROR,  # its standard error (V/D0)
-) = range(N_RESULTS)
+_r = itertools.count()
+R_REGIME = next(_r)  # STEADY | STICK_SLIP | RUNAWAY | UNDECIDED
+R_TAU_FINAL = next(_r)  # time the run stopped (D0/V)
+R_N_STEPS = next(_r)  # accepted steps
+R_N_REJECTED = next(_r)  # rejected steps
+R_LNV_MAX = next(_r)  # max ln(v/V) over blocks, final window
+R_LNV_MIN = next(_r)  # min ln(v/V) over blocks, final window
+R_PERIOD = next(_r)  # last peak-to-peak time of ℓ_0 (D0/V)
+R_GROWTH = next(_r)  # envelope growth rate from the last two cycles (V/D0)
+R_FRICTION_DROP = next(_r)  # max over blocks of max − min friction in the final window
+R_TAU_RUNAWAY = next(_r)  # time ℓ crossed the cap or went non-finite (D0/V)
+R_SYNC_ERROR = next(_r)  # max |ℓ_i − ℓ_0| over blocks, final window
+R_PHASE_LAG = next(_r)  # (t peak of ℓ_last − t peak of ℓ_0) / period, in [−0.5, 0.5)
+R_N_PEAKS = next(_r)  # maxima of ℓ_0 seen
+R_LNV_MAX_RUN = next(_r)  # max ln(v/V) over the whole run
+R_N_RECORDED = next(_r)  # points written to the recording buffers
+R_CONVERGENCE = next(_r)  # estimated relative distance of the last cycle to its limit
+R_SYNC_ORDER = next(_r)  # Kuramoto order parameter of the blocks' phases, final window
+R_SLIP_PARTICIPATION = next(_r)  # mean fraction of blocks slipping per slip event, final window
+R_ATTRACTOR = next(_r)  # FIXED_POINT | PERIODIC | QUASI_PERIODIC | CHAOTIC | UNRESOLVED | UNBOUNDED
+R_CYCLE_EVENTS = next(_r)  # events (maxima of ℓ_0) per cycle of a periodic run, else 0
+R_LYAPUNOV = next(_r)  # largest Lyapunov exponent (V/D0); NaN where the tangent was not carried
+R_LYAPUNOV_ERROR = next(_r)  # its standard error (V/D0)
+N_RESULTS = next(_r)
 # After the R_* columns: the last S_EVENTS events' maxima of ℓ_0, then their intervals
 # from the event before (D0/V), oldest first, NaN before the first.
 
@@ -138,18 +139,17 @@ N_RESULTS = 22
 # Then, with a catalogue (S_CATALOGUE > 0): the number of slip events the run had (all,
 # kept or not), then S_CATALOGUE events of N_EVENT_FIELDS columns each (E_*), NaN where
 # none (kernels/catalogue.py).
-N_EVENT_FIELDS = 9
-(
-    E_T_START,  # time the first block's v rose through the threshold (D0/V)
-    E_T_END,  # time the last block's v fell through it (D0/V)
-    E_FIRST_BLOCK,  # the block whose v rose through it first
-    E_N_BLOCKS,  # blocks whose v exceeded it during the event
-    E_EXTENT,  # blocks spanned by them along the chain (ring: the shortest arc; all: count)
-    E_BLOCK_LO,  # the lowest index of a block that slipped
-    E_BLOCK_HI,  # the highest
-    E_SLIP,  # Σ over those blocks of their slip during the event, ∫ v_i/V dτ (D0)
-    E_LNV_PEAK,  # the largest ln(v/V) of any block during the event
-) = range(N_EVENT_FIELDS)
+_e = itertools.count()
+E_T_START = next(_e)  # time the first block's v rose through the threshold (D0/V)
+E_T_END = next(_e)  # time the last block's v fell through it (D0/V)
+E_FIRST_BLOCK = next(_e)  # the block whose v rose through it first
+E_N_BLOCKS = next(_e)  # blocks whose v exceeded it during the event
+E_EXTENT = next(_e)  # blocks spanned by them along the chain (ring: the shortest arc; all: count)
+E_BLOCK_LO = next(_e)  # the lowest index of a block that slipped
+E_BLOCK_HI = next(_e)  # the highest
+E_SLIP = next(_e)  # Σ over those blocks of their slip during the event, ∫ v_i/V dτ (D0)
+E_LNV_PEAK = next(_e)  # the largest ln(v/V) of any block during the event
+N_EVENT_FIELDS = next(_e)
 
 
 def catalogue_start(settings):

@@ -25,6 +25,7 @@ slopes. The least-squares fit, unlike the end-to-end ratio, averages out the
 oscillation of log |δ| within a cycle (its error falls as 1/T², not 1/T).
 """
 
+import itertools
 import math
 
 import numpy as np
@@ -56,29 +57,28 @@ def explicit_tableau(a_rows, b):
 
 
 # --- entries of the accumulator ``ly`` ----------------------------------------
-N_LYAP = 20
-(
-    L_ON,  # 1 while the tangent is carried
-    L_T0,  # start of the window (D0/V)
-    L_BLOCK,  # length of a block (D0/V)
-    L_LOG,  # S: accumulated log growth of the tangent
-    L_BLOCK_START,  # start of the current block (D0/V)
-    L_BLOCKS,  # blocks completed (the transient first)
-    L_MEAN,  # mean of the completed blocks' slopes (transient left out)
-    L_M2,  # their sum of squared deviations (Welford)
-    L_W,  # fit over the window after the transient: Σ w, Σ w t, Σ w S, Σ w t², Σ w t S
-    L_WT,
-    L_WS,
-    L_WTT,
-    L_WTS,
-    L_BW,  # the same sums over the current block
-    L_BWT,
-    L_BWS,
-    L_BWTT,
-    L_BWTS,
-    L_T_LAST,  # time of the last sample (D0/V)
-    L_RATE,  # |J δ| at the start of the last tangent step (V/D0; 0: none yet)
-) = range(N_LYAP)
+_l = itertools.count()
+L_ON = next(_l)  # 1 while the tangent is carried
+L_T0 = next(_l)  # start of the window (D0/V)
+L_BLOCK = next(_l)  # length of a block (D0/V)
+L_LOG = next(_l)  # S: accumulated log growth of the tangent
+L_BLOCK_START = next(_l)  # start of the current block (D0/V)
+L_BLOCKS = next(_l)  # blocks completed (the transient first)
+L_MEAN = next(_l)  # mean of the completed blocks' slopes (transient left out)
+L_M2 = next(_l)  # their sum of squared deviations (Welford)
+L_W = next(_l)  # fit over the window after the transient: Σ w, Σ w t, Σ w S, Σ w t², Σ w t S
+L_WT = next(_l)
+L_WS = next(_l)
+L_WTT = next(_l)
+L_WTS = next(_l)
+L_BW = next(_l)  # the same sums over the current block
+L_BWT = next(_l)
+L_BWS = next(_l)
+L_BWTT = next(_l)
+L_BWTS = next(_l)
+L_T_LAST = next(_l)  # time of the last sample (D0/V)
+L_RATE = next(_l)  # |J δ| at the start of the last tangent step (V/D0; 0: none yet)
+N_LYAP = next(_l)
 #: Rows of the tangent's ``work`` scratch (see :func:`tangent_arrays`).
 TANGENT_WORK_ROWS = 4
 

@@ -1,6 +1,11 @@
 """The classifier's state: its arrays (the current cycle, the last ``HISTORY`` completed
 ones, the turning points, the scalar cycle state), their rows and columns, and the
-start of a cycle."""
+start of a cycle.
+
+Each table of rows or columns is numbered in the order it is written, and its N_* count
+is the number after its last entry."""
+
+import itertools
 
 import numpy as np
 
@@ -16,50 +21,53 @@ MAX_CYCLE_EVENTS = 32
 HISTORY = TERMS * MAX_CYCLE_EVENTS
 
 # --- rows of a cycle's per-block statistics (win in the grid kernel) -------
-W_LMAX, W_LMIN, W_MUMAX, W_MUMIN = range(4)  # extremes of ℓ_i and of friction A ℓ_i + B ψ_i
-W_T_PEAK = 4  # time of block i's last maximum of ℓ_i in the cycle (D0/V)
-N_WINDOW = 5
+_w = itertools.count()
+W_LMAX = next(_w)  # extremes of ℓ_i and of friction A ℓ_i + B ψ_i
+W_LMIN = next(_w)
+W_MUMAX = next(_w)
+W_MUMIN = next(_w)
 #: The rows of ``win`` kept for each completed cycle (``past``: W_LMAX … W_MUMIN).
-N_PAST = 4
+N_PAST = W_MUMIN + 1
+W_T_PEAK = next(_w)  # time of block i's last maximum of ℓ_i in the cycle (D0/V)
+N_WINDOW = next(_w)
 # --- rows of every block's turning-point state (``turns``, see count_turn) ----
-T_HIGH = 0  # highest ℓ_i since its last counted minimum (or the start)
-T_LOW = 1  # lowest ℓ_i since its last counted maximum (or the start)
-T_LAST = 2  # the last counted turn: +1 a maximum, −1 a minimum, 0 none yet
-N_TURNS = 3
+_t = itertools.count()
+T_HIGH = next(_t)  # highest ℓ_i since its last counted minimum (or the start)
+T_LOW = next(_t)  # lowest ℓ_i since its last counted maximum (or the start)
+T_LAST = next(_t)  # the last counted turn: +1 a maximum, −1 a minimum, 0 none yet
+N_TURNS = next(_t)
 # --- columns of the scalars kept for each completed cycle (``past_cs``) ------
-N_PAST_CS = 3
-(
-    X_SYNC,  # max |ℓ_i − ℓ_0| in the cycle
-    X_SLIP_SUM,  # Σ fractions of slipping blocks of the slip events ended in the cycle
-    X_SLIP_EVENTS,  # number of those events
-) = range(N_PAST_CS)
+_x = itertools.count()
+X_SYNC = next(_x)  # max |ℓ_i − ℓ_0| in the cycle
+X_SLIP_SUM = next(_x)  # Σ fractions of slipping blocks of the slip events ended in the cycle
+X_SLIP_EVENTS = next(_x)  # number of those events
+N_PAST_CS = next(_x)
 
 # --- entries of the scalar cycle state ``cs`` of the grid kernel -----------
-N_CYCLE_STATE = 22
-(
-    C_N_PEAKS,  # maxima of ℓ_0 seen
-    C_T_PEAK,  # time of the last maximum of ℓ_0 (D0/V)
-    C_PEAK_VALUE,  # value of the latest maximum of ℓ_0
-    C_PERIOD,  # last peak-to-peak time of ℓ_0 (D0/V)
-    C_AMP_PREV,  # peak-to-trough amplitude of ℓ_0 in the last completed cycle
-    C_GROWTH,  # envelope growth rate over the last two cycles (V/D0)
-    C_N_CYCLES,  # completed cycles
-    C_N_AGREE,  # consecutive cycles with the same verdict
-    C_VERDICT,  # the last cycle's verdict (−1: none yet)
-    C_CONV,  # the last cycle's estimated relative distance to its limit
-    C_EVENTS,  # events per cycle of the last verdict (1: a simple cycle)
-    C_WIN_SYNC,  # max |ℓ_i − ℓ_0| in the current cycle
-    C_WIN_MBAR_MAX,  # max of mean ℓ_i in the current cycle
-    C_WIN_MBAR_MIN,  # min of mean ℓ_i in the current cycle
-    C_WIN_T_PEAK_LAST,  # time of the last block's maximum of ℓ in the current cycle
-    C_LAST_PHASE,  # phase lag of the last block in the last completed cycle
-    C_LNV_MAX_RUN,  # max ℓ_i over the whole run
-    C_LAST_ORDER,  # Kuramoto order parameter of the last completed cycle
-    C_SLIPPING,  # 1 while some block slips (ℓ_i > S_SLIP_LNV) after the current step
-    C_IN_EVENT,  # 1 while a slip event lasts
-    C_SLIP_SUM,  # Σ fractions of slipping blocks of the events ended in the current cycle
-    C_SLIP_EVENTS,  # number of those events
-) = range(N_CYCLE_STATE)
+_c = itertools.count()
+C_N_PEAKS = next(_c)  # maxima of ℓ_0 seen
+C_T_PEAK = next(_c)  # time of the last maximum of ℓ_0 (D0/V)
+C_PEAK_VALUE = next(_c)  # value of the latest maximum of ℓ_0
+C_PERIOD = next(_c)  # last peak-to-peak time of ℓ_0 (D0/V)
+C_AMP_PREV = next(_c)  # peak-to-trough amplitude of ℓ_0 in the last completed cycle
+C_GROWTH = next(_c)  # envelope growth rate over the last two cycles (V/D0)
+C_N_CYCLES = next(_c)  # completed cycles
+C_N_AGREE = next(_c)  # consecutive cycles with the same verdict
+C_VERDICT = next(_c)  # the last cycle's verdict (−1: none yet)
+C_CONV = next(_c)  # the last cycle's estimated relative distance to its limit
+C_EVENTS = next(_c)  # events per cycle of the last verdict (1: a simple cycle)
+C_WIN_SYNC = next(_c)  # max |ℓ_i − ℓ_0| in the current cycle
+C_WIN_MBAR_MAX = next(_c)  # max of mean ℓ_i in the current cycle
+C_WIN_MBAR_MIN = next(_c)  # min of mean ℓ_i in the current cycle
+C_WIN_T_PEAK_LAST = next(_c)  # time of the last block's maximum of ℓ in the current cycle
+C_LAST_PHASE = next(_c)  # phase lag of the last block in the last completed cycle
+C_LNV_MAX_RUN = next(_c)  # max ℓ_i over the whole run
+C_LAST_ORDER = next(_c)  # Kuramoto order parameter of the last completed cycle
+C_SLIPPING = next(_c)  # 1 while some block slips (ℓ_i > S_SLIP_LNV) after the current step
+C_IN_EVENT = next(_c)  # 1 while a slip event lasts
+C_SLIP_SUM = next(_c)  # Σ fractions of slipping blocks of the events ended in the current cycle
+C_SLIP_EVENTS = next(_c)  # number of those events
+N_CYCLE_STATE = next(_c)
 
 
 @jit
