@@ -28,6 +28,20 @@ import numpy as np
 
 from . import store
 from .backends import DaskTasks, LocalThreads, open_backend
+from .chunks import (
+    PartStore,
+    StopRequest,
+    SweepResult,
+    chunk_ranges,
+    chunk_size_for,
+    count_rows,
+    integrate_in_memory,
+    make_parts_folder,
+    missing_ranges,
+    remove_merged,
+    run_chunks,
+    write_result,
+)
 from .dataset import derived_fields
 from .errors import Interrupted, RunError
 from .grid import build_grid
@@ -35,20 +49,6 @@ from .kernels.layout import result_width
 from .progress import Progress
 from .refine import Refinement, point_labels
 from .refined_dataset import build_point_dataset
-from .runner import (
-    StopRequest,
-    SweepResult,
-    _default_chunk_size,
-    _make_folder,
-    _PartStore,
-    _rows,
-    _write_result,
-    chunk_ranges,
-    integrate_in_memory,
-    missing_ranges,
-    remove_merged,
-    run_chunks,
-)
 
 log = logging.getLogger(__name__)
 
@@ -132,7 +132,7 @@ def run_refined(config, out=None, *, resources=None, chunk_size=None, resume=Fal
     with store.output_lock(path, shared=bool(shard)):
         stop = stop if stop is not None else StopRequest()
         folder = store.parts_dir_for(path)
-        _make_folder(folder)
+        make_parts_folder(folder)
         chash = store.config_hash(config)
         with open_backend(resources) as backend:
             first = build_grid(config)
@@ -149,7 +149,7 @@ def run_refined(config, out=None, *, resources=None, chunk_size=None, resume=Fal
                                counts["computed"], counts["reused"], timings)  # fmt: skip
         clock = time.perf_counter()
         ds = build_point_dataset(config, refinement, grid, results, y_final)
-        _write_result(ds, path, f"{folder} (use --resume)")
+        write_result(ds, path, f"{folder} (use --resume)")
         store.remove_parts(folder)
         timings["file"] = time.perf_counter() - clock
         log.info(
@@ -167,8 +167,8 @@ def _run_level(config, level, grid, folder, key, backend, chunk_size, resume, sh
     if level and stop:  # (within a level, run_chunks checks after each chunk)
         raise Interrupted(stop.signum, f"interrupted by {signal.Signals(stop.signum).name} "
                           f"before level {level}; rerun with --resume to continue")  # fmt: skip
-    run = _PartStore(folder, config, grid.n, grid.y0.shape[1], key)
-    size = chunk_size or _default_chunk_size(grid.n, backend, shard)
+    run = PartStore(folder, config, grid.n, grid.y0.shape[1], key)
+    size = chunk_size or chunk_size_for(grid.n, backend, shard)
     owned = chunk_ranges(grid.n, size, shard or (0, 1))
     have = np.zeros(grid.n, bool)
     if resume:
@@ -178,7 +178,7 @@ def _run_level(config, level, grid, folder, key, backend, chunk_size, resume, sh
         _fill(folder, key, run, have, wanted)
         log.info("%s: level %d: reusing %d runs from parts", config.name, level, int(have.sum()))
     todo = missing_ranges(owned, have)
-    total, left = _rows(owned), _rows(todo)
+    total, left = count_rows(owned), count_rows(todo)
     progress = Progress(total, _desc(config, level), enabled=show_progress, initial=total - left)
     try:
         run_chunks(backend, grid.params, grid.y0, grid.settings, todo, run.results, run.y_final,
@@ -236,7 +236,7 @@ def _await_shards(config, level, folder, key, run, have, shard, stop):
 def merge_refined(config, groups, paths, out):
     """Assemble the result of the refinement of ``config`` from its parts (``groups``:
     part entries by hash, ``store.group``), level by level, write it to ``out`` and
-    remove the parts used (``runner.remove_merged``). Raises ``RunError`` naming the
+    remove the parts used (``chunks.remove_merged``). Raises ``RunError`` naming the
     level and rows that no part holds. Returns the Dataset."""
     chash = store.config_hash(config)
     used_parts = []
@@ -261,6 +261,6 @@ def merge_refined(config, groups, paths, out):
 
     refinement, grid, results, y_final = refine_levels(config, run_level)
     ds = build_point_dataset(config, refinement, grid, results, y_final, "merge")
-    _write_result(ds, out, "the parts")
+    write_result(ds, out, "the parts")
     remove_merged(used_parts, paths)
     return ds

@@ -14,6 +14,7 @@ after that. ``shard=(i, n_shards)`` computes only the chunks ``k`` with
 ``k % n_shards == i`` and leaves them as parts, for job arrays. An output
 ending in ``.zarr`` is a Zarr store instead (``sweep/zarr_store.py``): created
 full size up front, each chunk written into it as it finishes, no parts.
+The chunks, parts and atomic write it shares with refinements are ``sweep/chunks.py``.
 """
 
 from __future__ import annotations
@@ -22,45 +23,36 @@ import logging
 import math
 import signal
 import time
-from contextlib import ExitStack, closing, contextmanager
-from dataclasses import dataclass
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 import numpy as np
 
 from . import store, zarr_store
 from .backends import DaskTasks, LocalThreads, Resources, open_backend
+from .chunks import (
+    PartStore,
+    StopRequest,
+    SweepResult,
+    chunk_ranges,
+    chunk_size_for,
+    count_rows,
+    default_chunk_size,  # noqa: F401 (public here: run_sweep's default chunk size)
+    integrate_in_memory,
+    make_parts_folder,
+    missing_ranges,
+    remove_merged,
+    run_chunks,
+    write_result,
+)
 from .config import Config, parse_config
-from .dataset import build_dataset, write_netcdf
+from .dataset import build_dataset
 from .errors import ConfigError, InputError, Interrupted, PartError, RunError
 from .grid import build_grid, settings_array, state_size
 from .kernels.layout import result_width
 from .progress import Progress
 
 log = logging.getLogger(__name__)
-
-
-class StopRequest:
-    """Set by a signal handler; the runner stops after the chunk that is running.
-
-    ``signum`` is the signal received (``None`` until then); a second signal
-    raises ``KeyboardInterrupt`` at once.
-    """
-
-    def __init__(self):
-        self.signum = None
-
-    def __bool__(self):
-        return self.signum is not None
-
-    def __call__(self, signum, frame):
-        if self:
-            raise KeyboardInterrupt
-        self.signum = signum
-        log.warning(
-            "received %s: stopping after the chunks in progress (again to stop at once)",
-            signal.Signals(signum).name,
-        )
 
 
 @contextmanager
@@ -76,96 +68,6 @@ def stop_on_signals(signums=(signal.SIGINT, signal.SIGTERM)):
     finally:
         for s, handler in old.items():
             signal.signal(s, handler)
-
-
-@dataclass
-class SweepResult:
-    """A finished sweep or shard.
-
-    ``dataset``: the result (``None`` for a shard); ``path``: the NetCDF file
-    written, or for a shard its parts folder; ``elapsed``: wall time (s);
-    ``computed`` / ``reused``: runs integrated now / read back from parts;
-    ``timings``: for a refinement, wall time (s) by activity (``sweep/refine_runner.py``).
-    """
-
-    dataset: object
-    path: object
-    elapsed: float
-    computed: int = 0
-    reused: int = 0
-    timings: dict = None
-
-
-def default_chunk_size(n_systems, n_threads=1, dask_threads=0):
-    """Systems per chunk when none is given.
-
-    On local threads: at least 16 systems per thread (runs differ in length by
-    orders of magnitude; threads share a chunk's systems out in batches), and at
-    most about 100 chunks. On Dask (``dask_threads`` > 0, the cluster's
-    total threads): at least 4 tasks per thread and about 100 in all.
-    """
-    if dask_threads:
-        return max(1, math.ceil(n_systems / max(100, 4 * dask_threads)))
-    return max(16 * n_threads, math.ceil(n_systems / 100))
-
-
-def chunk_ranges(n_systems, chunk_size, shard=(0, 1)):
-    """Row ranges ``(start, stop)`` of the chunks owned by ``shard = (i, n_shards)``."""
-    i, n_shards = shard
-    starts = range(i * chunk_size, n_systems, n_shards * chunk_size)
-    return [(a, min(a + chunk_size, n_systems)) for a in starts]
-
-
-def missing_ranges(ranges, have):
-    """Sub-ranges of ``ranges`` whose rows are not yet in ``have`` (boolean mask)."""
-    out = []
-    for a, b in ranges:
-        missing = np.flatnonzero(~have[a:b]) + a
-        if missing.size:
-            breaks = np.flatnonzero(np.diff(missing) > 1)
-            firsts = np.concatenate(([missing[0]], missing[breaks + 1]))
-            lasts = np.concatenate((missing[breaks], [missing[-1]]))
-            out.extend((int(f), int(t) + 1) for f, t in zip(firsts, lasts, strict=True))
-    return out
-
-
-def run_chunks(backend, params, y0, settings, ranges, results, y_final, progress=None,
-               save=None, stop=None):  # fmt: skip
-    """Integrate row ``ranges`` on ``backend`` into ``results``/``y_final`` (rows in place).
-
-    After each chunk: ``save(start, stop)`` (e.g. write a part), then
-    ``progress.update``. Stops early, between chunks, once ``stop`` is set. The
-    caller compiles the backend's kernel first (``backend.compile``).
-    """
-    chunks = backend.run(params, y0, settings, ranges, stop)
-    with closing(chunks):
-        for a, b, res, yf in chunks:
-            results[a:b] = res
-            y_final[a:b] = yf
-            if save is not None:
-                save(a, b)
-            if progress is not None:
-                progress.update(b - a)
-            if stop:
-                break
-
-
-def integrate_in_memory(params, y0, settings, threads=None, chunk_size=None, progress=None,
-                        backend=None):  # fmt: skip
-    """Integrate every system (row) of the kernels' arrays, chunk by chunk, in memory.
-
-    On ``backend`` (default: :class:`~sweep.backends.LocalThreads` with ``threads``).
-    Returns ``(results, y_final)``.
-    """
-    backend = backend or LocalThreads(threads)
-    backend.compile(params, settings)
-    n = params.shape[0]
-    chunk_size = chunk_size or _default_chunk_size(n, backend, shard=None)
-    results = np.empty((n, result_width(settings)))
-    y_final = np.empty_like(y0)
-    run_chunks(backend, params, y0, settings, chunk_ranges(n, chunk_size), results, y_final,
-               progress)  # fmt: skip
-    return results, y_final
 
 
 def compute(config, threads=None, chunk_size=None, show_progress=True, client=None,
@@ -278,19 +180,19 @@ def run_sweep(
         grid = build_grid(config)
         stop = stop if stop is not None else StopRequest()
         with open_backend(resources) as backend:
-            chunk_size = chunk_size or _default_chunk_size(grid.n, backend, shard)
+            chunk_size = chunk_size or chunk_size_for(grid.n, backend, shard)
             if to_zarr:
                 run = _ZarrStore(zarr_store.ZarrResult(path, grid, chunk_size, resume), grid)
                 owned = run.store.ranges
                 todo = [(a, b) for a, b in owned if not run.store.have[a:b].all()]
             else:
-                run = _PartStore(store.parts_dir_for(path), config, grid.n, grid.y0.shape[1])
-                _make_folder(run.folder)
+                run = PartStore(store.parts_dir_for(path), config, grid.n, grid.y0.shape[1])
+                make_parts_folder(run.folder)
                 owned = chunk_ranges(grid.n, chunk_size, shard or (0, 1))
                 have = _reuse_parts(run.folder, run.chash, owned, run.results, run.y_final,
                                     resume)  # fmt: skip
                 todo = missing_ranges(owned, have)
-            total, left = _rows(owned), _rows(todo)
+            total, left = count_rows(owned), count_rows(todo)
             log.info("%s: computing %d runs in %d chunks on %s", config.name, left, len(todo),
                      backend)  # fmt: skip
             # compiled here, not first in run_chunks: before the progress clock
@@ -316,35 +218,9 @@ def run_sweep(
             ds = zarr_store.open_result(path)
             return SweepResult(ds, path, time.perf_counter() - start_time, run.saved, total - left)
         ds = build_dataset(grid, run.results, run.y_final)
-        _write_result(ds, path, f"{run.folder} (use --resume)")
+        write_result(ds, path, f"{run.folder} (use --resume)")
         store.remove_parts(run.folder)
         return SweepResult(ds, path, time.perf_counter() - start_time, run.saved, total - left)
-
-
-class _PartStore:
-    """The result arrays of a run and the parts folder each finished chunk is saved to;
-    parts are named by ``chash`` (default: the config's hash)."""
-
-    def __init__(self, folder, config, n, n_vars, chash=None):
-        self.folder = folder
-        self.config = config
-        self.chash = chash or store.config_hash(config)
-        self.n = n
-        self.results = np.empty((n, result_width(settings_array(config))))
-        self.y_final = np.empty((n, n_vars))
-        self.saved = 0
-
-    def save(self, a, b):
-        """Write rows ``a:b`` as a part; a failure is a :class:`RunError` saying what is kept."""
-        try:
-            store.write_part(self.folder, self.config, self.chash, a, b, self.n,
-                             self.results[a:b], self.y_final[a:b])  # fmt: skip
-        except OSError as exc:
-            raise RunError(
-                f"cannot write a part to {self.folder}: {exc.strerror or exc}; the parts "
-                "written so far are kept, rerun with --resume once this is fixed"
-            ) from None
-        self.saved += b - a
 
 
 class _ZarrStore:
@@ -369,28 +245,6 @@ class _ZarrStore:
                 f"cannot write to {self.folder}: {exc.strerror or exc}; the chunks written so "
                 "far are kept, rerun with --resume once this is fixed"
             ) from None
-
-
-def _rows(ranges):
-    return sum(b - a for a, b in ranges)
-
-
-def _default_chunk_size(n, backend, shard):
-    """Chunk size for this run: per backend, or (shards) from the grid size alone."""
-    if shard:
-        return default_chunk_size(n)
-    if isinstance(backend, DaskTasks):
-        return default_chunk_size(n, dask_threads=max(1, backend.threads))
-    return default_chunk_size(n, backend.threads)
-
-
-def _make_folder(parts_dir):
-    try:
-        parts_dir.mkdir(exist_ok=True)
-    except OSError as exc:
-        raise RunError(
-            f"cannot create the parts folder {parts_dir}: {exc.strerror or exc}"
-        ) from None
 
 
 def _reuse_parts(parts_dir, chash, owned, results, y_final, resume):
@@ -420,17 +274,6 @@ def _reuse_parts(parts_dir, chash, owned, results, y_final, resume):
     log.info("resuming from %s: reusing %d runs from %d parts", parts_dir,
              int(have.sum()), len(used))  # fmt: skip
     return have
-
-
-def _write_result(ds, path, kept):
-    """Write the NetCDF atomically; on failure say what is kept (``kept``) and how to go on."""
-    try:
-        write_netcdf(ds, path)
-    except (OSError, RuntimeError) as exc:
-        raise RunError(
-            f"cannot write {path}: {getattr(exc, 'strerror', None) or exc}; the finished "
-            f"chunks stay in {kept}, rerun once this is fixed"
-        ) from None
 
 
 def merge_parts(paths, out):
@@ -498,22 +341,10 @@ def _merge_locked(paths, out):
         for problem in problems:
             log.warning("%s", problem)
         ds = build_dataset(build_grid(config), results, y_final, "merge")
-        _write_result(ds, out, "the parts")
+        write_result(ds, out, "the parts")
         remove_merged(used, paths)
         return ds
     raise RunError("cannot merge: " + "; ".join(problems))
-
-
-def remove_merged(used, paths):
-    """After a merge: remove the parts ``used``, then in the folders of ``paths`` the
-    temporary files of killed writers, then those folders if empty."""
-    for f in used:
-        f.unlink()
-    for folder in {Path(p) for p in paths if Path(p).is_dir()}:
-        for f in store.stale_temp_files(folder):
-            f.unlink(missing_ok=True)
-        if not any(folder.iterdir()):
-            folder.rmdir()
 
 
 def _part_config(entries):

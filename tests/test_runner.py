@@ -29,7 +29,7 @@ from conftest import (
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sweep import backends, runner, store
+from sweep import backends, chunks, runner, store
 from sweep.backends import LocalThreads, Resources
 from sweep.cli import main
 from sweep.config import load_config, parse_config
@@ -77,7 +77,7 @@ def sweep_cli(*args, cwd, **popen):
 #: test signals or kills it at a known point, whatever the kernel's speed.
 HELD_SWEEP = r"""
 import sys
-from sweep import cli, runner
+from sweep import chunks, cli, runner
 
 def held(save):
     def save_then_wait(self, a, b):
@@ -86,7 +86,7 @@ def held(save):
         sys.stdin.readline()
     return save_then_wait
 
-runner._PartStore.save = held(runner._PartStore.save)
+chunks.PartStore.save = held(chunks.PartStore.save)
 runner._ZarrStore.save = held(runner._ZarrStore.save)
 sys.exit(cli.main(sys.argv[1:]))
 """
@@ -413,7 +413,7 @@ def test_disk_full_while_writing_the_result_keeps_the_parts(
 ):
     out = tmp_path / "r.nc"
     out.write_bytes(b"earlier result")
-    monkeypatch.setattr(runner, "write_netcdf", disk_full)
+    monkeypatch.setattr(chunks, "write_netcdf", disk_full)
     with pytest.raises(runner.RunError, match=r"cannot write .*r\.nc: No space left on device"):
         runner.run_sweep(quick, out=out, chunk_size=4, show_progress=False)
     assert out.read_bytes() == b"earlier result"
