@@ -20,10 +20,13 @@ sweep: $(STAMP)
 	$(PY) -m sweep run $(CONFIG) $(if $(THREADS),--threads $(THREADS))
 
 # The suite on TEST_WORKERS processes (pytest-xdist; "auto": one per core), which take
-# tests as they come free and share numba's on-disk cache of compiled kernels; the
+# tests as they come free and share numba's on-disk cache of compiled kernels. First the
+# kernel variants the tests use (tests/data/kernel_variants.txt) are compiled into that
+# cache, each once, one process per core (tests/precompile.py; loads when warm). The
 # report ends with the 25 slowest tests (and set-ups), where the suite's time goes.
 TEST_WORKERS ?= 2
 test: $(STAMP)
+	$(PY) tests/precompile.py
 	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist worksteal --durations=25
 
 # The kernels as plain Python, so they count in coverage runs: the tests of the

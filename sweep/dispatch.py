@@ -155,9 +155,11 @@ def kernel_jobs(params, settings, every=False):
     return jobs
 
 
-def load_kernels(jobs, processes=None):
+def load_kernels(jobs, processes=None, here=True):
     """:func:`ready_kernel` for several variants: ``jobs`` are (params, settings,
     tangent) triples of the kernels' arrays (``tangent`` as for :func:`grid_kernel`).
+    ``here=False``: only compile them into numba's cache, for other processes to load
+    (nothing is loaded here unless another process failed).
 
     numba holds one lock over all compiling in a process, so the distinct variants
     this process has not compiled yet are shared out among up to ``processes`` fresh
@@ -176,15 +178,18 @@ def load_kernels(jobs, processes=None):
         wanted.setdefault(variant(*job), job)
     todo = [job for job in wanted.values() if not grid_kernel(*job).signatures]
     processes = min(thread_count(processes), len(todo))
-    if CACHE and processes > 1:
+    elsewhere = CACHE and processes > 1
+    if elsewhere:
         log.info("compiling (or loading) %d kernels in %d processes ...", len(todo), processes)
         shares = [todo[i::processes] for i in range(processes)]
         with ThreadPoolExecutor(processes) as pool:
             for failure in pool.map(_compile_elsewhere, shares):
                 if failure:
                     log.warning("compiling kernels in another process failed: %s", failure)
-    for job in wanted.values():
-        ready_kernel(*job)
+                    here = True
+    if here or not elsewhere:
+        for job in wanted.values():
+            ready_kernel(*job)
 
 
 def _compile_elsewhere(jobs):

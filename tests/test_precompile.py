@@ -1,0 +1,34 @@
+"""The list of kernel variants that ``make test`` compiles before the tests
+(``tests/precompile.py``): every line names a variant the way ``dispatch.variant`` reads
+it from the kernels' arrays, and the shipped configs' kernels (without the tangent, which the
+suite compiles only where a test needs it) are on it."""
+
+from pathlib import Path
+
+import precompile
+
+from sweep import dispatch
+from sweep.config import load_config
+from sweep.grid import build_grid
+
+CONFIGS = sorted((Path(__file__).resolve().parents[1] / "configs").glob("*.yaml"))
+
+
+def test_every_line_is_one_variant_read_back_from_its_arrays():
+    lines = precompile.listed()
+    assert lines, "no variants listed"
+    # precompile.job asserts that dispatch.variant reads the line back from the arrays
+    variants = [dispatch.variant(*precompile.job(words)) for words in lines]
+    assert len(set(variants)) == len(variants), "a variant listed twice"
+
+
+def test_the_shipped_configs_variants_are_listed():
+    listed = {tuple(words) for words in precompile.listed()}
+    missing = set()
+    for path in CONFIGS:
+        g = build_grid(load_config(path))
+        for params, settings, tangent in dispatch.kernel_jobs(g.params, g.settings):
+            words = tuple(precompile.variant_names(dispatch.variant(params, settings, tangent)))
+            if words not in listed:
+                missing.add((path.name, words))
+    assert not missing, sorted(missing)
