@@ -38,6 +38,7 @@ in ``tests/test_bench.py``. Run it as ``python benchmarks/bench.py`` (``make ben
 """
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -673,19 +674,23 @@ COMPILE_RUN = (
 FURTHER_VARIANT = {"model": "quasi-dynamic", "parameters": {"eta_W": 0.1}}
 
 
-def bench_compile(config_path):
+def bench_compile(config_path, empty_cache=True):
     """JIT time: fresh processes running a tiny sweep with an empty numba cache (which
     they fill), then with it warm; and a further variant (another model), with only the
-    helpers it shares cached."""
+    helpers it shares cached. ``empty_cache=False`` (``--smoke``) runs the same processes
+    on the package's own cache: a check that the code runs, whose figures are loads."""
 
     def seconds(changes=None):
-        env = dict(os.environ, SWEEP_NUMBA_CACHE="1", NUMBA_CACHE_DIR=cache_dir)
+        env = dict(os.environ, SWEEP_NUMBA_CACHE="1")
+        if cache_dir is not None:
+            env["NUMBA_CACHE_DIR"] = cache_dir
         command = [sys.executable, "-c", COMPILE_RUN, str(config_path), repr(changes or {})]
         run = subprocess.run(command, env=env, check=True, capture_output=True)
         return float(run.stdout.split()[-1])
 
     out = {}
-    with tempfile.TemporaryDirectory() as cache_dir:
+    folder = tempfile.TemporaryDirectory() if empty_cache else contextlib.nullcontext()
+    with folder as cache_dir:
         out["cold_seconds"] = seconds()  # compiles the kernel and every helper
         out["cache_warm_seconds"] = seconds()
         out["further_variant_seconds"] = seconds(FURTHER_VARIANT)
@@ -818,7 +823,7 @@ SIZES = {
               "attractors": (3, 100),
               "threads_large": (4, 100), "throughput": (1, 10), "rk4": 1_000,
               "block_scaling": (1, 10), "implicit_scaling": (1, 2),
-              "configs": ("quick",), "dask": "quick", "compile": "quick",
+              "configs": ("quick",), "dask": "quick", "compile": "quick", "empty_cache": False,
               "refine": (("quick", 2),)},
 }  # fmt: skip
 
@@ -907,7 +912,8 @@ def main(argv=None):
         f"LocalCluster of 2 workers: start {d['cluster_start']:.1f} s, sweep {d['cluster']:.2f} s "
         f"= {d['cluster_over_threads']:.1f}x the 2-thread time ({d['threads_n']:.2f} s)"
     )
-    figures["compile"] = c = bench_compile(repo_config(size["compile"]))
+    figures["compile"] = c = bench_compile(repo_config(size["compile"]),
+                                           size.get("empty_cache", True))  # fmt: skip
     print(
         f"JIT compile {c['compile_seconds']:.1f} s (fresh process: {c['cold_seconds']:.1f} s "
         f"with an empty cache, {c['cache_warm_seconds']:.1f} s with a warm cache); a further "

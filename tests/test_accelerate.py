@@ -12,9 +12,11 @@ import pytest
 from conftest import python_stdout
 
 from sweep import accelerate
+from sweep.config import load_config, with_changes
 from sweep.kernels import control, equations, integrate, layout, linalg, record, step, tangent
 from sweep.kernels.classify import cycle, extrema, result, sequences, state, verdicts
 from sweep.kernels.methods import MODULES as METHOD_MODULES
+from sweep.runner import compute
 
 #: The modules of the kernel package that hold jitted functions.
 CLASSIFY = (state, sequences, extrema, cycle, verdicts, result)
@@ -81,51 +83,6 @@ def test_grid_kernels_follow_the_policy_one_per_variant():
     assert integrate.grid_kernel(*VARIANT) is kernel
     other = integrate.grid_kernel(layout.QUASI_DYNAMIC, *VARIANT[1:])
     assert other is not kernel
-
-
-# Compiles the grid kernel of quick.yaml with DOPRI5, cache off, and reports how many
-# signatures numba compiled of the parts that only other variants use.
-PRUNE_PROBE = """
-import json
-from sweep import dispatch
-from sweep.config import load_config, with_changes
-from sweep.grid import build_grid
-from numba.core import types
-from sweep.kernels import tangent
-from sweep.kernels.classify import extrema, state
-from sweep.kernels.methods import dop853, rodas4
-config = with_changes(load_config(CONFIG), {"integrator": {"method": "dopri5"}})
-grid = build_grid(config)
-dispatch.ready_kernel(grid.params, grid.settings)
-others = {"dop853.dense": dop853.dense, "rodas4.step": rodas4.step,
-          "rodas4.tangent_step": rodas4.tangent_step,
-          "explicit_tangent_step": tangent.explicit_tangent_step}
-report = {name: len(f.signatures) for name, f in others.items()}
-literal = {name: sorted({str(a) for s in f.signatures for a in s if isinstance(a, types.Literal)})
-           for name, f in {"history_value": state.history_value,
-                           "update_cycle": extrema.update_cycle}.items()}
-report.update(history_value=len(state.history_value.signatures), literal=literal)
-print(json.dumps(report))
-"""
-
-
-@pytest.mark.slow
-def test_a_variant_compiles_only_its_own_parts():
-    """The codes are constants of the grid kernel's closure, and numba prunes the other
-    variants' branches before it inlines and types the helpers: a DOPRI5 kernel
-    without the tangent compiles neither DOP853's interpolant nor RODAS4's step, nor
-    a tangent step (each costs seconds of a cold start). Helpers are specialised on
-    the codes they are passed and on no other constant: ``history_value``, called with
-    constant and variable arguments, compiles once; ``update_cycle``, which takes the
-    step record and no code, is shared by every method."""
-    env = dict(os.environ, SWEEP_NUMBA_CACHE="0", NUMBA_DISABLE_JIT="0")
-    code = f"CONFIG = {str(ROOT / 'configs' / 'quick.yaml')!r}\n{PRUNE_PROBE}"
-    report = json.loads(python_stdout(code, env=env).splitlines()[-1])
-    assert report == {
-        "dop853.dense": 0, "rodas4.step": 0, "rodas4.tangent_step": 0,
-        "explicit_tangent_step": 0, "history_value": 1,
-        "literal": {"history_value": [], "update_cycle": []},
-    }  # fmt: skip
 
 
 @NO_JIT
@@ -234,14 +191,21 @@ def test_one_cache_decision_in_this_process():
     assert type(kernel._cache).__name__ == expected
 
 
-# One small run in a fresh process: its step count and whether numba's cache served
-# the grid kernel and the classifier's entry point (a helper in another file).
+# One small run of quick.yaml with DOPRI5 (and another MODEL) in a fresh process: its
+# step count, whether numba's cache served the grid kernel and the classifier's entry
+# point (a helper in another file), and how many signatures the process holds (compiled
+# or loaded) of parts that only other variants use, and of two helpers that could be
+# specialised on constants they should not be.
 CACHED_RUN = """
 import json, sweep
+from numba.core import types
 from sweep.dispatch import grid_kernel
 from sweep.grid import build_grid
+from sweep.kernels import tangent
+from sweep.kernels.classify import extrema, state
 from sweep.kernels.classify.cycle import new_event
-config = sweep.load_config(CONFIG)
+from sweep.kernels.methods import dop853, rodas4
+config = sweep.with_changes(sweep.load_config(CONFIG), {"integrator": {"method": "dopri5"}})
 if MODEL:
     config = sweep.with_changes(config, {"model": MODEL, "parameters": {"eta_W": 0.1}})
 ds = sweep.run(config, progress=False)
@@ -249,15 +213,24 @@ g = build_grid(config)
 report = {"n_steps": ds["n_steps"].values.tolist()}
 for name, f in (("kernel", grid_kernel(g.params, g.settings)), ("helper", new_event)):
     report[name] = [sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
+others = {"dop853.dense": dop853.dense, "rodas4.step": rodas4.step,
+          "rodas4.tangent_step": rodas4.tangent_step,
+          "explicit_tangent_step": tangent.explicit_tangent_step,
+          "history_value": state.history_value}
+report["signatures"] = {name: len(f.signatures) for name, f in others.items()}
+report["literal"] = {
+    name: sorted({str(a) for s in f.signatures for a in s if isinstance(a, types.Literal)})
+    for name, f in {"history_value": state.history_value,
+                    "update_cycle": extrema.update_cycle}.items()}
 print(json.dumps(report))
 """
 
 
-def cached_run(tmp_path, model=None, cache="1"):
+def cached_run(tmp_path, model=None):
     """CACHED_RUN of quick.yaml (with ``model``) with the copy of the package and the
     numba cache in ``tmp_path``: its report."""
     env = dict(os.environ, PYTHONPATH=str(tmp_path), NUMBA_CACHE_DIR=str(tmp_path / "cache"),
-               SWEEP_NUMBA_CACHE=cache, NUMBA_DISABLE_JIT="0")  # fmt: skip
+               SWEEP_NUMBA_CACHE="1", NUMBA_DISABLE_JIT="0")  # fmt: skip
     config = str(ROOT / "configs" / "quick.yaml")
     code = f"CONFIG = {config!r}\nMODEL = {model!r}\n{CACHED_RUN}"
     return json.loads(python_stdout(code, env=env, cwd=tmp_path).splitlines()[-1])
@@ -269,19 +242,50 @@ def copy_package(tmp_path):
     )
 
 
+@NO_JIT  # the last step compares with a compiled run in this process
 @pytest.mark.slow
-def test_editing_an_inlined_helper_invalidates_the_cached_kernel(tmp_path):
-    """numba checks a cache entry against its own file only; the key of every cached
-    function also covers every kernel source (``accelerate.source_digest``). A copy of
-    the package compiles and caches a kernel, loads it from the cache, then has the
-    step-size controller (``control.next_step_size``, inlined from another file)
-    edited: the next run must compile the kernel and the cached helpers afresh and
-    take other steps, not load stale code."""
+def test_one_copy_of_the_package_compiles_prunes_caches_and_recompiles(tmp_path):
+    """A copy of the package and its own numba cache, run by fresh processes in turn
+    (each step needs the one before: one test, so that the cold compiles are not repeated
+    per test).
+
+    1. Pruning. The codes are constants of the grid kernel's closure, and numba prunes the
+       other variants' branches before it inlines and types the helpers: a DOPRI5 kernel
+       without the tangent compiles neither DOP853's interpolant nor RODAS4's step, nor a
+       tangent step (each costs seconds of a cold start). Helpers are specialised on the
+       codes they are passed and on no other constant: ``history_value``, called with
+       constant and variable arguments, compiles once; ``update_cycle``, which takes the
+       step record and no code, is shared by every method.
+    2. The next process loads the kernel from the cache.
+    3. A variant not compiled before (quasi-dynamic after quasi-static) compiles its
+       kernel but loads the classifier from the cache, and gives the numbers of this
+       test process's own run (its kernels compiled elsewhere, from the same sources).
+    4. numba checks a cache entry against its own file only; the key of every cached
+       function also covers every kernel source (``accelerate.source_digest``). With the
+       step-size controller (``control.next_step_size``, inlined from another file)
+       edited, the next run must compile the kernel and the cached helpers afresh and
+       take other steps, not load stale code.
+    """
     copy_package(tmp_path)
-    first, again = cached_run(tmp_path), cached_run(tmp_path)
-    assert (first["kernel"], again["kernel"]) == ([0, 1], [1, 0])
-    assert first["helper"] == [0, 1]
+    first = cached_run(tmp_path)
+    assert first["signatures"] == {
+        "dop853.dense": 0, "rodas4.step": 0, "rodas4.tangent_step": 0,
+        "explicit_tangent_step": 0, "history_value": 1,
+    }  # fmt: skip
+    assert first["literal"] == {"history_value": [], "update_cycle": []}
+    assert (first["kernel"], first["helper"]) == ([0, 1], [0, 1])
+
+    again = cached_run(tmp_path)
+    assert again["kernel"] == [1, 0]
     assert again["n_steps"] == first["n_steps"]
+
+    further = cached_run(tmp_path, model="quasi-dynamic")
+    assert (further["kernel"], further["helper"]) == ([0, 1], [1, 0])
+    config = with_changes(load_config(ROOT / "configs" / "quick.yaml"), {
+        "integrator": {"method": "dopri5"}, "model": "quasi-dynamic",
+        "parameters": {"eta_W": 0.1}})  # fmt: skip
+    assert compute(config, show_progress=False)["n_steps"].values.tolist() == further["n_steps"]
+
     helper = tmp_path / "sweep" / "kernels" / "control.py"
     text = helper.read_text()
     assert text.count("0.9 * max(err, 1e-10)") == 1
@@ -289,16 +293,3 @@ def test_editing_an_inlined_helper_invalidates_the_cached_kernel(tmp_path):
     edited = cached_run(tmp_path)
     assert (edited["kernel"], edited["helper"]) == ([0, 1], [0, 1])
     assert edited["n_steps"] != first["n_steps"]
-
-
-@pytest.mark.slow
-def test_a_further_variant_loads_the_shared_helpers(tmp_path):
-    """A variant not compiled before (quasi-dynamic after quasi-static) compiles its
-    kernel but loads the classifier from the cache, and gives the numbers of a compile
-    with the cache off."""
-    copy_package(tmp_path)
-    cached_run(tmp_path)
-    further = cached_run(tmp_path, model="quasi-dynamic")
-    assert (further["kernel"], further["helper"]) == ([0, 1], [1, 0])
-    fresh = cached_run(tmp_path, model="quasi-dynamic", cache="0")
-    assert fresh["n_steps"] == further["n_steps"]
