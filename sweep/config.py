@@ -356,6 +356,11 @@ class Config:
                                self.classification.events, self.catalogue.capacity)  # fmt: skip
 
     @property
+    def catalogue_slip_v_over_V(self) -> float:
+        """The slip threshold v/V of the catalogue's events (its own, else the classification's)."""
+        return self.catalogue.slip_v_over_V or self.classification.slip_v_over_V
+
+    @property
     def members(self) -> int:
         """Runs per grid point (the ensemble size, or 1)."""
         return max(1, self.initial.ensemble)

@@ -311,9 +311,8 @@ def catalogue_attrs(config):
     """File attributes ``catalogue_<name>`` of the catalogue's settings, its threshold as
     the value it stands for (a completeness of None, each run's smallest magnitude, is
     left out)."""
-    cat = config.catalogue
-    threshold = cat.slip_v_over_V or config.classification.slip_v_over_V
-    values = dataclasses.asdict(dataclasses.replace(cat, slip_v_over_V=threshold)).items()
+    cat = dataclasses.replace(config.catalogue, slip_v_over_V=config.catalogue_slip_v_over_V)
+    values = dataclasses.asdict(cat).items()
     return {f"catalogue_{k}": np.int32(v) if isinstance(v, int) else v
             for k, v in values if v is not None}  # fmt: skip
 

@@ -73,7 +73,7 @@ def settings_array(config):
     s[layout.S_EVENTS] = cls.events
     s[layout.S_CATALOGUE] = config.catalogue.capacity
     s[layout.S_CATALOGUE_AFTER] = config.catalogue.after
-    s[layout.S_CATALOGUE_LNV] = math.log(config.catalogue.slip_v_over_V or cls.slip_v_over_V)
+    s[layout.S_CATALOGUE_LNV] = math.log(config.catalogue_slip_v_over_V)
     return s
 
 
