@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from ..accelerate import jit
+from ..accelerate import jit, jit_inline
 from .layout import (
     ALL,
     CHAIN,
@@ -71,15 +71,20 @@ def catalogue_arrays(out, settings, nb, tau_end):
     return state, np.zeros((2, nb))
 
 
+@jit_inline
+def any_above(ynew, nb, slip_lnv):
+    """Whether some block's ℓ_i is above ``slip_lnv`` after the step."""
+    above = False
+    for i in range(nb):
+        above = above or ynew[i] > slip_lnv
+    return above
+
+
 @jit
 def catalogue_reads(state, ynew, nb):
     """Whether :func:`catalogue_step` reads the interpolant of this step: an event is
     going on, or some block is above the threshold after it."""
-    slip_lnv = state[K_LNV]
-    above = state[K_ACTIVE] > 0.0
-    for i in range(nb):
-        above = above or ynew[i] > slip_lnv
-    return above
+    return state[K_ACTIVE] > 0.0 or any_above(ynew, nb, state[K_LNV])
 
 
 @jit
@@ -186,9 +191,7 @@ def catalogue_step(s, t, h, nb, coupling, state, blocks, out):
     catalogue in the results row ``out`` (module docstring): an event may begin, go on
     or end in it."""
     slip_lnv = state[K_LNV]
-    above = False
-    for i in range(nb):
-        above = above or s.ynew[i] > slip_lnv
+    above = any_above(s.ynew, nb, slip_lnv)
     if state[K_ACTIVE] == 0.0 and not above:  # catalogue_reads: nothing to read
         return
     th0, th1 = 0.0, 1.0
