@@ -73,11 +73,11 @@ def listed():
 
 def cached_variants():
     """The variants whose grid kernels numba's cache folder of ``sweep/kernels`` holds."""
-    folder = ROOT / "sweep" / "kernels" / "__pycache__"
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        matches = Path(os.environ["NUMBA_CACHE_DIR"]).rglob("integrate.*integrate_grid_*.nbi")
+    pattern, elsewhere = "integrate.*integrate_grid_*.nbi", os.environ.get("NUMBA_CACHE_DIR")
+    if elsewhere:
+        matches = Path(elsewhere).rglob(pattern)
     else:
-        matches = folder.glob("integrate.*integrate_grid_*.nbi")
+        matches = (ROOT / "sweep" / "kernels" / "__pycache__").glob(pattern)
     found = set()
     for path in matches:
         codes_ = re.search(r"integrate_grid((?:_\d+){7})-", path.name).group(1)
