@@ -676,11 +676,18 @@ def _validate(raw, text, source):
     )
 
 
+def _start_values(values):
+    """A start value of every block as written back: one number where the blocks share
+    it, so a changed number of blocks starts each block there too; else the list."""
+    return values[0] if len(set(values)) == 1 else list(values)
+
+
 def config_mapping(config):
     """A :class:`Config` as the mapping it could be read from (every setting explicit).
 
     ``output`` is left out where it is the default ``results/<name>.nc``, so a
-    renamed copy writes under its new name.
+    renamed copy writes under its new name. Start values the blocks share are one
+    number, so :func:`with_changes` of ``blocks`` alone keeps them.
     """
     raw = {
         "name": config.name,
@@ -694,8 +701,8 @@ def config_mapping(config):
         },
         "sweep": {a.name: _axis_mapping(a) for a in config.axes},
         "initial": {
-            "v_over_V": list(config.initial.v_over_V),
-            "phi_over_phi_ss": list(config.initial.phi_over_phi_ss),
+            "v_over_V": _start_values(config.initial.v_over_V),
+            "phi_over_phi_ss": _start_values(config.initial.phi_over_phi_ss),
         },
         "integrator": dataclasses.asdict(config.integrator),
         "classification": dataclasses.asdict(config.classification),

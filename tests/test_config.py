@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 import yaml
-from conftest import config_dict, kc_w, make_config, write_config
+from conftest import ROOT, config_dict, kc_w, make_config, write_config
 
 from sweep import cli
 from sweep.cli import main
@@ -412,3 +412,26 @@ def test_refine_defaults_and_round_trip():
     assert (again.refine, again.axes) == (ranged.refine, ranged.axes)
     assert again.axes[0].span == ("log", 0.04, 0.06)
     assert with_changes(ranged, {"refine": {"levels": 5}}).axes == ranged.axes
+
+
+@pytest.mark.parametrize("name", sorted(p.stem for p in (ROOT / "configs").glob("*.yaml")))
+def test_shipped_configs_round_trip_and_take_another_number_of_blocks(name):
+    """Every shipped config reads back as itself from config_mapping; with_changes of
+    ``blocks`` alone starts each block where the file starts them all, and where the
+    file gives the blocks different starts it says which key needs one per block."""
+    from sweep.config import config_mapping, with_changes
+
+    config = load_config(ROOT / "configs" / f"{name}.yaml")
+    again = parse_config(config_mapping(config), config.source)
+    assert again.initial == config.initial and again.blocks == config.blocks
+    if config.block_parameters:  # per-block values, one per block: the user gives them
+        return
+    changed, starts = config.blocks + 3, config.initial
+    if len(set(starts.v_over_V)) == 1 and len(set(starts.phi_over_phi_ss)) == 1:
+        extra = {} if config.blocks > 1 else {"parameters": {"k2_W": 0.5}}
+        more = with_changes(config, {"blocks": changed, **extra})
+        assert more.initial.v_over_V == (starts.v_over_V[0],) * changed
+        assert more.initial.phi_over_phi_ss == (starts.phi_over_phi_ss[0],) * changed
+    else:
+        with pytest.raises(ConfigError, match=f"list of {changed} \\(one per block\\)"):
+            with_changes(config, {"blocks": changed})
