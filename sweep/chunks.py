@@ -19,7 +19,7 @@ import numpy as np
 from . import store
 from .backends import DaskTasks, LocalThreads
 from .dataset import write_netcdf
-from .errors import RunError
+from .errors import Interrupted, RunError
 from .grid import settings_array
 from .kernels.layout import result_width
 
@@ -119,6 +119,56 @@ def run_chunks(backend, params, y0, settings, ranges, results, y_final, progress
                 progress.update(b - a)
             if stop:
                 break
+
+
+def run_saving(backend, grid, ranges, run, progress, stop):
+    """:func:`run_chunks` of ``grid``'s rows ``ranges`` into ``run`` (a :class:`PartStore`
+    or alike), each finished chunk saved by ``run.save``; ``progress`` is closed after,
+    and a ``KeyboardInterrupt`` stops the run like a first SIGINT (``stop``)."""
+    try:
+        run_chunks(backend, grid.params, grid.y0, grid.settings, ranges, run.results,
+                   run.y_final, progress, run.save, stop)  # fmt: skip
+    except KeyboardInterrupt:
+        stop.signum = stop.signum or signal.SIGINT
+    finally:
+        progress.close()
+
+
+def check_saved(run, total, left, stop, where=""):
+    """Raise :class:`Interrupted` when ``run`` saved fewer than the ``left`` runs it was
+    to run (a stop request), saying how many of ``total`` are kept and where; ``where``
+    (e.g. ``"level 2: "``) says which part of the work stopped."""
+    if run.saved < left:
+        raise Interrupted(
+            stop.signum,
+            f"interrupted by {signal.Signals(stop.signum).name}: {where}"
+            f"{total - left + run.saved} of {total} runs are saved in {run.folder}; rerun "
+            "with --resume to continue",
+        )
+
+
+def ranges_mask(n, ranges):
+    """A boolean mask over ``n`` rows, true in the row ``ranges``."""
+    mask = np.zeros(n, bool)
+    for a, b in ranges:
+        mask[a:b] = True
+    return mask
+
+
+def fill_from_parts(entries, run, have, wanted):
+    """Rows ``wanted`` and not yet ``have`` read from the parts ``entries`` (one hash,
+    ``store.scan``) into ``run``'s arrays; ``have`` is updated. Unusable parts are
+    reported and removed, so their runs are computed again. Returns the parts read."""
+    used, bad = store.fill_from_parts(entries, run.results, run.y_final, have, wanted)
+    for path, reason in bad:
+        log.warning("unusable part, its runs will be recomputed: %s", reason)
+        path.unlink(missing_ok=True)
+    return used
+
+
+def rows_missing(gaps):
+    """Row ranges (from :func:`missing_ranges`) as said in an error: the first five."""
+    return ", ".join(f"{a}:{b}" for a, b in gaps[:5]) + (" ..." if len(gaps) > 5 else "")
 
 
 def integrate_in_memory(params, y0, settings, threads=None, chunk_size=None, progress=None,

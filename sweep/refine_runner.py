@@ -32,14 +32,18 @@ from .chunks import (
     PartStore,
     StopRequest,
     SweepResult,
+    check_saved,
     chunk_ranges,
     chunk_size_for,
     count_rows,
+    fill_from_parts,
     integrate_in_memory,
     make_parts_folder,
     missing_ranges,
+    ranges_mask,
     remove_merged,
-    run_chunks,
+    rows_missing,
+    run_saving,
     write_result,
 )
 from .dataset import derived_fields
@@ -172,45 +176,19 @@ def _run_level(config, level, grid, folder, key, backend, chunk_size, resume, sh
     owned = chunk_ranges(grid.n, size, shard or (0, 1))
     have = np.zeros(grid.n, bool)
     if resume:
-        wanted = np.zeros(grid.n, bool)
-        for a, b in owned:
-            wanted[a:b] = True
-        _fill(folder, key, run, have, wanted)
+        fill_from_parts(store.scan(folder).get(key, []), run, have, ranges_mask(grid.n, owned))
         log.info("%s: level %d: reusing %d runs from parts", config.name, level, int(have.sum()))
     todo = missing_ranges(owned, have)
     total, left = count_rows(owned), count_rows(todo)
     progress = Progress(total, _desc(config, level), enabled=show_progress, initial=total - left)
-    try:
-        run_chunks(backend, grid.params, grid.y0, grid.settings, todo, run.results, run.y_final,
-                   progress, run.save, stop)  # fmt: skip
-    except KeyboardInterrupt:
-        stop.signum = stop.signum or signal.SIGINT
-    finally:
-        progress.close()
+    run_saving(backend, grid, todo, run, progress, stop)
     counts["computed"] += run.saved
     counts["reused"] += total - left
-    if run.saved < left:
-        raise Interrupted(
-            stop.signum,
-            f"interrupted by {signal.Signals(stop.signum).name}: level {level}: "
-            f"{total - left + run.saved} of {total} runs are saved in {folder}; rerun with "
-            "--resume to continue",
-        )
-    for a, b in owned:
-        have[a:b] = True
+    check_saved(run, total, left, stop, f"level {level}: ")
+    have |= ranges_mask(grid.n, owned)
     if shard and not have.all():
         _await_shards(config, level, folder, key, run, have, shard, stop)
     return run.results, run.y_final
-
-
-def _fill(folder, key, run, have, wanted):
-    """Rows ``wanted`` and not yet ``have`` read from the parts of level ``key``; unusable
-    parts are reported and removed (their runs are computed again)."""
-    entries = store.scan(folder).get(key, [])
-    _, bad = store.fill_from_parts(entries, run.results, run.y_final, have, wanted)
-    for path, reason in bad:
-        log.warning("unusable part, its runs will be recomputed: %s", reason)
-        path.unlink(missing_ok=True)
 
 
 def _await_shards(config, level, folder, key, run, have, shard, stop):
@@ -220,7 +198,7 @@ def _await_shards(config, level, folder, key, run, have, shard, stop):
     log.info("%s: shard %d/%d: level %d: waiting for the other shards' runs (%d of %d here)",
              config.name, i, n, level, int(have.sum()), have.size)  # fmt: skip
     while True:
-        _fill(folder, key, run, have, ~have)
+        fill_from_parts(store.scan(folder).get(key, []), run, have, ~have)
         if have.all():
             return
         if stop:
@@ -251,9 +229,9 @@ def merge_refined(config, groups, paths, out):
             log.warning("corrupt part, not merged: %s", reason)
         gaps = missing_ranges([(0, grid.n)], have)
         if gaps:
-            rows = ", ".join(f"{a}:{b}" for a, b in gaps[:5]) + (" ..." if len(gaps) > 5 else "")
             raise RunError(
-                f"cannot merge: parts of {config.name}: level {level}: rows {rows} missing "
+                f"cannot merge: parts of {config.name}: level {level}: rows {rows_missing(gaps)} "
+                "missing "
                 f"({grid.n - int(have.sum())} of {grid.n} runs); rerun the shards with --resume"
             )
         used_parts.extend(used)

@@ -34,20 +34,25 @@ from .chunks import (
     PartStore,
     StopRequest,
     SweepResult,
+    check_saved,
     chunk_ranges,
     chunk_size_for,
     count_rows,
     default_chunk_size,  # noqa: F401 (public here: run_sweep's default chunk size)
+    fill_from_parts,
     integrate_in_memory,
     make_parts_folder,
     missing_ranges,
+    ranges_mask,
     remove_merged,
-    run_chunks,
+    rows_missing,
+    run_saving,
     write_result,
 )
 from .config import Config, parse_config
 from .dataset import build_dataset
-from .errors import ConfigError, InputError, Interrupted, PartError, RunError
+# Interrupted: what run_sweep raises when it is stopped, offered here beside it.
+from .errors import ConfigError, InputError, Interrupted, PartError, RunError  # noqa: F401
 from .grid import build_grid, settings_array, state_size
 from .kernels.layout import result_width
 from .progress import Progress
@@ -189,8 +194,7 @@ def run_sweep(
                 run = PartStore(store.parts_dir_for(path), config, grid.n, grid.y0.shape[1])
                 make_parts_folder(run.folder)
                 owned = chunk_ranges(grid.n, chunk_size, shard or (0, 1))
-                have = _reuse_parts(run.folder, run.chash, owned, run.results, run.y_final,
-                                    resume)  # fmt: skip
+                have = _reuse_parts(run, owned, resume)
                 todo = missing_ranges(owned, have)
             total, left = count_rows(owned), count_rows(todo)
             log.info("%s: computing %d runs in %d chunks on %s", config.name, left, len(todo),
@@ -198,19 +202,8 @@ def run_sweep(
             # compiled here, not first in run_chunks: before the progress clock
             backend.compile(grid.params, grid.settings)
             progress = Progress(total, config.name, enabled=show_progress, initial=total - left)
-            try:
-                run_chunks(backend, grid.params, grid.y0, grid.settings, todo, run.results,
-                           run.y_final, progress, run.save, stop)  # fmt: skip
-            except KeyboardInterrupt:
-                stop.signum = stop.signum or signal.SIGINT
-            finally:
-                progress.close()
-        if run.saved < left:
-            raise Interrupted(
-                stop.signum,
-                f"interrupted by {signal.Signals(stop.signum).name}: {total - left + run.saved}"
-                f" of {total} runs are saved in {run.folder}; rerun with --resume to continue",
-            )
+            run_saving(backend, grid, todo, run, progress, stop)
+        check_saved(run, total, left, stop)
         if shard:
             elapsed = time.perf_counter() - start_time
             return SweepResult(None, run.folder, elapsed, run.saved, total - left)
@@ -247,31 +240,23 @@ class _ZarrStore:
             ) from None
 
 
-def _reuse_parts(parts_dir, chash, owned, results, y_final, resume):
-    """Fill rows from the valid parts of this config (if ``resume``); return the row mask.
-
-    Unusable parts are reported and removed, so their rows are recomputed.
-    """
-    n = len(results)
-    have = np.zeros(n, bool)
-    groups = store.scan(parts_dir)
-    others = sum(len(v) for h, v in groups.items() if h != chash)
+def _reuse_parts(run, owned, resume):
+    """Fill ``run``'s rows ``owned`` from the valid parts of its config (if ``resume``);
+    return the mask of rows filled. Unusable parts are reported and removed, so their
+    rows are recomputed."""
+    have = np.zeros(run.n, bool)
+    groups = store.scan(run.folder)
+    others = sum(len(v) for h, v in groups.items() if h != run.chash)
     if others:
-        log.info("ignoring %d parts of another config in %s", others, parts_dir)
-    mine = groups.get(chash, [])
+        log.info("ignoring %d parts of another config in %s", others, run.folder)
+    mine = groups.get(run.chash, [])
     if not resume:
         if mine:
             log.info("not reusing %d parts of this sweep in %s (--resume reuses them)",
-                     len(mine), parts_dir)  # fmt: skip
+                     len(mine), run.folder)  # fmt: skip
         return have
-    wanted = np.zeros(n, bool)
-    for a, b in owned:
-        wanted[a:b] = True
-    used, bad = store.fill_from_parts(mine, results, y_final, have, wanted)
-    for path, reason in bad:
-        log.warning("unusable part, its runs will be recomputed: %s", reason)
-        path.unlink(missing_ok=True)
-    log.info("resuming from %s: reusing %d runs from %d parts", parts_dir,
+    used = fill_from_parts(mine, run, have, ranges_mask(run.n, owned))
+    log.info("resuming from %s: reusing %d runs from %d parts", run.folder,
              int(have.sum()), len(used))  # fmt: skip
     return have
 
@@ -332,9 +317,9 @@ def _merge_locked(paths, out):
         problems.extend(f"corrupt part, not merged: {reason}" for _, reason in bad)
         gaps = missing_ranges([(0, n)], have)
         if gaps:
-            rows = ", ".join(f"{a}:{b}" for a, b in gaps[:5]) + (" ..." if len(gaps) > 5 else "")
             problems.append(
-                f"parts {chash} ({config.name}): rows {rows} missing ({n - int(have.sum())} of "
+                f"parts {chash} ({config.name}): rows {rows_missing(gaps)} missing "
+                f"({n - int(have.sum())} of "
                 f"{n} runs); rerun the shards that own them with --resume"
             )
             continue
