@@ -181,7 +181,7 @@ def load_kernels(jobs, processes=None, here=True):
     elsewhere = CACHE and processes > 1
     if elsewhere:
         log.info("compiling (or loading) %d kernels in %d processes ...", len(todo), processes)
-        shares = [todo[i::processes] for i in range(processes)]
+        shares = _shares(todo, processes)
         with ThreadPoolExecutor(processes) as pool:
             for failure in pool.map(_compile_elsewhere, shares):
                 if failure:
@@ -190,6 +190,21 @@ def load_kernels(jobs, processes=None, here=True):
     if here or not elsewhere:
         for job in wanted.values():
             ready_kernel(*job)
+
+
+def _shares(jobs, processes):
+    """``jobs`` of :func:`load_kernels` shared out among ``processes``: the variants that
+    differ only in the tangent or the state size go to the same process, which then
+    compiles the helpers specialised on their codes (model, law, method, coupling,
+    equal blocks) once; the largest of these groups first, each to the process with the
+    fewest variants so far."""
+    groups = {}
+    for job in jobs:
+        groups.setdefault(variant(*job)[:5], []).append(job)
+    shares = [[] for _ in range(processes)]
+    for group in sorted(groups.values(), key=len, reverse=True):
+        min(shares, key=len).extend(group)
+    return shares
 
 
 def _compile_elsewhere(jobs):
