@@ -51,8 +51,13 @@ from .chunks import (
 )
 from .config import Config, parse_config
 from .dataset import build_dataset
-# Interrupted: what run_sweep raises when it is stopped, offered here beside it.
-from .errors import ConfigError, InputError, Interrupted, PartError, RunError  # noqa: F401
+from .errors import (
+    ConfigError,
+    InputError,
+    Interrupted,  # noqa: F401 (what run_sweep raises when it is stopped)
+    PartError,
+    RunError,
+)
 from .grid import build_grid, settings_array, state_size
 from .kernels.layout import result_width
 from .progress import Progress
