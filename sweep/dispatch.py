@@ -11,6 +11,7 @@ import logging
 import os
 import subprocess
 import sys
+import tempfile
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -162,14 +163,15 @@ def load_kernels(jobs, processes=None, here=True):
     (nothing is loaded here unless another process failed).
 
     numba holds one lock over all compiling in a process, so the distinct variants
-    this process has not compiled yet are shared out among up to ``processes`` fresh
-    Python processes (default: one per core), each compiling its share one after
-    another (the helpers that every variant calls are compiled once per process, or
-    loaded from the cache) and writing numba's cache, under its lock
+    this process has not compiled yet are compiled by up to ``processes`` fresh
+    Python processes (default: one per core). They take the groups of
+    :func:`variant_groups` as they come free, each group one variant after another
+    (the helpers that every variant calls are compiled once per process, or loaded
+    from the cache), and write numba's cache, under its lock
     (``accelerate.SourceKeyedCache``); this process then loads them. With the cache
     off (``SWEEP_NUMBA_CACHE=0``), one variant to build or one process, they are
-    compiled here one after another; a share whose process failed is compiled here
-    too (with a warning)."""
+    compiled here one after another; if a process failed, what it left is compiled
+    here (with a warning)."""
     from .accelerate import CACHE, thread_count
 
     wanted = {}
@@ -181,9 +183,10 @@ def load_kernels(jobs, processes=None, here=True):
     elsewhere = CACHE and processes > 1
     if elsewhere:
         log.info("compiling (or loading) %d kernels in %d processes ...", len(todo), processes)
-        shares = _shares(todo, processes)
-        with ThreadPoolExecutor(processes) as pool:
-            for failure in pool.map(_compile_elsewhere, shares):
+        groups = variant_groups(todo)
+        with tempfile.TemporaryDirectory() as claims, ThreadPoolExecutor(processes) as pool:
+            for failure in pool.map(_compile_elsewhere, [groups] * processes,
+                                    [claims] * processes):  # fmt: skip
                 if failure:
                     log.warning("compiling kernels in another process failed: %s", failure)
                     here = True
@@ -192,29 +195,30 @@ def load_kernels(jobs, processes=None, here=True):
             ready_kernel(*job)
 
 
-def _shares(jobs, processes):
-    """``jobs`` of :func:`load_kernels` shared out among ``processes``: the variants that
-    differ only in the tangent or the state size go to the same process, which then
-    compiles the helpers specialised on their codes (model, law, method, coupling,
-    equal blocks) once; the largest of these groups first, each to the process with the
-    fewest variants so far."""
+def variant_groups(jobs):
+    """``jobs`` of :func:`load_kernels` in groups of the variants that differ only in the
+    tangent or the state size, largest first: one process compiles a group, and with
+    it the helpers specialised on the group's codes (model, law, method, coupling,
+    equal blocks) once."""
     groups = {}
     for job in jobs:
         groups.setdefault(variant(*job)[:5], []).append(job)
-    shares = [[] for _ in range(processes)]
-    for group in sorted(groups.values(), key=len, reverse=True):
-        min(shares, key=len).extend(group)
-    return shares
+    return sorted(groups.values(), key=len, reverse=True)
 
 
-def _compile_elsewhere(jobs):
-    """Compile the kernels of (params, settings, tangent) jobs of :func:`load_kernels` in
-    a fresh process, which writes numba's cache; returns None, or the end of its
-    error output if it failed."""
-    spec = json.dumps([
-        {"width": params.shape[1], "settings": settings.tolist(), "tangent": tangent}
-        for params, settings, tangent in jobs
-    ])  # fmt: skip
+def _compile_elsewhere(groups, claims):
+    """Compile, in a fresh process, the groups of (params, settings, tangent) jobs of
+    :func:`load_kernels` that no other process has claimed (a file per group in the
+    folder ``claims``), writing numba's cache; returns None, or the end of its error
+    output if it failed."""
+    spec = json.dumps({
+        "claims": claims,
+        "groups": [
+            [{"width": params.shape[1], "settings": settings.tolist(), "tangent": tangent}
+             for params, settings, tangent in group]
+            for group in groups
+        ],
+    })  # fmt: skip
     env = dict(os.environ)
     package_root = str(Path(__file__).resolve().parents[1])  # this copy of sweep
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [package_root, env.get("PYTHONPATH")]))
@@ -225,7 +229,15 @@ def _compile_elsewhere(jobs):
 
 
 def compile_specs(spec):
-    """Compile in this process, one after another, the kernels that the JSON ``spec`` of
-    :func:`_compile_elsewhere` lists: the other process's side of :func:`load_kernels`."""
-    for job in json.loads(spec):
-        ready_kernel(np.empty((0, job["width"])), np.array(job["settings"]), job["tangent"])
+    """Compile in this process the groups of kernels that the JSON ``spec`` of
+    :func:`_compile_elsewhere` lists, each group it claims first (creating its file in
+    the claims folder; a group another process claimed is left to it), one variant
+    after another: the other process's side of :func:`load_kernels`."""
+    spec = json.loads(spec)
+    for i, group in enumerate(spec["groups"]):
+        try:
+            os.close(os.open(os.path.join(spec["claims"], str(i)), os.O_CREAT | os.O_EXCL))
+        except FileExistsError:
+            continue
+        for job in group:
+            ready_kernel(np.empty((0, job["width"])), np.array(job["settings"]), job["tangent"])

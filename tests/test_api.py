@@ -233,6 +233,40 @@ def test_compile_kernels_builds_variants_side_by_side(tmp_path):
     np.testing.assert_array_equal(side_by_side["period"], here["period"].values)
 
 
+def test_processes_share_variant_groups_each_compiled_once(tmp_path, monkeypatch):
+    """The variants that differ only in the tangent or the state size form one group
+    (one process compiles the helpers specialised on their codes); processes take
+    whole groups, largest first, as they come free, and no group twice: the second
+    process to look finds every group claimed by the first."""
+    from sweep import dispatch
+    from sweep.grid import build_grid
+
+    grids = [
+        build_grid(sweep.with_changes("quick", change))
+        for change in (
+            {},
+            {"blocks": 2, "parameters": {"k2_W": 0.5}},
+            {"integrator": {"method": "dopri5"}},
+        )
+    ]
+    jobs = [(g.params, g.settings, tangent) for g in grids for tangent in (False, True)]
+    groups = dispatch.variant_groups(jobs)
+    assert [len(group) for group in groups] == [4, 2]  # DOP853: 1 and 2 blocks; DOPRI5
+    codes = [{dispatch.variant(*job)[:5] for job in group} for group in groups]
+    assert all(len(c) == 1 for c in codes) and codes[0] != codes[1]
+    spec = json.dumps({"claims": str(tmp_path), "groups": [
+        [{"width": p.shape[1], "settings": s.tolist(), "tangent": t} for p, s, t in group]
+        for group in groups]})  # fmt: skip
+    compiled = []
+    monkeypatch.setattr(dispatch, "ready_kernel", lambda p, s, t: compiled.append((s, t)))
+    os.close(os.open(tmp_path / "0", os.O_CREAT | os.O_EXCL))  # another process took group 0
+    dispatch.compile_specs(spec)
+    assert [(s.tolist(), t) for s, t in compiled] == [(s.tolist(), t) for _, s, t in groups[1]]
+    compiled.clear()
+    dispatch.compile_specs(spec)  # everything claimed: nothing left
+    assert compiled == []
+
+
 @pytest.mark.parametrize("processes", [0, -1, 1.5, True, "2"])
 def test_compile_kernels_rejects_a_bad_process_count(processes):
     with pytest.raises(InputError, match="processes must be a positive integer"):
