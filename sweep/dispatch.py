@@ -164,11 +164,12 @@ def load_kernels(jobs, processes=None, here=True):
 
     numba holds one lock over all compiling in a process, so the distinct variants
     this process has not compiled yet are compiled by up to ``processes`` fresh
-    Python processes (default: one per core). They take the groups of
-    :func:`variant_groups` as they come free, each group one variant after another
-    (the helpers that every variant calls are compiled once per process, or loaded
-    from the cache), and write numba's cache, under its lock
-    (``accelerate.SourceKeyedCache``); this process then loads them. With the cache
+    Python processes (default: one per core), which take them one at a time as they
+    come free (:func:`compile_specs`): each takes a group of :func:`variant_groups`
+    that no other has started and stays in it while it lasts, so the helpers
+    specialised on a group's codes are compiled once; when no group is left to
+    start, it helps with the variants left in the others. They write numba's cache,
+    under its lock (``accelerate.SourceKeyedCache``); this process then loads them. With the cache
     off (``SWEEP_NUMBA_CACHE=0``), one variant to build or one process, they are
     compiled here one after another; if a process failed, what it left is compiled
     here (with a warning)."""
@@ -197,9 +198,8 @@ def load_kernels(jobs, processes=None, here=True):
 
 def variant_groups(jobs):
     """``jobs`` of :func:`load_kernels` in groups of the variants that differ only in the
-    tangent or the state size, largest first: one process compiles a group, and with
-    it the helpers specialised on the group's codes (model, law, method, coupling,
-    equal blocks) once."""
+    tangent or the state size, largest first: the variants that call the same helpers
+    specialised on their codes (model, law, method, coupling, equal blocks)."""
     groups = {}
     for job in jobs:
         groups.setdefault(variant(*job)[:5], []).append(job)
@@ -207,10 +207,10 @@ def variant_groups(jobs):
 
 
 def _compile_elsewhere(groups, claims):
-    """Compile, in a fresh process, the groups of (params, settings, tangent) jobs of
-    :func:`load_kernels` that no other process has claimed (a file per group in the
-    folder ``claims``), writing numba's cache; returns None, or the end of its error
-    output if it failed."""
+    """Compile, in a fresh process, the kernels of the groups of (params, settings,
+    tangent) jobs of :func:`load_kernels` that no other process has claimed
+    (:func:`compile_specs`; claims are files in the folder ``claims``), writing numba's
+    cache; returns None, or the end of its error output if it failed."""
     spec = json.dumps({
         "claims": claims,
         "groups": [
@@ -229,15 +229,30 @@ def _compile_elsewhere(groups, claims):
 
 
 def compile_specs(spec):
-    """Compile in this process the groups of kernels that the JSON ``spec`` of
-    :func:`_compile_elsewhere` lists, each group it claims first (creating its file in
-    the claims folder; a group another process claimed is left to it), one variant
-    after another: the other process's side of :func:`load_kernels`."""
+    """Compile in this process the kernels of the JSON ``spec`` of
+    :func:`_compile_elsewhere` that no other process has claimed: the other process's
+    side of :func:`load_kernels`. First each group that no process has started (claim
+    ``<group>``), its variants one at a time (claim ``<group>-<variant>``); then the
+    variants still unclaimed in the groups that others started. A claim is a file
+    created in the claims folder, by one process only (``O_EXCL``)."""
     spec = json.loads(spec)
-    for i, group in enumerate(spec["groups"]):
+    groups = spec["groups"]
+
+    def claim(name):
         try:
-            os.close(os.open(os.path.join(spec["claims"], str(i)), os.O_CREAT | os.O_EXCL))
+            os.close(os.open(os.path.join(spec["claims"], name), os.O_CREAT | os.O_EXCL))
         except FileExistsError:
-            continue
-        for job in group:
-            ready_kernel(np.empty((0, job["width"])), np.array(job["settings"]), job["tangent"])
+            return False
+        return True
+
+    def take(g):
+        for v, job in enumerate(groups[g]):
+            if claim(f"{g}-{v}"):
+                ready_kernel(np.empty((0, job["width"])), np.array(job["settings"]),
+                             job["tangent"])  # fmt: skip
+
+    for g in range(len(groups)):  # a group of its own, when done with one, ...
+        if claim(str(g)):
+            take(g)
+    for g in range(len(groups)):  # ... then what is left in the others'
+        take(g)

@@ -235,9 +235,9 @@ def test_compile_kernels_builds_variants_side_by_side(tmp_path):
 
 def test_processes_share_variant_groups_each_compiled_once(tmp_path, monkeypatch):
     """The variants that differ only in the tangent or the state size form one group
-    (one process compiles the helpers specialised on their codes); processes take
-    whole groups, largest first, as they come free, and no group twice: the second
-    process to look finds every group claimed by the first."""
+    (they call the same helpers specialised on their codes). A process takes a group no
+    other has started, its variants one at a time, and when none is left to start,
+    helps with the variants left in the others': every variant compiled once."""
     from sweep import dispatch
     from sweep.grid import build_grid
 
@@ -254,16 +254,18 @@ def test_processes_share_variant_groups_each_compiled_once(tmp_path, monkeypatch
     assert [len(group) for group in groups] == [4, 2]  # DOP853: 1 and 2 blocks; DOPRI5
     codes = [{dispatch.variant(*job)[:5] for job in group} for group in groups]
     assert all(len(c) == 1 for c in codes) and codes[0] != codes[1]
-    spec = json.dumps({"claims": str(tmp_path), "groups": [
+    spec = {"claims": str(tmp_path), "groups": [
         [{"width": p.shape[1], "settings": s.tolist(), "tangent": t} for p, s, t in group]
-        for group in groups]})  # fmt: skip
+        for group in groups]}  # fmt: skip
     compiled = []
     monkeypatch.setattr(dispatch, "ready_kernel", lambda p, s, t: compiled.append((s, t)))
-    os.close(os.open(tmp_path / "0", os.O_CREAT | os.O_EXCL))  # another process took group 0
-    dispatch.compile_specs(spec)
-    assert [(s.tolist(), t) for s, t in compiled] == [(s.tolist(), t) for _, s, t in groups[1]]
+    for name in ("0", "0-0"):  # another process started group 0 and took its first
+        os.close(os.open(tmp_path / name, os.O_CREAT | os.O_EXCL))
+    dispatch.compile_specs(json.dumps(spec))
+    expected = [*groups[1], *groups[0][1:]]
+    assert [(s.tolist(), t) for s, t in compiled] == [(s.tolist(), t) for _, s, t in expected]
     compiled.clear()
-    dispatch.compile_specs(spec)  # everything claimed: nothing left
+    dispatch.compile_specs(json.dumps(spec))  # all claimed: nothing left
     assert compiled == []
 
 
