@@ -211,14 +211,7 @@ def _compile_elsewhere(groups, claims):
     tangent) jobs of :func:`load_kernels` that no other process has claimed
     (:func:`compile_specs`; claims are files in the folder ``claims``), writing numba's
     cache; returns None, or the end of its error output if it failed."""
-    spec = json.dumps({
-        "claims": claims,
-        "groups": [
-            [{"width": params.shape[1], "settings": settings.tolist(), "tangent": tangent}
-             for params, settings, tangent in group]
-            for group in groups
-        ],
-    })  # fmt: skip
+    spec = compile_spec(groups, claims)
     env = dict(os.environ)
     package_root = str(Path(__file__).resolve().parents[1])  # this copy of sweep
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [package_root, env.get("PYTHONPATH")]))
@@ -228,10 +221,23 @@ def _compile_elsewhere(groups, claims):
     return None if proc.returncode == 0 else proc.stderr.strip()[-500:]
 
 
+def compile_spec(groups, claims):
+    """The JSON that :func:`compile_specs` reads: the groups of (params, settings, tangent)
+    jobs (each job by its width, settings and tangent) and the claims folder."""
+    return json.dumps({
+        "claims": str(claims),
+        "groups": [
+            [{"width": params.shape[1], "settings": settings.tolist(), "tangent": tangent}
+             for params, settings, tangent in group]
+            for group in groups
+        ],
+    })  # fmt: skip
+
+
 def compile_specs(spec):
-    """Compile in this process the kernels of the JSON ``spec`` of
-    :func:`_compile_elsewhere` that no other process has claimed: the other process's
-    side of :func:`load_kernels`. First each group that no process has started (claim
+    """Compile in this process the kernels of the JSON ``spec`` (:func:`compile_spec`)
+    that no other process has claimed: the other process's side of
+    :func:`load_kernels`. First each group that no process has started (claim
     ``<group>``), its variants one at a time (claim ``<group>-<variant>``); then the
     variants still unclaimed in the groups that others started. A claim is a file
     created in the claims folder, by one process only (``O_EXCL``)."""

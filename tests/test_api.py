@@ -254,18 +254,16 @@ def test_processes_share_variant_groups_each_compiled_once(tmp_path, monkeypatch
     assert [len(group) for group in groups] == [4, 2]  # DOP853: 1 and 2 blocks; DOPRI5
     codes = [{dispatch.variant(*job)[:5] for job in group} for group in groups]
     assert all(len(c) == 1 for c in codes) and codes[0] != codes[1]
-    spec = {"claims": str(tmp_path), "groups": [
-        [{"width": p.shape[1], "settings": s.tolist(), "tangent": t} for p, s, t in group]
-        for group in groups]}  # fmt: skip
+    spec = dispatch.compile_spec(groups, tmp_path)
     compiled = []
     monkeypatch.setattr(dispatch, "ready_kernel", lambda p, s, t: compiled.append((s, t)))
     for name in ("0", "0-0"):  # another process started group 0 and took its first
         os.close(os.open(tmp_path / name, os.O_CREAT | os.O_EXCL))
-    dispatch.compile_specs(json.dumps(spec))
+    dispatch.compile_specs(spec)
     expected = [*groups[1], *groups[0][1:]]
     assert [(s.tolist(), t) for s, t in compiled] == [(s.tolist(), t) for _, s, t in expected]
     compiled.clear()
-    dispatch.compile_specs(json.dumps(spec))  # all claimed: nothing left
+    dispatch.compile_specs(spec)  # all claimed: nothing left
     assert compiled == []
 
 
