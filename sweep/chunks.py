@@ -10,7 +10,7 @@ from __future__ import annotations
 import logging
 import math
 import signal
-from contextlib import closing
+from contextlib import closing, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -47,6 +47,21 @@ class StopRequest:
             "received %s: stopping after the chunks in progress (again to stop at once)",
             signal.Signals(signum).name,
         )
+
+
+@contextmanager
+def stop_on_signals(signums=(signal.SIGINT, signal.SIGTERM)):
+    """Within the block, SIGINT/SIGTERM set the yielded :class:`StopRequest`.
+
+    For command-line use: nothing is installed on import.
+    """
+    stop = StopRequest()
+    old = {s: signal.signal(s, stop) for s in signums}
+    try:
+        yield stop
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
 
 
 @dataclass

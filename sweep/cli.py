@@ -301,9 +301,10 @@ def summary_lines(ds):
 
 def cmd_run(args):
     from .backends import Resources
+    from .chunks import stop_on_signals
     from .config import load_config
     from .errors import Interrupted
-    from .runner import run_sweep, stop_on_signals
+    from .runner import run_sweep
 
     config = refine_options(load_config(args.config), args.refine, args.max_runs)
     if args.threads and (args.scheduler or args.dask_local):

@@ -21,9 +21,8 @@ from __future__ import annotations
 
 import logging
 import math
-import signal
 import time
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack
 from pathlib import Path
 
 import numpy as np
@@ -63,21 +62,6 @@ from .kernels.layout import result_width
 from .progress import Progress
 
 log = logging.getLogger(__name__)
-
-
-@contextmanager
-def stop_on_signals(signums=(signal.SIGINT, signal.SIGTERM)):
-    """Within the block, SIGINT/SIGTERM set the yielded :class:`StopRequest`.
-
-    For command-line use: nothing is installed on import.
-    """
-    stop = StopRequest()
-    old = {s: signal.signal(s, stop) for s in signums}
-    try:
-        yield stop
-    finally:
-        for s, handler in old.items():
-            signal.signal(s, handler)
 
 
 def compute(config, threads=None, chunk_size=None, show_progress=True, client=None,

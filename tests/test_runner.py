@@ -228,7 +228,7 @@ def test_a_second_ctrl_c_stops_at_once(quick, tmp_path, monkeypatch, signals, sa
     monkeypatch.setattr(store, "write_part", interrupted_write)
     out = tmp_path / "r.nc"
     with (
-        runner.stop_on_signals() as stop,
+        chunks.stop_on_signals() as stop,
         pytest.raises(runner.Interrupted, match=f"SIGINT: {saved} of 9 runs are saved") as info,
     ):
         runner.run_sweep(quick, out=out, chunk_size=2, resources=Resources(threads=1),
