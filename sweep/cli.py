@@ -61,6 +61,13 @@ def _finite_number(low_open):
     return parse
 
 
+def _path(text):
+    """An argparse type: a path that is not empty."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("must be a path, got an empty string")
+    return text
+
+
 _positive_int = _integer_at_least(1)
 _count = _integer_at_least(0)
 _fraction = _finite_number(low_open=False)
@@ -93,6 +100,7 @@ def build_parser():
     )
     run.add_argument(
         "--out",
+        type=_path,
         help="output path (default: the config's output): .nc for NetCDF, or .zarr for a Zarr "
         "store written chunk by chunk, readable while the sweep runs (needs rsf-sweep[zarr])",
     )
@@ -130,7 +138,7 @@ def build_parser():
     )
     merge = sub.add_parser("merge", help="assemble a NetCDF result from the parts of shards")
     merge.add_argument("parts", nargs="+", metavar="PARTS", help="part files or folders of parts")
-    merge.add_argument("--out", required=True, help="output NetCDF path")
+    merge.add_argument("--out", type=_path, required=True, help="output NetCDF path")
     add_check_commands(sub)
     add_figure_commands(sub)
     return parser
@@ -151,7 +159,7 @@ def add_check_commands(sub):
         "--t-end", type=_positive_float, metavar="T",
         help="new end time, in the config's t_unit (default: 4x the time undecided runs reached)",
     )  # fmt: skip
-    ext.add_argument("--out", help="output NetCDF (default: replace RESULT)")
+    ext.add_argument("--out", type=_path, help="output NetCDF (default: replace RESULT)")
     ext.add_argument("--threads", type=_threads, help="threads (default: all cores)")
     aud = sub.add_parser(
         "audit",
@@ -233,7 +241,7 @@ def add_figure_commands(sub):
         "(member=INDEX for an ensemble; axes not given at their first value)",
     )
     plot.add_argument(
-        "--out", help="output .png, .pdf or .svg (default: the result's path with .png)"
+        "--out", type=_path, help="output .png, .pdf or .svg (default: the result's path with .png)"
     )
     _add_dpi(plot)
     trace = sub.add_parser("trace", help="time series of one system of a config (NetCDF + figure)")
@@ -251,15 +259,19 @@ def add_figure_commands(sub):
     trace.add_argument(
         "--points", type=_positive_int, default=4000, help="time bins of the series (default 4000)"
     )
-    trace.add_argument("--out", help="output NetCDF (default results/<name>_trace_<at>.nc)")
     trace.add_argument(
-        "--png", help="output .png, .pdf or .svg (default: the NetCDF path with .png)"
+        "--out", type=_path, help="output NetCDF (default results/<name>_trace_<at>.nc)"
+    )
+    trace.add_argument(
+        "--png", type=_path, help="output .png, .pdf or .svg (default: the NetCDF path with .png)"
     )
     _add_dpi(trace)
     bif = sub.add_parser("bifurcation", help="amplitude against K/Kc of 1-D sweeps")
     bif.add_argument("results", nargs="+", help="result NetCDF files, one curve per model")
     bif.add_argument(
-        "--out", help="output .png, .pdf or .svg (default: <first result>_bifurcation.png)"
+        "--out",
+        type=_path,
+        help="output .png, .pdf or .svg (default: <first result>_bifurcation.png)",
     )
     _add_dpi(bif)
     comp = sub.add_parser(
@@ -278,7 +290,7 @@ def add_figure_commands(sub):
     figs.add_argument(
         "--config", default="paper", help="the paper config (default: the packaged example paper)"
     )
-    figs.add_argument("--out-dir", default="results", help="folder for the figures")
+    figs.add_argument("--out-dir", type=_path, default="results", help="folder for the figures")
     figs.add_argument(
         "--format", choices=("png", "pdf", "svg"), default="png", help="file type (default png)"
     )
@@ -591,6 +603,15 @@ def main(argv=None):
     except RunError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
+    except MemoryError as exc:
+        detail = f": {exc}" if str(exc) else ""
+        print(f"error: not enough memory{detail}; a sweep's arrays are held in memory: make "
+              "the grid smaller or split it into several configs", file=sys.stderr)  # fmt: skip
+        return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+
+
+if __name__ == "__main__":  # python -m sweep.cli, as python -m sweep
+    sys.exit(main())

@@ -14,7 +14,7 @@ import dataclasses
 import math
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Hashable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -60,12 +60,35 @@ TOP_LEVEL_KEYS = (
 )
 #: ``source`` of a config given as a mapping (no file): provenance says so.
 MAPPING_SOURCE = "<mapping>"
-#: Largest step budget: step counts are stored as 32-bit integers (CF-1.11 files).
-MAX_STEPS_LIMIT = 2**31 - 1
+#: Largest integer setting: integers are stored as 32-bit integers (CF-1.11 files).
+INT32_MAX = 2**31 - 1
+#: Largest step budget (step counts are stored as 32-bit integers too).
+MAX_STEPS_LIMIT = INT32_MAX
+#: Most blocks a config may have: every run holds per-block rows of this length.
+MAX_BLOCKS = 100_000
+#: Most points of one range axis, and most runs of a whole sweep (ensemble members
+#: included): a config past them is refused before any array is built.
+MAX_AXIS_POINTS = 10_000_000
+MAX_RUNS = 1_000_000_000
 
 
 class _Loader(yaml.SafeLoader):
-    """YAML 1.1 loader that also reads ``1e6`` and ``1.0e-8`` as floats (YAML 1.2 style)."""
+    """YAML 1.1 loader that also reads ``1e6`` and ``1.0e-8`` as floats (YAML 1.2 style)
+    and refuses a key given twice in one mapping (plain YAML keeps the last silently)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = {}
+        for key_node, _ in node.value:
+            if not isinstance(key_node, yaml.ScalarNode) or key_node.tag.endswith(":merge"):
+                continue
+            key = self.construct_object(key_node)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {key!r} is given twice in one mapping (first on line "
+                    f"{seen[key] + 1}; YAML would keep only the last)", key_node.start_mark,
+                )  # fmt: skip
+            seen[key] = key_node.start_mark.line
+        return super().construct_mapping(node, deep)
 
 
 _Loader.add_implicit_resolver(
@@ -200,7 +223,7 @@ class Classification:
     )  # fmt: skip
     accuracy: float = setting(1e-3, "relative accuracy of the extrapolated limit", "(0, 0.5]")
     confirm_cycles: int = setting(2, "consecutive cycles a verdict must hold to stop early",
-                                  "[1, inf)")  # fmt: skip
+                                  f"[1, {INT32_MAX}]")  # fmt: skip
     max_t_end: float = setting(None, "unsettled runs go on up to this time", "(0, inf)",
                                "t_unit", "10 × t_end")  # fmt: skip
     early_exit: bool = setting(True, "stop each run as soon as its regime is settled",
@@ -451,16 +474,16 @@ class _Checker:
             return None
         return value
 
-    def integer(self, value, key, low, high=None):
-        bad = isinstance(value, bool) or not isinstance(value, int)
-        if bad or value < low or (high is not None and value > high):
-            allowed = f"in [{low}, {high}]" if high is not None else f">= {low}"
-            self.add(f"{key} must be an integer {allowed}, got {value!r}")
+    def integer(self, value, key, low, high=INT32_MAX):
+        """An integer in [low, high] (files store 32-bit integers), or None after
+        recording the problem."""
+        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+            self.add(f"{key} must be an integer in [{low}, {high}], got {value!r}")
             return None
         return value
 
     def choice(self, value, key, allowed):
-        if value not in allowed:
+        if not isinstance(value, Hashable) or value not in allowed:
             self.add(f"{key} must be one of {', '.join(map(str, allowed))}; got {value!r}")
             return None
         return value
@@ -488,7 +511,7 @@ class _Checker:
             return self.choice(value, key, spec.allowed)
         low, low_open, high, high_open = spec.bounds()
         if kind is int:
-            return self.integer(value, key, int(low), None if math.isinf(high) else int(high))
+            return self.integer(value, key, int(low), INT32_MAX if math.isinf(high) else int(high))
         return self.number(value, key, low, low_open, high, high_open)
 
     def section(self, spec, prefix, cls, defaults, given=None):
@@ -533,14 +556,31 @@ def load_config(config: str | os.PathLike | Mapping[str, Any] | Config) -> Confi
         return parse_config(config)
     from . import examples
 
+    if not isinstance(config, (str, os.PathLike)) or not os.fspath(config):
+        what = "an empty path" if isinstance(config, (str, os.PathLike)) else type(config).__name__
+        raise ConfigError(
+            "<config>",
+            [
+                f"a config must be a YAML file's path, a packaged "
+                f"example's name, a mapping or a Config; got {what}"
+            ],
+        )
     path = Path(config)
     if not path.exists() and examples.is_example(str(config)):
         path = examples.path(str(config))
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except OSError as exc:
         hint = f" (packaged examples: {', '.join(examples.names())})" if not path.exists() else ""
         raise ConfigError(path, [f"cannot read config: {exc.strerror or exc}{hint}"]) from None
+    except UnicodeDecodeError:
+        raise ConfigError(
+            path,
+            [
+                "cannot read config: not UTF-8 text; a config is a YAML file "
+                "(a result, .nc, is opened with xarray.open_dataset)"
+            ],
+        ) from None
     return parse_config(text, source=str(path))
 
 
@@ -624,7 +664,7 @@ def _validate(raw, text, source):
         description = ""
     if "blocks" not in raw:
         c.add("missing key blocks (number of blocks: 1, 2, or more for an open chain)")
-    blocks = c.integer(raw.get("blocks", 1), "blocks", 1) or 1
+    blocks = c.integer(raw.get("blocks", 1), "blocks", 1, MAX_BLOCKS) or 1
     model = c.choice(raw.get("model", "quasi-static"), "model", MODELS) or "quasi-static"
     coupling = _parse_coupling(c, raw, blocks)
     law = c.choice(raw.get("state_law", "aging"), "state_law", STATE_LAWS) or "aging"
@@ -639,6 +679,7 @@ def _validate(raw, text, source):
     if model == "inertial":
         _check_mass(c, params, axes)
     initial = _parse_initial(c, raw, blocks)
+    _check_runs(c, axes, initial.ensemble)
     if not c.problems:
         _check_spread_values(c, params, spread, axes, blocks)
     integrator = _parse_integrator(c, raw, model)
@@ -810,7 +851,7 @@ def _parse_sweep(c, raw):
     for name, spec in sweep.items():
         key = f"sweep.{name}"
         if name in SPREAD_AXES:
-            values, span = _axis_values(c, spec, key)
+            values, span = _axis_values(c, spec, key, 0.0, False)
             if values is not None and all(
                 c.number(v, f"{key}[{i}]", low=0.0) is not None for i, v in enumerate(values)
             ):
@@ -820,7 +861,7 @@ def _parse_sweep(c, raw):
             allowed = ", ".join((*PARAMETERS, *SPREAD_AXES))
             c.add(f"unknown sweep axis {key}; allowed: {allowed}")
             continue
-        values, span = _axis_values(c, spec, key)
+        values, span = _axis_values(c, spec, key, PARAMETERS[name].low, PARAMETERS[name].low_open)
         if values is None:
             continue
         # check what the user wrote (a range's ends, or each listed value): an interval
@@ -835,9 +876,21 @@ def _parse_sweep(c, raw):
     return axes
 
 
-def _axis_values(c, spec, key):
+def _check_runs(c, axes, ensemble):
+    """At most ``MAX_RUNS`` runs in the whole sweep, ensemble members included."""
+    runs = math.prod(len(a.values) for a in axes) * max(1, ensemble)
+    if runs > MAX_RUNS:
+        sizes = " × ".join([*(f"{len(a.values)} {a.name}" for a in axes),
+                            *([f"{ensemble} members"] if ensemble else [])])  # fmt: skip
+        c.add(f"the sweep has {runs:.3g} runs ({sizes}), more than {MAX_RUNS:.0e}: split it "
+              "into several configs, or refine where the labels change (refine:)")  # fmt: skip
+
+
+def _axis_values(c, spec, key, low, low_open):
     """Values of one axis and its span (see :class:`Axis`): a list, {values: [...]}, or
-    {start, stop, num[, scale]}; ``(None, ())`` after a problem."""
+    {start, stop, num[, scale]}; ``(None, ())`` after a problem. A range's ends are
+    checked against the axis's lower bound ``low`` (open or not); listed values are
+    checked by the caller, each under its own key."""
     if isinstance(spec, list):
         spec = {"values": spec}
     if not isinstance(spec, dict):
@@ -849,8 +902,9 @@ def _axis_values(c, spec, key):
         if not isinstance(values, list) or not values:
             c.add(f"{key}.values must be a non-empty list of numbers, got {values!r}")
             return None, ()
-        if len(set(v for v in values if isinstance(v, (int, float)))) != len(values):
-            c.add(f"{key}.values must be distinct numbers, got {values!r}")
+        numbers = [v for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)]
+        if len(set(numbers)) != len(numbers):
+            c.add(f"{key}.values must be distinct, got {values!r}")
             return None, ()
         return values, ()
     c.unknown(spec, key, ("start", "stop", "num", "scale"))
@@ -858,9 +912,9 @@ def _axis_values(c, spec, key):
     if missing:
         c.add(f"{key} is missing {', '.join(missing)} (give start, stop and num, or values)")
         return None, ()
-    start = c.number(spec["start"], f"{key}.start")
-    stop = c.number(spec["stop"], f"{key}.stop")
-    num = c.integer(spec["num"], f"{key}.num", 1)
+    start = c.number(spec["start"], f"{key}.start", low, low_open)
+    stop = c.number(spec["stop"], f"{key}.stop", low, low_open)
+    num = c.integer(spec["num"], f"{key}.num", 1, MAX_AXIS_POINTS)
     scale = c.choice(spec.get("scale", "linear"), f"{key}.scale", ("linear", "log"))
     if None in (start, stop, num, scale):
         return None, ()
@@ -1045,7 +1099,7 @@ def _parse_initial(c, raw, blocks):
     v = _per_block(c, spec.get("v_over_V", d.v_over_V[0]), "initial.v_over_V", blocks)
     phi = spec.get("phi_over_phi_ss", d.phi_over_phi_ss[0])
     phi = _per_block(c, phi, "initial.phi_over_phi_ss", blocks)
-    ensemble = c.integer(spec.get("ensemble", d.ensemble), "initial.ensemble", 0)
+    ensemble = c.integer(spec.get("ensemble", d.ensemble), "initial.ensemble", 0, MAX_RUNS)
     seed = c.integer(spec.get("seed", d.seed), "initial.seed", 0)
     amplitude = c.number(spec.get("amplitude", d.amplitude), "initial.amplitude", low=0.0)
     if None in (v, phi, ensemble, seed, amplitude):  # a problem was recorded: rejected

@@ -261,6 +261,14 @@ def extend_file(
     """
     if out is None and Path(path).suffix == ZARR_SUFFIX:
         raise InputError(path, ["extend writes NetCDF: give --out PATH.nc to extend a Zarr store"])
+    if Path(path).suffix not in (".nc", ZARR_SUFFIX):
+        raise InputError(
+            path,
+            [
+                "extend reads a result file (.nc, or a .zarr store with --out); "
+                "a config is run with rsf-sweep run"
+            ],
+        )
     out = path if out is None else out
     check_writable(out, path, "--out")
     with output_lock(out):

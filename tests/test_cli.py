@@ -133,11 +133,47 @@ def test_bad_config_subprocess_exit_status(tmp_path):
     assert proc.stdout == ""
 
 
-@pytest.mark.parametrize("option", [["--threads", "0"], ["--chunk-size", "0"], ["--bogus"]])
+@pytest.mark.parametrize(
+    "option", [["--threads", "0"], ["--chunk-size", "0"], ["--bogus"], ["--out", ""]]
+)
 def test_bad_arguments_exit_2(option, capsys):
     with pytest.raises(SystemExit) as info:
         cli.main(["run", str(QUICK), *option])
     assert info.value.code == 2
+
+
+def test_an_empty_out_is_refused_not_replaced_by_the_default(capsys):
+    """``--out ""`` used to write the config's default output instead."""
+    with pytest.raises(SystemExit):
+        cli.main(["run", str(QUICK), "--out", ""])
+    assert "argument --out: must be a path, got an empty string" in capsys.readouterr().err
+
+
+def test_extend_of_a_config_says_it_reads_results(capsys):
+    assert cli.main(["extend", str(QUICK)]) == 2
+    err = capsys.readouterr().err
+    assert f"{QUICK}: extend reads a result file (.nc" in err
+    assert "must be a file name" not in err  # it used to blame an --out never given
+
+
+def test_out_of_memory_is_an_error_message_not_a_traceback(monkeypatch, capsys):
+    """A grid too large for memory (numpy's MemoryError) ends with a message and exit 1."""
+
+    def too_large(args):
+        raise MemoryError("Unable to allocate 74.5 GiB for an array with shape (10000000000,)")
+
+    monkeypatch.setitem(cli.COMMANDS, "run", too_large)
+    assert cli.main(["run", str(QUICK)]) == 1
+    err = capsys.readouterr().err
+    assert (
+        err.startswith("error: not enough memory: Unable to allocate 74.5 GiB")
+        and "Trace" not in err
+    )
+
+
+def test_python_m_sweep_cli_runs_the_command_line(tmp_path):
+    proc = run(["-m", "sweep.cli", "run", str(tmp_path / "missing.yaml")], tmp_path)
+    assert proc.returncode == 2 and "cannot read config" in proc.stderr
 
 
 def test_compile_loads_every_configs_kernels(tmp_path, capsys):

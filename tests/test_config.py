@@ -89,6 +89,17 @@ BAD_CONFIGS = [
     ("refine rtol zero", {"refine": {"rtol": 0}}, "refine.rtol"),
     ("refine to zarr", {"refine": {}, "output": "results/test.zarr"}, "output"),
     ("refine one value per axis", {"refine": {}, "sweep": {"K_W": [0.05]}}, "refine"),
+    ("method as a list", {"integrator": {"method": ["dop853"]}}, "integrator.method"),
+    ("method as a mapping", {"integrator": {"method": {"dop853": 1}}}, "integrator.method"),
+    ("confirm_cycles past 32 bits", {"classification": {"confirm_cycles": 3_000_000_000}},
+     "classification.confirm_cycles"),
+    ("seed past 32 bits", {"initial": {"ensemble": 2, "seed": 2**32 - 1}}, "initial.seed"),
+    ("blocks past the limit", {"blocks": 10**12}, "blocks"),
+    ("axis of 1e12 points", {"sweep": {"K_W": {"start": 0.04, "stop": 0.06, "num": 10**12}}},
+     "sweep.K_W.num"),
+    ("ensemble of 1e12", {"initial": {"ensemble": 10**12}}, "initial.ensemble"),
+    ("1e10 runs", {"sweep": {"K_W": {"start": 0.04, "stop": 0.06, "num": 100_000}},
+                   "initial": {"ensemble": 100_000}}, "the sweep has 1e+10 runs"),
 ]  # fmt: skip
 
 
@@ -221,6 +232,52 @@ def test_output_directory_is_refused(in_tmp, capsys):
     (in_tmp / "dir.nc").mkdir()
     status, captured = run_cli(["run", str(path), "--quiet", "--out", "dir.nc"], capsys)
     assert status == 2 and "is a directory" in captured.err
+
+
+def test_bad_axis_names_its_real_interval_and_each_bad_value():
+    """A range end that is not a number is named with the parameter's interval, and
+    listed values that are not numbers each with their index (not as "not distinct")."""
+    with pytest.raises(ConfigError) as info:
+        make_config(sweep={"K_W": {"start": "abc", "stop": 0.06, "num": 3}})
+    assert info.value.problems == ["sweep.K_W.start must be a number in (0, inf), got 'abc'"]
+    with pytest.raises(ConfigError) as info:
+        make_config(sweep={"K_W": ["a", 0.05, True]})
+    assert info.value.problems == [
+        "sweep.K_W[0] must be a number in (0, inf), got 'a'",
+        "sweep.K_W[2] must be a number in (0, inf), got True",
+    ]
+    with pytest.raises(ConfigError, match=r"sweep.K_W.values must be distinct, got \[0.05, 0.05\]"):
+        make_config(sweep={"K_W": [0.05, 0.05]})
+
+
+@pytest.mark.parametrize("where", ["top", "parameters", "sweep"])
+def test_a_key_given_twice_is_refused(in_tmp, sentinel_output, capsys, where):
+    """YAML keeps the last of a repeated key silently; a config names it and its lines
+    instead, and nothing is run or overwritten."""
+    text = write_config(in_tmp / "c.yaml").read_text()
+    repeated = {"top": ("blocks: 1\n", "blocks: 1\nblocks: 2\n", "'blocks'"),
+                "parameters": ("  A: ", "  A: 0.5\n  A: ", "'A'"),
+                "sweep": ("sweep:\n", "sweep:\n  K_W: [0.04]\n", "'K_W'")}[where]  # fmt: skip
+    assert text.count(repeated[0]) == 1
+    path = in_tmp / "twice.yaml"
+    path.write_text(text.replace(repeated[0], repeated[1]))
+    status, captured = run_cli(["run", str(path), "--quiet"], capsys)
+    assert status == 2 and str(path) in captured.err
+    assert f"key {repeated[2]} is given twice" in captured.err, captured.err
+    assert sentinel_output.read_bytes() == SENTINEL
+
+
+@pytest.mark.parametrize("given", [None, 123, [1, 2], b"blocks: 1", ""])
+def test_load_config_of_something_else_says_what_a_config_is(given):
+    with pytest.raises(ConfigError, match="a config must be a YAML file's path, a packaged"):
+        load_config(given)
+
+
+def test_a_result_file_given_as_config_exits_2(in_tmp, capsys):
+    path = in_tmp / "result.nc"
+    path.write_bytes(b"\x89HDF\r\n\x1a\n\xff\xfe binary")
+    status, captured = run_cli(["run", str(path)], capsys)
+    assert status == 2 and f"{path}: cannot read config: not UTF-8 text" in captured.err
 
 
 def test_missing_config_file_exits_2(in_tmp, capsys):
@@ -385,7 +442,7 @@ def test_refine_errors_say_what_is_allowed():
     problems = info.value.problems
     assert "refine.levels must be an integer in [0, 20], got -1" in problems
     assert (
-        "refine.max_runs must be an integer >= 2, got 1 (the 2 runs of the grid come "
+        "refine.max_runs must be an integer in [2, 2147483647], got 1 (the 2 runs of the grid come "
         "first)" in problems
     )
     assert "refine.rtol must be in (0, inf), got -0.1" in problems
