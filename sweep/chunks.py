@@ -152,7 +152,11 @@ def run_saving(backend, grid, ranges, run, progress, stop):
 def check_saved(run, total, left, stop, where=""):
     """Raise :class:`Interrupted` when ``run`` saved fewer than the ``left`` runs it was
     to run (a stop request), saying how many of ``total`` are kept and where; ``where``
-    (e.g. ``"level 2: "``) says which part of the work stopped."""
+    (e.g. ``"level 2: "``) says which part of the work stopped. A stop that came after
+    the last chunk had finished stopped nothing here, and says so."""
+    if stop and run.saved >= left:
+        log.warning("%s%s came after every chunk had finished", where,
+                    signal.Signals(stop.signum).name)  # fmt: skip
     if run.saved < left:
         raise Interrupted(
             stop.signum,

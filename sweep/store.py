@@ -31,7 +31,9 @@ never mixes with old parts. Parts store their row range, so parts written with
 another chunk size (or by other shards) can still be used row by row.
 """
 
+import contextlib
 import fcntl
+import glob
 import hashlib
 import json
 import os
@@ -121,12 +123,18 @@ def output_lock(output, shared=False):
     :class:`OutputBusy` naming the process that last took it (pid, host, command,
     start time, as each holder writes into the lock file). The operating system releases the
     lock when the holder exits, even after ``kill -9``; an exclusive holder removes the
-    file when it is done.
+    file when it is done, and on taking it the temporary files of ``output`` that a
+    writer killed before its rename left behind (:func:`replaced_atomically`): nobody
+    else can be writing them.
     """
     output = Path(output)
     lock_path = output.with_name(f".{output.name}.lock")
     handle = _locked_file(lock_path, shared, output)
     try:
+        if not shared:
+            for stale in output.parent.glob(f".{glob.escape(output.name)}.*.tmp"):
+                with contextlib.suppress(OSError):
+                    stale.unlink()
         handle.seek(0)
         handle.truncate()  # the newest holder names itself (with shards: one of them)
         handle.write(

@@ -213,6 +213,28 @@ def test_stop_request_keeps_finished_chunks_and_resume_completes(
     assert_same_file(out, quick_reference_file)
 
 
+def test_ctrl_c_after_the_last_chunk_writes_the_result_and_says_so(
+    quick, quick_reference_file, tmp_path, monkeypatch, caplog
+):
+    """Ctrl-C while the last chunk's part is written stops nothing: the result is
+    written whole, and the warning printed on the signal is followed by one saying so."""
+    write_part = store.write_part
+
+    def last_write_interrupted(directory, config, chash, start, stop_row, *args, **kwargs):
+        if stop_row == 9:  # rows 8:9, the last chunk
+            signal.raise_signal(signal.SIGINT)
+        return write_part(directory, config, chash, start, stop_row, *args, **kwargs)
+
+    monkeypatch.setattr(store, "write_part", last_write_interrupted)
+    out = tmp_path / "r.nc"
+    with chunks.stop_on_signals() as stop, caplog.at_level("WARNING"):
+        runner.run_sweep(quick, out=out, chunk_size=2, resources=Resources(threads=1),
+                         show_progress=False, stop=stop)  # fmt: skip
+    assert stop.signum == signal.SIGINT
+    assert "SIGINT came after every chunk had finished" in caplog.text
+    assert_same_file(out, quick_reference_file)
+
+
 @pytest.mark.parametrize("signals, saved", [(1, 2), (2, 0)])
 def test_a_second_ctrl_c_stops_at_once(quick, tmp_path, monkeypatch, signals, saved):
     """Ctrl-C (real SIGINTs, through the CLI's handler) while the first chunk's part is

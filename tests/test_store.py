@@ -1,6 +1,9 @@
 """The chunk store: part files are complete or rejected, and never mix configs."""
 
 import logging
+import signal
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -297,3 +300,28 @@ def test_part_hash_covers_every_module_that_decides_the_numbers():
                 todo.extend(f"{m}.py" for m in modules if (folder / f"{m}.py").exists())
                 seen.update(m for m in modules if (folder / m).is_dir())  # a package: all of it
     assert seen <= set(store.NUMERIC_MODULES), seen - set(store.NUMERIC_MODULES)
+
+
+def test_a_writer_killed_before_its_rename_leaves_nothing_for_long(quick, tmp_path):
+    """``kill -9`` during the write leaves the writer's temporary file beside the
+    output (the earlier result stays whole); the next run on that output removes it,
+    and leaves another output's alone."""
+    out = tmp_path / "r.nc"
+    out.write_bytes(b"earlier result")
+    killed = (
+        "import os, signal, sys\nfrom sweep import store\n"
+        "with store.replaced_atomically(sys.argv[1]) as tmp:\n"
+        "    open(tmp, 'wb').write(b'half a file')\n"
+        "    os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", killed, str(out)], cwd=ROOT,
+                          timeout=SUBPROCESS_TIMEOUT)  # fmt: skip
+    assert proc.returncode == -signal.SIGKILL
+    left = [p.name for p in tmp_path.iterdir() if p.suffix == ".tmp"]
+    assert len(left) == 1 and left[0].startswith(".r.nc.")
+    assert out.read_bytes() == b"earlier result"
+    stale_other = tmp_path / left[0].replace(".r.nc.", ".r.nc4.")  # r.nc4's, not r.nc's
+    stale_other.write_bytes(b"another output's")
+    runner.run_sweep(quick, out=out, show_progress=False)
+    assert xr.open_dataset(out).sizes  # the new result
+    assert sorted(p.name for p in tmp_path.iterdir() if p.suffix == ".tmp") == [stale_other.name]
