@@ -56,13 +56,15 @@ are in the engineering notes of the documentation, ``docs/internals.md``):
   Together with the above, a cold compile of the default config takes 13.5 s instead
   of 16 and a further variant 6 s instead of 8 (``docs/internals.md``).
 * The grid kernel's loop calls small inlined helpers, each written without
-  a loop or a non-inlined call behind a branch (``runaway_index``, ``update_cycle``).
-  Where an inlined body has one, numba's reference-count pruning fails and every
-  array argument is increfed and decrefed on every step; the same holds for a call
-  inside a helper's loop over blocks, even behind a rare branch, which is why the
-  dense-output functions that ``update_cycle`` calls are inlined too. Rare work (a
-  crossing of the cap, recording, DOP853's interpolant) is a plain call in the
-  loop's own branch, which costs nothing per step.
+  a loop or a non-inlined call behind a branch (``runaway_index``, ``update_cycle``,
+  ``classify_step``). Where an inlined body has one, numba's reference-count pruning
+  fails and every array argument is increfed and decrefed on every step (numba#2350);
+  the same holds for a call inside a helper's loop over blocks, even behind a rare
+  branch, which is why the dense-output functions that ``update_cycle`` calls are
+  inlined too. Rare work (a crossing of the cap, recording, DOP853's interpolant, the
+  blocks' state at an event, the end of a slip event) is a plain call in the loop's
+  own branch, which costs nothing per step. (``classify_step`` made the last two
+  calls itself once: three increfs and decrefs every step, 2-3 % of a two-block step.)
 * Threads have one owner, and numba's own thread pool is not used: on one machine
   ``backends.LocalThreads`` runs the serial grid kernel (``nogil``) on Python threads
   that take small batches of systems as they come free; under Dask each task calls

@@ -1,7 +1,9 @@
 """The grid kernel: the integration loop of every system, one after another.
 
 ``grid_kernel`` builds one serial kernel per variant (model, state law, method,
-coupling, equal or unequal blocks, with or without the tangent, state size); its loop
+coupling, equal or unequal blocks, with or without the tangent, state size). It runs
+every row of ``params`` (``P_*``) from its row of ``y0`` into ``results`` (``R_*``) and
+``y_final``; a trace passes recording buffers. Its loop
 steps each system with the method's module (``methods``), hands each accepted step as
 a step record (``step.Step``) to the classifier (``classify``), the tangent for λ1 and
 the recorder, and has the classifier write the run's statistics.
@@ -24,7 +26,13 @@ import numpy as np
 from ..accelerate import jit, jit_inline, jit_variant
 from .catalogue import K_CAPACITY, catalogue_arrays, catalogue_reads, catalogue_step
 from .classify.cycle import new_event
-from .classify.extrema import cap_crossing, classify_step, dense_needed
+from .classify.extrema import (
+    cap_crossing,
+    classify_step,
+    dense_needed,
+    end_slip_event,
+    event_section,
+)
 from .classify.result import finish_run
 from .classify.state import C_VERDICT, cycle_arrays, verdict_held
 from .classify.verdicts import collapse_regime, settled_early
@@ -202,10 +210,8 @@ def at_tau_end(cs, lyap, tangent, ly, delta, t, tau_max):
 
 @functools.cache
 def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
-    """The grid kernel of a variant (codes; ``het``, ``tangent``: bools; ``n_fixed``: the
-    state size, 0: any): ``integrate_grid(params, y0, settings, results, y_final, rec_dt,
-    rec_t, rec_y)`` runs every row of ``params`` (``P_*``) from ``y0`` into ``results``
-    (``R_*``) and ``y_final``; a trace passes buffers (module docstring)."""
+    """The grid kernel ``integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t,
+    rec_y)`` of a variant (bools ``het``, ``tangent``; ``n_fixed``: state size, 0: any)."""
     m = MODULES[method]  # the method: its step, interpolant, controller, scratch shapes
     adaptive, exponent, bound, k_rows, dk_rows = (m.ADAPTIVE, m.EXPONENT, m.EXCURSION,
                                                   m.STAGE_ROWS, m.TANGENT_ROWS)  # fmt: skip
@@ -234,9 +240,8 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
             cat, cat_blocks = catalogue_arrays(results[s], settings, nb, tau_end)
             rhs(y, p, model, law, coupling, het, nb, ev, f)
             t, h = 0.0, min(1e-3, max_step, tau_end) if adaptive else p[P_DT]
-            # tau_stop: tau_end, then (unsettled there, settling early) tau_max
             n_steps, n_rejected, regime, tau_runaway, tau_stop = 0, 0, -1, np.nan, tau_end
-            while t < tau_max:
+            while t < tau_max:  # tau_stop: tau_end, then (unsettled there, settling early) tau_max
                 if t >= tau_stop:
                     tau_stop = tau_max
                     regime, needs_tangent = at_tau_end(cs, lyap, tangent, ly, delta, t, tau_max)
@@ -274,18 +279,21 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                         step, h, p, nb, A, B, turns, rtol, atol) or (cat[K_CAPACITY] > 0.0 and
                         catalogue_reads(cat, ynew, nb))):  # fmt: skip
                     m.dense(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense)
-                new_peak, theta_peak = classify_step(step, t, h, p, nb, A, B, win, cs,
-                                                     slipped, slip_lnv, turns, section, rtol,
-                                                     atol)  # fmt: skip
+                new_peak, theta_peak, slip_ended = classify_step(step, t, h, p, nb, A, B, win,
+                                                                 cs, slipped, slip_lnv, turns,
+                                                                 rtol, atol)  # fmt: skip
+                if new_peak and nb > 1:  # rare calls made here: see classify_step
+                    event_section(step, h, nb, theta_peak, section)
+                if slip_ended:
+                    end_slip_event(nb, slipped, cs)
                 if n_rec > 0:
                     n_rec = record_step(step, t, h, rec_dt, rec_t, rec_y, n_rec)
                 if cat[K_CAPACITY] > 0.0:
                     catalogue_step(step, t, h, nb, coupling, cat, cat_blocks, results[s])
-                t_new_peak, t = t + theta_peak * h, t + h
+                t_new_peak, t, h = t + theta_peak * h, t + h, h_next
                 for j in range(n):
                     y[j] = ynew[j]
                     f[j] = fnew[j]
-                h = h_next
                 if new_peak:
                     new_event(t_new_peak, y, p, nb, A, B, win, past, past_cs, hist, limits, section,
                               cs, accuracy, steady_amp, lin_growth, rtol, atol)  # fmt: skip

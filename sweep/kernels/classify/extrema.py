@@ -287,22 +287,23 @@ def mean_extremes(s, h, nb, cs, rtol, atol):
 
 
 @jit_forceinline
-def classify_step(s, t, h, p, nb, A, B, win, cs, slipped, slip_lnv, turns, section, rtol, atol):
+def classify_step(s, t, h, p, nb, A, B, win, cs, slipped, slip_lnv, turns, rtol, atol):
     """Fold the accepted step ``s`` (``step.Step``) from ``t`` to ``t + h`` into the
-    classifier: the extremes of every block (:func:`update_cycle`), the blocks' ℓ at an
-    event (``section``), the slip events and, for several blocks, the mean ℓ's extremes.
-    Returns ``(new_peak, theta)`` as :func:`update_cycle`."""
+    classifier: the extremes of every block (:func:`update_cycle`), whether a slip event
+    goes on and, for several blocks, the mean ℓ's extremes. Returns ``(new_peak, theta,
+    slip_ended)``: ``new_peak`` and ``theta`` as :func:`update_cycle`; ``slip_ended``,
+    whether a slip event ended with the step. The caller then calls
+    :func:`event_section` (at a new peak, several blocks) and :func:`end_slip_event`
+    from its own body: reached from here, behind these branches, the calls cost the
+    arrays they take an incref and a decref every step (numba#2350)."""
     new_peak, theta = update_cycle(s, t, h, p, nb, A, B, win, cs, slipped, slip_lnv, turns,
                                    rtol, atol)  # fmt: skip
-    if new_peak and nb > 1:
-        event_section(s, h, nb, theta, section)
+    slip_ended = cs[C_SLIPPING] == 0.0 and cs[C_IN_EVENT] > 0.0
     if cs[C_SLIPPING] > 0.0:
         cs[C_IN_EVENT] = 1.0
-    elif cs[C_IN_EVENT] > 0.0:
-        end_slip_event(nb, slipped, cs)
     if nb > 1:
         mean_extremes(s, h, nb, cs, rtol, atol)
-    return new_peak, theta
+    return new_peak, theta, slip_ended
 
 
 @jit
