@@ -97,7 +97,7 @@ def audit_result(
     ------
     InputError
         The result cannot be read or holds no config, or ``sample``, ``near_kc`` or
-        ``t_end`` is out of range (every problem listed).
+        ``t_end`` is out of range or not later than the file's (every problem listed).
     ConfigError
         The stored config is no longer valid.
     """
@@ -109,8 +109,10 @@ def audit_result(
     if not near_kc >= 0:
         problems.append(f"--near-kc must be in [0, inf), got {near_kc}")
     t_end = 10.0 * config.integrator.t_end if t_end is None else float(t_end)
-    if not 0 < t_end < np.inf:
-        problems.append(f"--t-end must be in (0, inf), got {t_end}")
+    if not config.integrator.t_end < t_end < np.inf:
+        problems.append(f"--t-end must be finite and later than the file's t_end, "
+                        f"{config.integrator.t_end:g} {config.integrator.t_unit} (the audit "
+                        f"runs for longer), got {t_end:g}")  # fmt: skip
     if problems:
         raise InputError(source, problems)
     points, near_points = audit_points(ds, sample, near_kc, seed)

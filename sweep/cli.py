@@ -7,6 +7,7 @@ failures and for an audit that found a disagreement.
 
 import argparse
 import logging
+import math
 import shlex
 import sys
 
@@ -182,20 +183,45 @@ def add_check_commands(sub):
         "--t-end", type=_positive_float, metavar="T",
         help="end time of the reruns, in the config's t_unit (default: 10x the file's)",
     )  # fmt: skip
-    aud.add_argument("--seed", type=int, default=0, help="seed of the random sample (default 0)")
+    aud.add_argument("--seed", type=_seed, default=0,
+                     help="seed of the random sample, in [0, 2147483647] (default 0)")  # fmt: skip
     aud.add_argument("--threads", type=_threads, help="threads (default: all cores)")
 
 
 def _assignment(text):
-    """``NAME=VALUE`` (a model parameter in physical units) → (name, float)."""
+    """``NAME=VALUE`` (a model parameter in physical units, finite) → (name, float)."""
     name, sep, value = text.partition("=")
     try:
         number = float(value)
     except ValueError:
         number = None
-    if not sep or not name or number is None:
-        raise argparse.ArgumentTypeError(f"must be NAME=VALUE, e.g. K_W=0.046; got {text!r}")
+    if not sep or not name or number is None or not math.isfinite(number):
+        raise argparse.ArgumentTypeError(
+            f"must be NAME=VALUE with a finite number, e.g. K_W=0.046; got {text!r}"
+        )
     return name.strip(), number
+
+
+def _seed(text):
+    n = _integer(text)
+    if not 0 <= n <= 2**31 - 1:
+        raise argparse.ArgumentTypeError(f"must be in [0, 2147483647], got {n}")
+    return n
+
+
+def _once(source, option, pairs):
+    """Raise :class:`InputError` if ``pairs`` (NAME=VALUE of ``option``) name an axis twice."""
+    names = [name for name, _ in pairs]
+    twice = sorted({name for name in names if names.count(name) > 1})
+    if twice:
+        raise InputError(source, [f"{option} gives {', '.join(twice)} more than once"])
+
+
+def _trace_points(text):
+    n = _integer(text)
+    if not 1 <= n <= 10_000_000:
+        raise argparse.ArgumentTypeError(f"must be in [1, 10000000], got {n}")
+    return n
 
 
 def _dpi(text):
@@ -257,7 +283,10 @@ def add_figure_commands(sub):
     )
     trace.add_argument("--t-end", type=float, help="end time, in the config's t_unit")
     trace.add_argument(
-        "--points", type=_positive_int, default=4000, help="time bins of the series (default 4000)"
+        "--points",
+        type=_trace_points,
+        default=4000,
+        help="time bins of the series, in [1, 10000000] (default 4000)",
     )
     trace.add_argument(
         "--out", type=_path, help="output NetCDF (default results/<name>_trace_<at>.nc)"
@@ -494,10 +523,11 @@ def cmd_plot(args):
     if args.catalogue is not None:
         from .catalogue_plots import plot_catalogue
 
+        _once(args.result, "--catalogue", args.catalogue)
         suffix, draw = "_catalogue.png", functools.partial(plot_catalogue, ds, dict(args.catalogue))
     elif args.orbit is not None:
         suffix, draw = "_orbit.png", functools.partial(plot_orbit_diagram, ds, args.orbit or None)
-    elif args.var:
+    elif args.var is not None:
         suffix, draw = f"_{args.var}.png", functools.partial(plot_variable, ds, args.var)
     else:
         suffix, draw = ".png", functools.partial(plot_result, ds)
@@ -511,10 +541,7 @@ def cmd_trace(args):
     from .trace import run_trace
 
     config = load_config(args.config)
-    names = [name for name, _ in args.at]
-    twice = sorted({name for name in names if names.count(name) > 1})
-    if twice:
-        raise InputError(args.config, [f"--at gives {', '.join(twice)} more than once"])
+    _once(args.config, "--at", args.at)
     ds, nc, png = run_trace(
         config, dict(args.at), args.out, args.png, args.t_end, args.points, args.dpi
     )

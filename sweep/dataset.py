@@ -380,12 +380,19 @@ def read_result(path: str | Path, needs_config: bool = False) -> xr.Dataset:
         with xr.open_dataset(path, engine="zarr" if zarr else None, chunks=None) as ds:
             ds.load()
     except (OSError, ValueError) as exc:
-        raise InputError(path, [f"cannot read result file: {exc}"]) from None
+        text = str(exc).strip() or type(exc).__name__
+        why = "not a NetCDF file" if "IO backends" in text else text.splitlines()[0][:200]
+        raise InputError(path, [f"cannot read result file: {why} (a result is the NetCDF "
+                                "file or Zarr store of rsf-sweep run)"]) from None  # fmt: skip
     missing = [v for v in ("regime", "K_over_Kc", "lnv_amplitude") if v not in ds]
     if needs_config and "config_text" not in ds.attrs:
         missing.append("config_text attribute")
     if missing:
         raise InputError(path, [f"not a sweep result (no {', '.join(missing)})"])
+    incomplete = _missing_parts(ds)
+    if incomplete:
+        raise InputError(path, [f"not a complete sweep result: no {', '.join(incomplete)} (a "
+                                "file edited after the run, or from another version)"])  # fmt: skip
     pending = int((ds["regime"] < 0).sum())
     if pending:
         raise InputError(
@@ -393,6 +400,25 @@ def read_result(path: str | Path, needs_config: bool = False) -> xr.Dataset:
                    "sweep first (python -m sweep run CONFIG --out PATH --resume)"]
         )  # fmt: skip
     return ds
+
+
+#: File attributes every sweep result has and the commands read.
+RESULT_ATTRS = ("blocks", "model", "state_law", "initial_v_over_V", "initial_phi_over_phi_ss")
+
+
+def _missing_parts(ds):
+    """What a result ``ds`` lacks of what its run writes: the attributes the commands
+    read, ``regime``'s flag table and, where its config is stored, the output variables
+    of that config."""
+    missing = [f"{a} attribute" for a in RESULT_ATTRS if a not in ds.attrs]
+    missing += [f"regime {a}" for a in ("flag_values", "flag_meanings")
+                if a not in ds["regime"].attrs]  # fmt: skip
+    try:
+        config = parse_config(ds.attrs["config_text"])
+    except (KeyError, ConfigError):  # none stored, or not valid: stored_config says so
+        return missing
+    expected = variables_for(config.blocks, config.model, config.features)
+    return missing + [v.name for v in expected if v.name not in ds]
 
 
 def stored_config(ds, source):
@@ -418,5 +444,14 @@ def stored_config(ds, source):
             source,
             [f"regime has dims {dict(ds['regime'].sizes)}, but the stored config sweeps "
              f"{dict(zip(dims, config.run_shape, strict=True))}"],
+        )  # fmt: skip
+    given = [(a.name, a.values) for a in config.axes] + [(k, (v,)) for k, v in config.parameters]
+    differ = [name for name, values in given if name in ds.coords
+              and not np.array_equal(np.atleast_1d(ds[name].values), values)]  # fmt: skip
+    if differ:
+        raise InputError(
+            source, [f"the file's {', '.join(differ)} differ from its stored config's "
+                     "(config_text): it was edited, sorted or cut after the run, so its runs "
+                     "can no longer be matched to their parameters"]
         )  # fmt: skip
     return dataclasses.replace(config, source=ds.attrs.get("config_path", str(source)))

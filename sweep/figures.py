@@ -23,6 +23,7 @@ import numpy as np
 
 from .config import load_config, with_changes
 from .dataset import parameter_values
+from .errors import InputError
 from .plots import (
     BLOCK_STYLES,
     DPI,
@@ -94,7 +95,9 @@ def variant(config, name, model=None, eta_W=None, k2_W=None, phi=None):
 def stiffnesses(config):
     """The K/W values (µm⁻¹) of the paper config's one sweep axis."""
     if [a.name for a in config.axes] != ["K_W"]:
-        raise ValueError(f"{config.source}: the paper config must sweep K_W and nothing else")
+        swept = ", ".join(a.name for a in config.axes)
+        raise InputError(config.source, [f"the paper config must sweep K_W and nothing else; "
+                                         f"it sweeps {swept}"])  # fmt: skip
     return config.axes[0].values
 
 
@@ -343,6 +346,7 @@ def make_figures(
     route_config = load_config(route)
     refined_config = load_config(refined)
     chain_config = load_config(long_chain)
+    stiffnesses(config)  # checked before any kernel is compiled
     check_writable(out_dir / f"fig1_one_block{suffix}", str(out_dir), "--out-dir", suffix)
     rows = (*ONE_BLOCK_ROWS, *((label, {**c, "k2_W": K2_W}) for label, c in TWO_BLOCK_ROWS))
     trace_configs = [variant(config, f"{config.name}_{r}", **c) for r, (_, c) in enumerate(rows)]

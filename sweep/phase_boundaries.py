@@ -127,7 +127,8 @@ def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Bou
     InputError
         ``ds`` is not a refined result.
     ValueError
-        ``ds`` is refined over more than two axes (its boundaries are surfaces).
+        ``ds`` is refined over more than two axes (its boundaries are surfaces), or
+        ``outputs`` is not a list of its variables.
     """
     config = refined_config(ds)
     lattice = Lattice(config)
@@ -137,6 +138,12 @@ def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Bou
             f"boundaries are lines over two axes; this result is refined over {len(axes)} "
             "(take a slice with to_grid, or refine fewer axes)"
         )
+    if outputs is not None:
+        if isinstance(outputs, str) or not all(isinstance(o, str) for o in outputs):
+            raise ValueError(f"outputs must be a list of variable names, got {outputs!r}")
+        unknown = [o for o in outputs if o not in ds]
+        if unknown:
+            raise ValueError(f"outputs: no variable {', '.join(unknown)} in this result")
     index = lattice_index(ds, lattice)
     codes, texts = point_label_codes(ds, config, outputs)
     keys = lattice.keys(index)

@@ -425,7 +425,8 @@ def plot_variable(ds: xarray.Dataset, name: str, ax: Axes | None = None, block: 
     ------
     ValueError
         ``name`` is not a variable of the result (the message lists the valid
-        names), or no sweep axis has more than one value.
+        names), ``block`` is not one of its blocks, or no sweep axis has more than one
+        value.
     """
     ds = _as_grid(ds)
     valid = plottable(ds)
@@ -434,7 +435,14 @@ def plot_variable(ds: xarray.Dataset, name: str, ax: Axes | None = None, block: 
     ds, fixed_axes = _squeeze(ds, keep=2)
     notes = [f"at {fixed_axes}"] if fixed_axes else []
     if "block" in ds[name].dims:
-        ds = ds.assign({name: ds[name].isel(block=block)})
+        n_blocks = ds.sizes["block"]
+        if (
+            isinstance(block, bool)
+            or not isinstance(block, (int, np.integer))
+            or not (0 <= block < n_blocks)
+        ):
+            raise ValueError(f"block must be an integer in [0, {n_blocks - 1}], got {block!r}")
+        ds = ds.assign({name: ds[name].isel(block=int(block))})
         notes.append(f"block {block}")
     ndim = ds["regime"].ndim
     if ndim == 0:
@@ -475,6 +483,9 @@ def bifurcation_curves(ds):
     η̂ = ηV/W where that is one number, and the other axes' values."""
     ds, _ = _squeeze(ds)
     dims = ds["regime"].dims
+    if not dims:
+        raise ValueError("a bifurcation diagram needs a sweep axis with more than one value; "
+                         "this result is one run")  # fmt: skip
     xdim = "K_W" if "K_W" in dims else dims[0]
     others = [d for d in dims if d != xdim]
     for index in np.ndindex(*(ds.sizes[d] for d in others)):
@@ -496,7 +507,9 @@ def _scalar(ds, name):
     return parameter_values(ds).get(name)
 
 
-def plot_bifurcation(datasets: Iterable[xarray.Dataset], caption: str = "") -> Figure:
+def plot_bifurcation(
+    datasets: xarray.Dataset | Iterable[xarray.Dataset], caption: str = ""
+) -> Figure:
     """Bifurcation diagram of 1-D sweeps over K (or any axis).
 
     Amplitude of the attractor against K/Kc, one curve per model (and per value
@@ -507,7 +520,7 @@ def plot_bifurcation(datasets: Iterable[xarray.Dataset], caption: str = "") -> F
 
     Parameters
     ----------
-    datasets : iterable of xarray.Dataset
+    datasets : xarray.Dataset or iterable of xarray.Dataset
         Sweep results, e.g. of ``configs/bifurcation_qs.yaml`` and
         ``configs/bifurcation_qd.yaml``; each gives one curve per value of its
         axes other than K/W.
@@ -522,10 +535,13 @@ def plot_bifurcation(datasets: Iterable[xarray.Dataset], caption: str = "") -> F
     Raises
     ------
     ValueError
-        No point of any result has an analytic Kc > 0 (no instability to show).
+        No point of any result has an analytic Kc > 0 (no instability to show), or a
+        result is a single run.
     """
+    import xarray as xr
     from matplotlib.lines import Line2D
 
+    datasets = [datasets] if isinstance(datasets, xr.Dataset) else list(datasets)
     fig = new_figure(figsize=(12, 5))
     ax_a, ax_v = fig.subplots(1, 2)
     model_handles = []

@@ -195,7 +195,7 @@ def test_bad_input_exits_2(short_file, capsys):
             "must be later than the time its undecided runs already reached (50 D0/V",
         ),
         (["r.nc", "--t-end", "20"], "got 20"),
-        (["old_inertial.nc"], "no inertial_force_final in the file"),
+        (["old_inertial.nc"], "not a complete sweep result: no inertial_force_final"),
     ]
     before = short_file.read_bytes()
     for args, message in cases:
