@@ -10,6 +10,8 @@ import os
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from .config import Config, load_config, with_changes
 from .errors import InputError
 
@@ -146,7 +148,8 @@ def compile_kernels(
     from .grid import build_grid
 
     configs = [load_config(config) for config in configs]
-    positive = isinstance(processes, int) and not isinstance(processes, bool) and processes >= 1
+    positive = (isinstance(processes, (int, np.integer)) and not isinstance(processes, bool)
+                and processes >= 1)  # fmt: skip
     if not (processes is None or positive):
         source = configs[0].source if configs else "compile_kernels"
         raise InputError(source, [f"processes must be a positive integer, got {processes!r}"])
@@ -160,6 +163,6 @@ def _check_threads(source, threads):
     import numba
 
     top = numba.config.NUMBA_NUM_THREADS
-    ok = threads is None or (isinstance(threads, int) and 1 <= threads <= top)
+    ok = threads is None or (isinstance(threads, (int, np.integer)) and 1 <= threads <= top)
     if not ok or isinstance(threads, bool):
         raise InputError(source, [f"threads must be an integer in [1, {top}], got {threads!r}"])

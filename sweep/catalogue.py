@@ -23,6 +23,8 @@ every run at once (``powerlaw`` fits one sample at a time and answers a differen
 question, the power law's range).
 """
 
+import math
+
 import numpy as np
 import xarray as xr
 
@@ -155,10 +157,12 @@ def catalogue_statistics(ds: xr.Dataset, completeness: float | None = None) -> x
     Raises
     ------
     ValueError
-        The result has no catalogue.
+        The result has no catalogue, or ``completeness`` is not finite.
     """
     if "slip_event_magnitude" not in ds:
         raise ValueError("this result has no slip-event catalogue (config key catalogue.capacity)")
+    if completeness is not None and not math.isfinite(completeness):
+        raise ValueError(f"completeness must be a finite magnitude, got {completeness!r}")
     mag = ds["slip_event_magnitude"]
     dims = mag.dims[:-1]
     flat = {

@@ -552,6 +552,14 @@ def load_config(config: str | os.PathLike | Mapping[str, Any] | Config) -> Confi
     """
     if isinstance(config, Config):
         return config
+    if hasattr(config, "data_vars"):  # an xarray Dataset is a Mapping too
+        raise ConfigError(
+            "<config>",
+            [
+                "a result Dataset is not a config; the config that made "
+                "it is sweep.parse_config(ds.attrs['config_text'])"
+            ],
+        )
     if isinstance(config, Mapping):
         return parse_config(config)
     from . import examples

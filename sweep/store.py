@@ -369,8 +369,11 @@ def fill_from_parts(entries, results, y_final, have, wanted):
     """
     used, bad = [], []
     for start, stop, n, path in entries:
-        if n != len(have) or stop > n:
+        if n != len(have):
             bad.append((path, f"{path}: made for a sweep of {n} systems, not {len(have)}"))
+            continue
+        if not 0 <= start < stop <= n:
+            bad.append((path, f"{path}: rows {start}:{stop} are not rows of the sweep's 0:{n}"))
             continue
         take = wanted[start:stop] & ~have[start:stop]
         if not take.any():

@@ -150,3 +150,16 @@ def test_per_block_plots_and_boundaries_check_their_arguments(tmp_path):
         sweep.boundaries(refined, "regime")
     with pytest.raises(ValueError, match="outputs: no variable nope in this result"):
         sweep.boundaries(refined, ["nope"])
+
+
+def test_api_arguments_of_numpy_and_of_the_wrong_kind(tmp_path):
+    """numpy integers count as integers; a result Dataset given as config says what to
+    pass instead (it is a Mapping, and was read as a config with 15 lines of problems);
+    a completeness magnitude that is not finite is refused (it gave NaN b-values)."""
+    ds = sweep.run("quick", threads=np.int64(1), progress=False)
+    with pytest.raises(sweep.ConfigError, match="a result Dataset is not a config"):
+        sweep.run(ds)
+    catalogue = sweep.run(with_changes("quick", {"catalogue": {"capacity": 50}}), progress=False)
+    for completeness in (float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="completeness must be a finite magnitude"):
+            sweep.catalogue_statistics(catalogue, completeness)

@@ -325,3 +325,16 @@ def test_a_writer_killed_before_its_rename_leaves_nothing_for_long(quick, tmp_pa
     runner.run_sweep(quick, out=out, show_progress=False)
     assert xr.open_dataset(out).sizes  # the new result
     assert sorted(p.name for p in tmp_path.iterdir() if p.suffix == ".tmp") == [stale_other.name]
+
+
+def test_a_part_named_for_rows_outside_the_sweep_is_named_so(quick, tmp_path):
+    """A part whose name claims rows beyond the sweep (copied or renamed by hand) is
+    reported with those rows; it was reported as "made for a sweep of 9 systems, not 9"."""
+    out = tmp_path / "r.nc"
+    runner.run_sweep(quick, out=out, chunk_size=4, shard=(0, 1), show_progress=False)
+    last = sorted(store.parts_dir_for(out).glob("*.npz"))[2]  # rows 8:9
+    stray = last.with_name(last.name.replace("_8-9_", "_9-10_"))
+    assert stray != last
+    last.rename(stray)
+    with pytest.raises(runner.RunError, match=r"rows 9:10 are not rows of the sweep's 0:9"):
+        runner.merge_parts([store.parts_dir_for(out)], tmp_path / "merged.nc")
