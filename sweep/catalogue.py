@@ -159,6 +159,10 @@ def catalogue_statistics(ds: xr.Dataset, completeness: float | None = None) -> x
     ValueError
         The result has no catalogue, or ``completeness`` is not finite.
     """
+    if not isinstance(ds, xr.Dataset):
+        raise TypeError(f"ds must be a result Dataset, got {type(ds).__name__}")
+    if "blocks" not in ds.attrs:
+        raise ValueError("ds is not a complete sweep result: no blocks attribute")
     if "slip_event_magnitude" not in ds:
         raise ValueError("this result has no slip-event catalogue (config key catalogue.capacity)")
     if completeness is not None and not math.isfinite(completeness):

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .dataset import check_result
 from .plots import colormap, describe, new_figure, parameter_text
 
 if TYPE_CHECKING:
@@ -22,7 +23,13 @@ def catalogue_run(ds, point=None):
     are taken at their first value. Returns the run's Dataset (no sweep dimension)."""
     if "slip_event_start" not in ds:
         raise ValueError("this result has no slip-event catalogue (config key catalogue.capacity)")
+    if point is not None and not isinstance(point, Mapping):
+        raise TypeError(f"point must be a mapping of sweep axes to values, got {point!r}")
     point = dict(point or {})
+    bad = [k for k, v in point.items() if not (isinstance(v, (int, float, np.number))
+                                               and np.isfinite(v))]  # fmt: skip
+    if bad:
+        raise ValueError(f"point: {', '.join(map(str, bad))} must be finite numbers")
     unknown = set(point) - set(ds["slip_event_start"].dims[:-1])
     if unknown:
         axes = ", ".join(ds["slip_event_start"].dims[:-1]) or "none"
@@ -63,6 +70,7 @@ def plot_catalogue(
         The result has no catalogue, or ``point`` names something that is not a sweep
         axis.
     """
+    check_result(ds)
     run = catalogue_run(ds, point)
     count = min(int(run["slip_event_count"]), run.sizes["slip_event"])
     ev = run.isel(slip_event=slice(0, count))

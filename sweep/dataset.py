@@ -406,6 +406,19 @@ def read_result(path: str | Path, needs_config: bool = False) -> xr.Dataset:
 RESULT_ATTRS = ("blocks", "model", "state_law", "initial_v_over_V", "initial_phi_over_phi_ss")
 
 
+def check_result(ds, argument="ds"):
+    """Raise TypeError unless ``ds`` is an xarray Dataset, ValueError (naming what is
+    missing) unless it is a complete sweep result; ``argument`` names it in messages.
+    The plotting and catalogue functions check what they are given with it."""
+    if not isinstance(ds, xr.Dataset):
+        raise TypeError(f"{argument} must be a result Dataset (xarray.open_dataset of a "
+                        f"result file), got {type(ds).__name__}")  # fmt: skip
+    missing = [v for v in ("regime", "K_over_Kc", "lnv_amplitude") if v not in ds]
+    missing = missing or _missing_parts(ds)
+    if missing:
+        raise ValueError(f"{argument} is not a complete sweep result: no {', '.join(missing)}")
+
+
 def _missing_parts(ds):
     """What a result ``ds`` lacks of what its run writes: the attributes the commands
     read, ``regime``'s flag table and, where its config is stored, the output variables

@@ -15,12 +15,12 @@ from __future__ import annotations
 import os
 import re
 import textwrap
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .dataset import parameter_values
+from .dataset import check_result, parameter_values
 from .physics import PARAMETERS
 from .variables import REGIMES
 
@@ -228,6 +228,7 @@ def plot_result(ds: xarray.Dataset, caption: str = "", ax: Axes | None = None) -
     ValueError
         No sweep axis has more than one value.
     """
+    check_result(ds)
     if _refined(ds):
         return plot_refined(ds, caption, ax)
     ds, fixed_axes = _squeeze(ds, keep=2)
@@ -428,6 +429,7 @@ def plot_variable(ds: xarray.Dataset, name: str, ax: Axes | None = None, block: 
         names), ``block`` is not one of its blocks, or no sweep axis has more than one
         value.
     """
+    check_result(ds)
     ds = _as_grid(ds)
     valid = plottable(ds)
     if name not in valid:
@@ -542,6 +544,8 @@ def plot_bifurcation(
     from matplotlib.lines import Line2D
 
     datasets = [datasets] if isinstance(datasets, xr.Dataset) else list(datasets)
+    for k, ds in enumerate(datasets):
+        check_result(ds, f"datasets[{k}]")
     fig = new_figure(figsize=(12, 5))
     ax_a, ax_v = fig.subplots(1, 2)
     model_handles = []
@@ -757,6 +761,7 @@ def plot_orbit_diagram(
         The result has no events (``classification.events: 0``), or ``axis`` is
         not one of its sweep axes.
     """
+    check_result(ds)
     ds = _as_grid(ds)
     if "event_lnv_peak" not in ds:
         raise ValueError("no event maxima in this result (its classification.events is 0)")
@@ -828,6 +833,8 @@ def plot_trace(ds: xarray.Dataset, ax: Axes | None = None) -> Figure:
     matplotlib.figure.Figure
         The new figure, or the figure of ``ax``.
     """
+    if not isinstance(getattr(ds, "data_vars", None), Mapping) or "velocity" not in ds:
+        raise ValueError("ds must be a trace Dataset (sweep.trace or python -m sweep trace)")
     fig, ax = _figure_and_axes(ax, (8, 4.2))
     draw_trace(ax, ds)
     ratio = f"K/Kc = {ds.attrs['K_over_Kc']:.3g}"

@@ -163,3 +163,25 @@ def test_api_arguments_of_numpy_and_of_the_wrong_kind(tmp_path):
     for completeness in (float("nan"), float("inf")):
         with pytest.raises(ValueError, match="completeness must be a finite magnitude"):
             sweep.catalogue_statistics(catalogue, completeness)
+
+
+def test_plotting_functions_say_what_they_were_given(quick_reference_file):
+    """Given something that is not a result, or a result missing what its run writes,
+    the plotting functions name the argument and what is missing (they failed with
+    KeyError from inside xarray)."""
+    ds = xr.load_dataset(quick_reference_file)
+    calls = {
+        "plot_result": sweep.plot_result,
+        "plot_variable": lambda d: sweep.plot_variable(d, "period"),
+        "plot_orbit_diagram": sweep.plot_orbit_diagram,
+        "plot_bifurcation": sweep.plot_bifurcation,
+        "plot_catalogue": sweep.plot_catalogue,
+    }
+    for name, call in calls.items():
+        with pytest.raises(TypeError, match="must be a result Dataset"):
+            call(str(quick_reference_file))
+        with pytest.raises(ValueError, match="is not a complete sweep result: no growth_rate"):
+            call(ds.drop_vars("growth_rate"))
+        assert name.startswith("plot_")
+    with pytest.raises(ValueError, match="must be a trace Dataset"):
+        sweep.plot_trace(ds)

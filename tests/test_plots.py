@@ -7,7 +7,7 @@ import pytest
 from conftest import python_stdout
 
 from sweep.cli import main
-from sweep.config import config_mapping, load_config, parse_config
+from sweep.config import config_mapping, load_config, parse_config, with_changes
 from sweep.dataset import write_netcdf
 from sweep.plots import (
     REGIME_COLOURS,
@@ -428,8 +428,13 @@ def test_orbit_diagram_plots_each_runs_events_by_attractor(one_d, two_d, tmp_pat
     assert ax.get_xlabel() == axis_label(two_d[two_d.regime.dims[1]])
     with pytest.raises(ValueError, match="no sweep axis 'nope'"):
         plot_orbit_diagram(one_d, axis="nope")
+    # a result of classification.events: 0 (its stored config says so)
+    without = with_changes(parse_config(one_d.attrs["config_text"]),
+                           {"classification": {"events": 0}})  # fmt: skip
+    no_events = one_d.drop_vars(["event_lnv_peak", "event_interval"]).assign_attrs(
+        config_text=without.text)  # fmt: skip
     with pytest.raises(ValueError, match="no event maxima"):
-        plot_orbit_diagram(one_d.drop_vars(["event_lnv_peak", "event_interval"]))
+        plot_orbit_diagram(no_events)
     path = write_netcdf(one_d, tmp_path / "q.nc")
     assert main(["plot", str(path), "--orbit"]) == 0
     assert_png(tmp_path / "q_orbit.png")
