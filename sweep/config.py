@@ -814,6 +814,8 @@ def with_changes(
         problem listed; the source names the changed key paths).
     """
     config = load_config(config)
+    if source is not None and not isinstance(source, str):
+        raise TypeError(f"source must be a string naming the config, got {source!r}")
     if not isinstance(changes, Mapping):
         raise ConfigError(
             config.source,

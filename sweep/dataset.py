@@ -417,6 +417,8 @@ def check_result(ds, argument="ds"):
     missing = missing or _missing_parts(ds)
     if missing:
         raise ValueError(f"{argument} is not a complete sweep result: no {', '.join(missing)}")
+    if ds["regime"].size == 0:
+        raise ValueError(f"{argument} has no runs (an axis of length 0)")
 
 
 def _missing_parts(ds):

@@ -130,6 +130,8 @@ def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Bou
         ``ds`` is refined over more than two axes (its boundaries are surfaces), or
         ``outputs`` is not a list of its variables.
     """
+    if not isinstance(ds, xr.Dataset):
+        raise TypeError(f"ds must be a refined result Dataset, got {type(ds).__name__}")
     config = refined_config(ds)
     lattice = Lattice(config)
     axes = [i for i, s in enumerate(lattice.split) if s]
@@ -144,6 +146,10 @@ def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Bou
         unknown = [o for o in outputs if o not in ds]
         if unknown:
             raise ValueError(f"outputs: no variable {', '.join(unknown)} in this result")
+    needed = ["regime", *(o for o in (outputs or config.refine.outputs) if o != "regime_fraction")]
+    absent = [o for o in dict.fromkeys(needed) if o not in ds]
+    if absent:
+        raise ValueError(f"not a complete refined result: no {', '.join(absent)}")
     index = lattice_index(ds, lattice)
     codes, texts = point_label_codes(ds, config, outputs)
     keys = lattice.keys(index)
@@ -153,8 +159,12 @@ def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Bou
         leaves = cells[~split]
         if len(leaves) == 0:
             continue
-        corners = lattice.corners(leaves, level)
-        rows = order[np.searchsorted(keys[order], lattice.keys(corners))]
+        corners = lattice.keys(lattice.corners(leaves, level))
+        at = np.minimum(np.searchsorted(keys[order], corners), len(keys) - 1)
+        if not (keys[order][at] == corners).all():
+            raise ValueError("this refined result lacks the runs at some cells' corners (a "
+                             "subset of its points?): a refined result is read whole")  # fmt: skip
+        rows = order[at]
         labels = codes[rows]  # (n, 2^d)
         mixed = np.any(labels != labels[:, :1], axis=1)
         found.append((level, leaves[mixed], labels[mixed]))

@@ -158,6 +158,12 @@ def stiffness_ratio(ds):
     return ds["K_over_Kc"].where(ds["critical_K_W"] > 0)
 
 
+def _check_caption(caption):
+    """Raise TypeError unless ``caption`` (an extra title line) is a string."""
+    if not isinstance(caption, str):
+        raise TypeError(f"caption must be a string, got {type(caption).__name__}")
+
+
 def _suptitle(fig, lines):
     """Figure title from non-empty ``lines``, each wrapped to the figure's width."""
     width = int(12 * fig.get_figwidth())  # characters of 10-point text per line (100 dpi)
@@ -229,6 +235,7 @@ def plot_result(ds: xarray.Dataset, caption: str = "", ax: Axes | None = None) -
         No sweep axis has more than one value.
     """
     check_result(ds)
+    _check_caption(caption)
     if _refined(ds):
         return plot_refined(ds, caption, ax)
     ds, fixed_axes = _squeeze(ds, keep=2)
@@ -390,6 +397,8 @@ def plottable(ds):
 def _figure_and_axes(ax, figsize):
     """``(figure, ax)``: the given axes and its figure, or a new figure with one axes."""
     if ax is not None:
+        if not hasattr(ax, "figure"):
+            raise TypeError(f"ax must be a matplotlib Axes, got {type(ax).__name__}")
         return ax.figure, ax
     fig = new_figure(figsize=figsize)
     return fig, fig.subplots()
@@ -546,6 +555,7 @@ def plot_bifurcation(
     datasets = [datasets] if isinstance(datasets, xr.Dataset) else list(datasets)
     for k, ds in enumerate(datasets):
         check_result(ds, f"datasets[{k}]")
+    _check_caption(caption)
     fig = new_figure(figsize=(12, 5))
     ax_a, ax_v = fig.subplots(1, 2)
     model_handles = []
@@ -762,6 +772,7 @@ def plot_orbit_diagram(
         not one of its sweep axes.
     """
     check_result(ds)
+    _check_caption(caption)
     ds = _as_grid(ds)
     if "event_lnv_peak" not in ds:
         raise ValueError("no event maxima in this result (its classification.events is 0)")

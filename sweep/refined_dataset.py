@@ -18,7 +18,13 @@ import numpy as np
 import xarray as xr
 
 from .config import parse_config
-from .dataset import data_variables, derived_fields, parameter_attrs, parameter_coords, provenance
+from .dataset import (
+    data_variables,
+    derived_fields,
+    parameter_attrs,
+    parameter_coords,
+    provenance,
+)
 from .errors import ConfigError, InputError
 from .refine import STOPPED, Lattice, axis_values
 
@@ -102,6 +108,9 @@ def refined_config(ds, source="result"):
 
 def lattice_index(ds, lattice):
     """Indices (n, d) of a refined result's points on the finest lattice."""
+    missing = [index_name(name) for name in lattice.names if index_name(name) not in ds]
+    if missing:
+        raise ValueError(f"not a complete refined result: no {', '.join(missing)}")
     return np.stack([ds[index_name(name)].values for name in lattice.names], axis=-1).astype(
         np.int64
     )
@@ -145,6 +154,8 @@ def to_grid(ds: xr.Dataset, level: int = 0) -> xr.Dataset:
         ``level`` is not an integer in [0, ``refine_levels``], or its grid would have
         more than :data:`MAX_GRID_POINTS` points.
     """
+    if not isinstance(ds, xr.Dataset):
+        raise TypeError(f"ds must be a refined result Dataset, got {type(ds).__name__}")
     config = refined_config(ds)
     lattice = Lattice(config)
     if not (isinstance(level, (int, np.integer)) and 0 <= level <= lattice.levels):
@@ -204,7 +215,9 @@ def nearest_runs(lattice, index, targets, level):
         rows[todo[found]] = order[at[found]]
         if L == level:
             exact[todo[found]] = True
-    assert (rows >= 0).all(), "a point of level 0 was not run"
+    if not (rows >= 0).all():
+        raise ValueError("this refined result lacks runs of its level-0 grid (a subset of its "
+                         "points?): a refined result is read whole")  # fmt: skip
     return rows, exact
 
 

@@ -185,3 +185,25 @@ def test_plotting_functions_say_what_they_were_given(quick_reference_file):
         assert name.startswith("plot_")
     with pytest.raises(ValueError, match="must be a trace Dataset"):
         sweep.plot_trace(ds)
+
+
+def test_a_refined_result_cut_by_hand_and_arguments_of_the_wrong_type(quick_reference_file):
+    """A refined result holding only some of its points (its lattice has holes) is named
+    so by to_grid, boundaries and plot_result (AssertionError and IndexError before);
+    a caption, ax or fig of the wrong type is a TypeError naming it."""
+    refined = sweep.run(with_changes("twoblock", {"sweep": {
+        "K_W": {"start": 0.04, "stop": 0.06, "num": 5}, "k2_W": [0.05, 0.1]}}),
+        refine=1, progress=False)  # fmt: skip
+    cut = refined.isel(point=slice(0, refined.sizes["point"] // 2))
+    with pytest.raises(ValueError, match="lacks runs of its level-0 grid"):
+        sweep.to_grid(cut)
+    for call in (sweep.boundaries, sweep.plot_result):
+        with pytest.raises(ValueError, match="lacks the runs at some cells' corners"):
+            call(cut)
+    ds = xr.load_dataset(quick_reference_file)
+    with pytest.raises(TypeError, match="caption must be a string, got int"):
+        sweep.plot_result(ds, caption=5)
+    with pytest.raises(TypeError, match="ax must be a matplotlib Axes, got str"):
+        sweep.plot_variable(ds, "period", ax="x")
+    with pytest.raises(TypeError, match="source must be a string naming the config"):
+        with_changes("quick", {"blocks": 1}, source=123)
