@@ -71,11 +71,11 @@ def plot_catalogue(
         axis.
     """
     check_result(ds)
+    if fig is not None and not hasattr(fig, "subplots"):
+        raise TypeError(f"fig must be a matplotlib Figure, got {type(fig).__name__}")
     run = catalogue_run(ds, point)
     count = min(int(run["slip_event_count"]), run.sizes["slip_event"])
     ev = run.isel(slip_event=slice(0, count))
-    if fig is not None and not hasattr(fig, "subplots"):
-        raise TypeError(f"fig must be a matplotlib Figure, got {type(fig).__name__}")
     fig = new_figure(figsize=(11, 4.6)) if fig is None else fig
     space, sizes = fig.subplots(1, 2, width_ratios=(2.2, 1))
     _space_time(fig, space, ev, int(ds.attrs["blocks"]))

@@ -46,6 +46,18 @@ def _integer_at_least(low):
     return parse
 
 
+def _integer_in(low, high):
+    """An argparse type: an integer in [low, high]."""
+
+    def parse(text):
+        n = _integer(text)
+        if not low <= n <= high:
+            raise argparse.ArgumentTypeError(f"must be in [{low}, {high}], got {n}")
+        return n
+
+    return parse
+
+
 def _finite_number(low_open):
     """An argparse type: a finite number in [0, inf), or (0, inf) with ``low_open``."""
     interval = "(0, inf)" if low_open else "[0, inf)"
@@ -71,6 +83,8 @@ def _path(text):
 
 _positive_int = _integer_at_least(1)
 _count = _integer_at_least(0)
+_seed = _integer_in(0, 2**31 - 1)  # as the configs' seeds
+_trace_points = _integer_in(1, 10_000_000)
 _fraction = _finite_number(low_open=False)
 _positive_float = _finite_number(low_open=True)
 
@@ -202,13 +216,6 @@ def _assignment(text):
     return name.strip(), number
 
 
-def _seed(text):
-    n = _integer(text)
-    if not 0 <= n <= 2**31 - 1:
-        raise argparse.ArgumentTypeError(f"must be in [0, 2147483647], got {n}")
-    return n
-
-
 def _once(source, option, pairs):
     """Raise :class:`InputError` if ``pairs`` (NAME=VALUE of ``option``) name an axis twice."""
     names = [name for name, _ in pairs]
@@ -217,18 +224,7 @@ def _once(source, option, pairs):
         raise InputError(source, [f"{option} gives {', '.join(twice)} more than once"])
 
 
-def _trace_points(text):
-    n = _integer(text)
-    if not 1 <= n <= 10_000_000:
-        raise argparse.ArgumentTypeError(f"must be in [1, 10000000], got {n}")
-    return n
-
-
-def _dpi(text):
-    n = _integer(text)
-    if not 10 <= n <= 2000:
-        raise argparse.ArgumentTypeError(f"must be in [10, 2000], got {n}")
-    return n
+_dpi = _integer_in(10, 2000)
 
 
 def _add_dpi(parser):

@@ -874,21 +874,23 @@ def _parse_sweep(c, raw):
         values, span = _axis_values(c, spec, key, PARAMETERS[name].low, PARAMETERS[name].low_open)
         if values is None:
             continue
-        # check what the user wrote (a range's ends, or each listed value): an interval
-        # holds every point between its ends, and the error names the written value
-        if isinstance(spec, dict) and "values" not in spec:
-            written = [(f"{key}.start", spec["start"]), (f"{key}.stop", spec["stop"])]
-        else:
-            written = [(f"{key}[{i}]", v) for i, v in enumerate(values)]
-        bad = [k for k, v in written if c.parameter(name, v, k) is None]
+        # each listed value checked as written (a range's ends were, by _axis_values:
+        # an interval holds every point between its ends)
+        listed = [] if isinstance(spec, dict) and "values" not in spec else values
+        bad = [i for i, v in enumerate(listed) if c.parameter(name, v, f"{key}[{i}]") is None]
         if not bad:
             axes.append(Axis(name, tuple(float(v) for v in values), span))
     return axes
 
 
+def _n_runs(axes, ensemble):
+    """Runs of a sweep over ``axes`` with ``ensemble`` members per grid point (0: none)."""
+    return math.prod(len(a.values) for a in axes) * max(1, ensemble)
+
+
 def _check_runs(c, axes, ensemble):
     """At most ``MAX_RUNS`` runs in the whole sweep, ensemble members included."""
-    runs = math.prod(len(a.values) for a in axes) * max(1, ensemble)
+    runs = _n_runs(axes, ensemble)
     if runs > MAX_RUNS:
         sizes = " × ".join([*(f"{len(a.values)} {a.name}" for a in axes),
                             *([f"{ensemble} members"] if ensemble else [])])  # fmt: skip
@@ -1172,7 +1174,7 @@ def _parse_catalogue(c, raw, axes, initial):
     values = c.section(spec, "catalogue.", Catalogue, d, given)
     if None in (v for k, v in values.items() if k not in ("completeness", "slip_v_over_V")):
         return d
-    runs = math.prod(len(a.values) for a in axes) * max(1, initial.ensemble)
+    runs = _n_runs(axes, initial.ensemble)
     size = values["capacity"] * runs * N_EVENT_FIELDS * 8
     if size > MAX_CATALOGUE_BYTES:
         c.add(f"catalogue.capacity {values['capacity']} over {runs} runs needs "
@@ -1198,7 +1200,7 @@ def _parse_refine(c, raw, axes, initial, blocks, model, features, output):
     outputs = _refine_outputs(c, spec, known, "ensemble" in features)
     max_runs = spec.get("max_runs", d.max_runs)
     if max_runs is not None:
-        runs = math.prod(len(a.values) for a in axes) * max(1, initial.ensemble)
+        runs = _n_runs(axes, initial.ensemble)
         if c.integer(max_runs, "refine.max_runs", runs) is None:
             c.problems[-1] += f" (the {runs} runs of the grid come first)"
     split = [a for a in axes if len(a.values) > 1]

@@ -384,7 +384,7 @@ def read_result(path: str | Path, needs_config: bool = False) -> xr.Dataset:
         why = "not a NetCDF file" if "IO backends" in text else text.splitlines()[0][:200]
         raise InputError(path, [f"cannot read result file: {why} (a result is the NetCDF "
                                 "file or Zarr store of rsf-sweep run)"]) from None  # fmt: skip
-    missing = [v for v in ("regime", "K_over_Kc", "lnv_amplitude") if v not in ds]
+    missing = [v for v in RESULT_VARIABLES if v not in ds]
     if needs_config and "config_text" not in ds.attrs:
         missing.append("config_text attribute")
     if missing:
@@ -402,6 +402,8 @@ def read_result(path: str | Path, needs_config: bool = False) -> xr.Dataset:
     return ds
 
 
+#: Variables by which a file is recognised as a sweep result at all.
+RESULT_VARIABLES = ("regime", "K_over_Kc", "lnv_amplitude")
 #: File attributes every sweep result has and the commands read.
 RESULT_ATTRS = ("blocks", "model", "state_law", "initial_v_over_V", "initial_phi_over_phi_ss")
 
@@ -413,8 +415,7 @@ def check_result(ds, argument="ds"):
     if not isinstance(ds, xr.Dataset):
         raise TypeError(f"{argument} must be a result Dataset (xarray.open_dataset of a "
                         f"result file), got {type(ds).__name__}")  # fmt: skip
-    missing = [v for v in ("regime", "K_over_Kc", "lnv_amplitude") if v not in ds]
-    missing = missing or _missing_parts(ds)
+    missing = [v for v in RESULT_VARIABLES if v not in ds] or _missing_parts(ds)
     if missing:
         raise ValueError(f"{argument} is not a complete sweep result: no {', '.join(missing)}")
     if ds["regime"].size == 0:

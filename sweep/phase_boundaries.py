@@ -140,16 +140,15 @@ def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Bou
             f"boundaries are lines over two axes; this result is refined over {len(axes)} "
             "(take a slice with to_grid, or refine fewer axes)"
         )
-    if outputs is not None:
-        if isinstance(outputs, str) or not all(isinstance(o, str) for o in outputs):
-            raise ValueError(f"outputs must be a list of variable names, got {outputs!r}")
-        unknown = [o for o in outputs if o not in ds]
-        if unknown:
-            raise ValueError(f"outputs: no variable {', '.join(unknown)} in this result")
-    needed = ["regime", *(o for o in (outputs or config.refine.outputs) if o != "regime_fraction")]
-    absent = [o for o in dict.fromkeys(needed) if o not in ds]
+    if outputs is not None and (
+        isinstance(outputs, str) or not all(isinstance(o, str) for o in outputs)
+    ):
+        raise ValueError(f"outputs must be a list of variable names, got {outputs!r}")
+    # the variables the labels read (regime_fraction is made from regime)
+    read = ["regime", *(o for o in (outputs or config.refine.outputs) if o != "regime_fraction")]
+    absent = [o for o in dict.fromkeys(read) if o not in ds]
     if absent:
-        raise ValueError(f"not a complete refined result: no {', '.join(absent)}")
+        raise ValueError(f"outputs: no variable {', '.join(absent)} in this result")
     index = lattice_index(ds, lattice)
     codes, texts = point_label_codes(ds, config, outputs)
     keys = lattice.keys(index)
