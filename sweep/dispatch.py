@@ -223,9 +223,11 @@ def _compile_elsewhere(groups, claims):
 
 def compile_spec(groups, claims):
     """The JSON that :func:`compile_specs` reads: the groups of (params, settings, tangent)
-    jobs (each job by its width, settings and tangent) and the claims folder."""
+    jobs (each job by its width, settings and tangent), the claims folder and this
+    process (the one that waits for them)."""
     return json.dumps({
         "claims": str(claims),
+        "parent": os.getpid(),
         "groups": [
             [{"width": params.shape[1], "settings": settings.tolist(), "tangent": tangent}
              for params, settings, tangent in group]
@@ -240,11 +242,14 @@ def compile_specs(spec):
     :func:`load_kernels`. First each group that no process has started (claim
     ``<group>``), its variants one at a time (claim ``<group>-<variant>``); then the
     variants still unclaimed in the groups that others started. A claim is a file
-    created in the claims folder, by one process only (``O_EXCL``)."""
+    created in the claims folder, by one process only (``O_EXCL``). A process whose
+    parent has gone (killed: no one waits for its kernels) takes no further variant."""
     spec = json.loads(spec)
-    groups = spec["groups"]
+    groups, parent = spec["groups"], spec["parent"]
 
     def claim(name):
+        if parent not in (os.getpid(), os.getppid()):
+            return False
         try:
             os.close(os.open(os.path.join(spec["claims"], name), os.O_CREAT | os.O_EXCL))
         except FileExistsError:

@@ -4,6 +4,7 @@ combine along a fixed parameter; nothing written."""
 
 import json
 import os
+import time
 
 import numpy as np
 import pytest
@@ -265,6 +266,34 @@ def test_processes_share_variant_groups_each_compiled_once(tmp_path, monkeypatch
     compiled.clear()
     dispatch.compile_specs(spec)  # all claimed: nothing left
     assert compiled == []
+
+
+ORPHANED_COMPILE = """
+import os, subprocess, sys
+import sweep
+from sweep import dispatch
+from sweep.grid import build_grid
+g = build_grid(sweep.with_changes("quick", {}))
+spec = dispatch.compile_spec([[(g.params, g.settings, False)]], sys.argv[1])
+code = "import sys; from sweep.dispatch import compile_specs; compile_specs(sys.argv[1])"
+with open(sys.argv[2], "w") as out:
+    child = subprocess.Popen([sys.executable, "-c", code + "; print('done')", spec], stdout=out)
+os._exit(0)  # killed, as it were, while its compile process starts
+"""
+
+
+def test_a_compile_process_whose_parent_died_takes_no_variant(tmp_path):
+    """A process of :func:`sweep.dispatch.load_kernels` whose parent was killed (a test
+    run, a notebook, ``make test``) has no one to compile for: it claims no variant and
+    ends, instead of compiling the rest of the list on its own."""
+    claims, out = tmp_path / "claims", tmp_path / "child.out"
+    claims.mkdir()
+    python_stdout(ORPHANED_COMPILE, str(claims), str(out))  # its parent has ended
+    deadline = time.monotonic() + 60
+    while "done" not in out.read_text() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert out.read_text().split() == ["done"]
+    assert list(claims.iterdir()) == []
 
 
 @pytest.mark.parametrize("processes", [0, -1, 1.5, True, "2"])
