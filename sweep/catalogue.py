@@ -29,6 +29,7 @@ import numpy as np
 import xarray as xr
 
 from .kernels import layout
+from .result_check import check_result
 
 #: Edges of the magnitude bins of ``magnitude_count``: −4 to 4 in steps of 0.2
 #: (events beyond them count in the end bins).
@@ -156,13 +157,13 @@ def catalogue_statistics(ds: xr.Dataset, completeness: float | None = None) -> x
 
     Raises
     ------
+    TypeError
+        ``ds`` is not a Dataset.
     ValueError
-        The result has no catalogue, or ``completeness`` is not finite.
+        ``ds`` is not a complete result, has no catalogue, or ``completeness`` is not
+        finite.
     """
-    if not isinstance(ds, xr.Dataset):
-        raise TypeError(f"ds must be a result Dataset, got {type(ds).__name__}")
-    if "blocks" not in ds.attrs:
-        raise ValueError("ds is not a complete sweep result: no blocks attribute")
+    check_result(ds)
     if "slip_event_magnitude" not in ds:
         raise ValueError("this result has no slip-event catalogue (config key catalogue.capacity)")
     if completeness is not None and not math.isfinite(completeness):

@@ -9,8 +9,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .dataset import check_result
 from .plots import colormap, describe, new_figure, parameter_text
+from .result_check import check_result
 
 if TYPE_CHECKING:
     import xarray

@@ -23,6 +23,7 @@ from .catalogue import MAGNITUDE_EDGES, catalogue_fields
 from .config import parse_config
 from .errors import ConfigError, InputError
 from .physics import PARAMETERS
+from .result_check import RESULT_VARIABLES, missing_parts
 from .store import ZARR_SUFFIX, replaced_atomically, require_zarr
 from .variables import ATTRACTORS, REGIMES, SCALES, VARIABLES, variables_for
 
@@ -389,7 +390,7 @@ def read_result(path: str | Path, needs_config: bool = False) -> xr.Dataset:
         missing.append("config_text attribute")
     if missing:
         raise InputError(path, [f"not a sweep result (no {', '.join(missing)})"])
-    incomplete = _missing_parts(ds)
+    incomplete = missing_parts(ds)
     if incomplete:
         raise InputError(path, [f"not a complete sweep result: no {', '.join(incomplete)} (a "
                                 "file edited after the run, or from another version)"])  # fmt: skip
@@ -400,41 +401,6 @@ def read_result(path: str | Path, needs_config: bool = False) -> xr.Dataset:
                    "sweep first (python -m sweep run CONFIG --out PATH --resume)"]
         )  # fmt: skip
     return ds
-
-
-#: Variables by which a file is recognised as a sweep result at all.
-RESULT_VARIABLES = ("regime", "K_over_Kc", "lnv_amplitude")
-#: File attributes every sweep result has and the commands read.
-RESULT_ATTRS = ("blocks", "model", "state_law", "initial_v_over_V", "initial_phi_over_phi_ss")
-
-
-def check_result(ds, argument="ds"):
-    """Raise TypeError unless ``ds`` is an xarray Dataset, ValueError (naming what is
-    missing) unless it is a complete sweep result; ``argument`` names it in messages.
-    The plotting and catalogue functions check what they are given with it."""
-    if not isinstance(ds, xr.Dataset):
-        raise TypeError(f"{argument} must be a result Dataset (xarray.open_dataset of a "
-                        f"result file), got {type(ds).__name__}")  # fmt: skip
-    missing = [v for v in RESULT_VARIABLES if v not in ds] or _missing_parts(ds)
-    if missing:
-        raise ValueError(f"{argument} is not a complete sweep result: no {', '.join(missing)}")
-    if ds["regime"].size == 0:
-        raise ValueError(f"{argument} has no runs (an axis of length 0)")
-
-
-def _missing_parts(ds):
-    """What a result ``ds`` lacks of what its run writes: the attributes the commands
-    read, ``regime``'s flag table and, where its config is stored, the output variables
-    of that config."""
-    missing = [f"{a} attribute" for a in RESULT_ATTRS if a not in ds.attrs]
-    missing += [f"regime {a}" for a in ("flag_values", "flag_meanings")
-                if a not in ds["regime"].attrs]  # fmt: skip
-    try:
-        config = parse_config(ds.attrs["config_text"])
-    except (KeyError, ConfigError):  # none stored, or not valid: stored_config says so
-        return missing
-    expected = variables_for(config.blocks, config.model, config.features)
-    return missing + [v.name for v in expected if v.name not in ds]
 
 
 def stored_config(ds, source):

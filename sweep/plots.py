@@ -15,13 +15,14 @@ from __future__ import annotations
 import os
 import re
 import textwrap
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .dataset import check_result, parameter_values
+from .dataset import parameter_values
 from .physics import PARAMETERS
+from .result_check import check_result, check_trace
 from .variables import REGIMES
 
 if TYPE_CHECKING:
@@ -843,9 +844,15 @@ def plot_trace(ds: xarray.Dataset, ax: Axes | None = None) -> Figure:
     -------
     matplotlib.figure.Figure
         The new figure, or the figure of ``ax``.
+
+    Raises
+    ------
+    TypeError
+        ``ds`` is not a Dataset.
+    ValueError
+        ``ds`` is not a trace, or lacks what its run wrote (a file edited since).
     """
-    if not isinstance(getattr(ds, "data_vars", None), Mapping) or "velocity" not in ds:
-        raise ValueError("ds must be a trace Dataset (sweep.trace or python -m sweep trace)")
+    check_trace(ds)
     fig, ax = _figure_and_axes(ax, (8, 4.2))
     draw_trace(ax, ds)
     ratio = f"K/Kc = {ds.attrs['K_over_Kc']:.3g}"

@@ -8,8 +8,9 @@ import xarray as xr
 
 import sweep
 from sweep import cli
-from sweep.config import with_changes
+from sweep.config import load_config, with_changes
 from sweep.runner import run_sweep
+from sweep.trace import compute_trace
 
 
 @pytest.fixture(scope="module")
@@ -170,21 +171,53 @@ def test_plotting_functions_say_what_they_were_given(quick_reference_file):
     the plotting functions name the argument and what is missing (they failed with
     KeyError from inside xarray)."""
     ds = xr.load_dataset(quick_reference_file)
+    without_model = ds.copy()
+    without_model.attrs.pop("model")
     calls = {
         "plot_result": sweep.plot_result,
         "plot_variable": lambda d: sweep.plot_variable(d, "period"),
         "plot_orbit_diagram": sweep.plot_orbit_diagram,
         "plot_bifurcation": sweep.plot_bifurcation,
         "plot_catalogue": sweep.plot_catalogue,
+        "catalogue_statistics": sweep.catalogue_statistics,
     }
-    for name, call in calls.items():
+    for call in calls.values():
         with pytest.raises(TypeError, match="must be a result Dataset"):
             call(str(quick_reference_file))
         with pytest.raises(ValueError, match="is not a complete sweep result: no growth_rate"):
             call(ds.drop_vars("growth_rate"))
-        assert name.startswith("plot_")
+        with pytest.raises(ValueError, match="is not a complete sweep result: no model attribute"):
+            call(without_model)
     with pytest.raises(ValueError, match="must be a trace Dataset"):
         sweep.plot_trace(ds)
+
+
+def edited_trace(trace, change):
+    """A copy of ``trace`` with ``change`` applied to its attributes."""
+    edited = trace.copy()
+    change(edited.attrs)
+    return edited
+
+
+def test_plot_trace_names_what_an_edited_trace_lacks():
+    """A trace whose regime attribute was edited, or whose statistics were dropped, is a
+    ValueError naming them (it was a KeyError from inside the figure)."""
+    trace = compute_trace(with_changes(load_config("quick"), {"sweep": {"K_W": [0.03]}}), 200)
+    assert trace.attrs["regime"] == "runaway"
+    cases = [
+        (lambda a: a.update(regime="chaos"), "regime attribute must be one of steady, "),
+        (lambda a: a.pop("regime"), "got None"),
+        (lambda a: a.pop("t_runaway"), "not a complete trace: no t_runaway attribute"),
+        (lambda a: a.pop("K_over_Kc"), "not a complete trace: no K_over_Kc attribute"),
+    ]
+    for change, says in cases:
+        with pytest.raises(ValueError, match=says):
+            sweep.plot_trace(edited_trace(trace, change))
+    with pytest.raises(ValueError, match="not a complete trace: no lnv"):
+        sweep.plot_trace(trace.drop_vars("lnv"))
+    with pytest.raises(TypeError, match="ds must be a trace Dataset, got dict"):
+        sweep.plot_trace({"velocity": 1})
+    assert len(sweep.plot_trace(trace).axes) == 1
 
 
 def test_a_refined_result_cut_by_hand_and_arguments_of_the_wrong_type(quick_reference_file):
