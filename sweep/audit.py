@@ -1,11 +1,15 @@
-"""Self-audit: rerun points of a result for much longer and compare the regimes.
+"""Self-audit: rerun points of a result for much longer, and with tighter tolerances,
+and compare the regimes.
 
 A sweep stops each run as soon as its regime looks settled (early exit) and
 classifies the rest at the end time. The audit checks those calls: it reruns a
 seeded random sample of grid points plus every point near the critical
 stiffness (|K/Kc − 1| ≤ ``near_kc``) from the config's initial state, with
 early exit off and a much later end time, and compares the two regimes point
-by point.
+by point. It also reruns them with the file's own settings but rtol and atol
+divided by a factor: a label that changes with the tolerance (a chaotic transient
+whose runaway the looser run misses, or blocks merged by round-off onto an orbit
+they would leave) is not a property of the equations.
 """
 
 from __future__ import annotations
@@ -53,6 +57,22 @@ def audit_config(config, t_end):
     )
 
 
+#: The smallest relative tolerance a tightened rerun may ask for: below about 100
+#: machine epsilons the error estimates of the methods are round-off.
+MIN_TIGHT_RTOL = 1e-13
+
+
+def tight_config(config, tighten):
+    """``config`` with rtol and atol divided by ``tighten`` (> 1) and rk4's fixed step by
+    ``tighten`` ** (1/4) (its error, fourth order, then falls by ``tighten`` too); nothing
+    else changed."""
+    integ = config.integrator
+    tighter = dataclasses.replace(
+        integ, rtol=integ.rtol / tighten, atol=integ.atol / tighten, dt=integ.dt / tighten**0.25
+    )
+    return dataclasses.replace(config, integrator=tighter)
+
+
 def audit_result(
     result: str | os.PathLike | xr.Dataset,
     sample: int = 20,
@@ -61,8 +81,10 @@ def audit_result(
     seed: int = 0,
     threads: int | None = None,
     source: str | None = None,
+    tighten: float | None = 100.0,
 ) -> xr.Dataset:
-    """Rerun a sample of a result's grid points for longer and compare regimes.
+    """Rerun a sample of a result's grid points for longer, and with tighter tolerances,
+    and compare regimes.
 
     Parameters
     ----------
@@ -83,6 +105,11 @@ def audit_result(
         Threads on this machine (default: all cores).
     source : str, optional
         Name of the result in error messages (default: its path).
+    tighten : float or None, default 100.0
+        The same points are also rerun with the file's settings (end time, early
+        exit) but its ``rtol`` and ``atol`` divided by ``tighten`` (> 1; the tightened
+        rtol at least 1e-13; rk4: its step ``dt`` by ``tighten`` ** (1/4)). None: no
+        such rerun.
 
     Returns
     -------
@@ -91,13 +118,16 @@ def audit_result(
         of each drawn grid point, ``member`` saying which): the sweep axes'
         values (physical units), ``index`` (flat grid index), ``near_kc``
         (audited for being near Kc), ``K_over_Kc``, ``regime_file``,
-        ``regime_audit`` and ``agree``. Attributes: the audit settings.
+        ``regime_audit`` and ``agree`` (the long run), and unless ``tighten`` is
+        None ``regime_tight`` and ``agree_tight`` (the rerun with tighter
+        tolerances). Attributes: the audit settings.
 
     Raises
     ------
     InputError
-        The result cannot be read or holds no config, or ``sample``, ``near_kc`` or
-        ``t_end`` is out of range or not later than the file's (every problem listed).
+        The result cannot be read or holds no config, or ``sample``, ``near_kc``,
+        ``tighten`` or ``t_end`` is out of range or ``t_end`` not later than the file's
+        (every problem listed).
     ConfigError
         The stored config is no longer valid.
     """
@@ -113,6 +143,12 @@ def audit_result(
         problems.append(f"--t-end must be finite and later than the file's t_end, "
                         f"{config.integrator.t_end:g} {config.integrator.t_unit} (the audit "
                         f"runs for longer), got {t_end:g}")  # fmt: skip
+    rtol = config.integrator.rtol
+    if tighten is not None and not (1.0 < tighten < np.inf and rtol / tighten >= MIN_TIGHT_RTOL):
+        problems.append(
+            f"--tighten must be finite, above 1 and keep rtol / FACTOR >= {MIN_TIGHT_RTOL:g} "
+            f"(the file's rtol is {rtol:g}), got {tighten:g}"
+        )
     if problems:
         raise InputError(source, problems)
     points, near_points = audit_points(ds, sample, near_kc, seed)
@@ -120,14 +156,8 @@ def audit_result(
     members = config.members
     runs = (points[:, None] * members + np.arange(members)).ravel()
     rows, near = np.repeat(points, members), np.repeat(near_points, members)
-    longer = audit_config(config, t_end)
-    if runs.size:
-        picked = build_grid(longer).rows(runs)
-        results, _ = integrate_in_memory(picked.params, picked.y0, picked.settings, threads)
-    else:
-        results = np.empty((0, layout.N_RESULTS))  # no runs: only the regime column is read
     regime_file = ds["regime"].values.ravel()[runs]
-    regime_audit = results[:, layout.R_REGIME].astype(np.int8)
+    regime_audit = rerun_regimes(audit_config(config, t_end), runs, threads)
     flags = {
         "flag_values": np.arange(len(REGIMES), dtype=np.int8),
         "flag_meanings": " ".join(REGIMES),
@@ -155,6 +185,18 @@ def audit_result(
         ),
         "agree": ("point", regime_file == regime_audit, {"long_name": "same regime"}),
     }
+    if tighten is not None:
+        regime_tight = rerun_regimes(tight_config(config, tighten), runs, threads)
+        data_vars["regime_tight"] = (
+            "point",
+            regime_tight,
+            {"long_name": f"regime of the rerun with rtol and atol / {tighten:g}", **flags},
+        )
+        data_vars["agree_tight"] = (
+            "point",
+            regime_file == regime_tight,
+            {"long_name": "same regime with tighter tolerances"},
+        )
     attrs = {
         "title": f"Audit of the rsf-sweep result {source}",
         "audit_source": source,
@@ -164,6 +206,16 @@ def audit_result(
         "audit_sample": np.int64(sample),
         "audit_near_kc": float(near_kc),
         "audit_seed": np.int64(seed),
+        "audit_tighten": np.nan if tighten is None else float(tighten),
         "sweep_axes": " ".join(a.name for a in config.axes),
     }
     return xr.Dataset(data_vars, coords=coords, attrs=attrs)
+
+
+def rerun_regimes(config, runs, threads):
+    """Regime codes (int8) of the flat run indices ``runs`` of ``config``'s grid."""
+    if not runs.size:
+        return np.empty(0, np.int8)
+    picked = build_grid(config).rows(runs)
+    results, _ = integrate_in_memory(picked.params, picked.y0, picked.settings, threads)
+    return results[:, layout.R_REGIME].astype(np.int8)

@@ -178,11 +178,12 @@ def add_check_commands(sub):
     ext.add_argument("--threads", type=_threads, help="threads (default: all cores)")
     aud = sub.add_parser(
         "audit",
-        help="rerun a sample of a result's points for longer and compare the regimes",
+        help="rerun a sample of a result's points for longer and with tighter tolerances, "
+        "and compare the regimes",
         description="Rerun a seeded random sample of RESULT's grid points, plus every point "
-        "near Kc, from the initial state with early exit off and a later end time, and "
-        "compare the regimes. Exit status 0 when all agree, 1 when some disagree, 2 for "
-        "bad input.",
+        "near Kc, from the initial state with early exit off and a later end time, and again "
+        "with the file's settings but rtol and atol divided by a factor, and compare the "
+        "regimes. Exit status 0 when all agree, 1 when some disagree, 2 for bad input.",
     )
     aud.add_argument("result", help="result NetCDF file of python -m sweep run")
     aud.add_argument(
@@ -196,6 +197,10 @@ def add_check_commands(sub):
     aud.add_argument(
         "--t-end", type=_positive_float, metavar="T",
         help="end time of the reruns, in the config's t_unit (default: 10x the file's)",
+    )  # fmt: skip
+    aud.add_argument(
+        "--tighten", type=_positive_float, default=100.0, metavar="FACTOR",
+        help="the second rerun divides rtol and atol by FACTOR, above 1 (default 100)",
     )  # fmt: skip
     aud.add_argument("--seed", type=_seed, default=0,
                      help="seed of the random sample, in [0, 2147483647] (default 0)")  # fmt: skip
@@ -407,40 +412,59 @@ def cmd_extend(args):
     return 0
 
 
+#: The audit's reruns: (regime variable, agreement variable, column heading, label).
+AUDIT_RERUNS = (
+    ("regime_audit", "agree", "long run"),
+    ("regime_tight", "agree_tight", "tighter tolerance"),
+)
+
+
 def agreement_lines(audit):
-    """The agreement table of an audit Dataset: regime in the file (rows) against the
-    regime of the long run (columns), then the share of points that agree."""
+    """The agreement tables of an audit Dataset, one per rerun: regime in the file (rows)
+    against the rerun's regime (columns), then the share of points that agree."""
     import numpy as np
 
     names = audit["regime_file"].attrs["flag_meanings"].split()
-    in_file, in_long = audit["regime_file"].values, audit["regime_audit"].values
+    reruns = [r for r in AUDIT_RERUNS if r[0] in audit]
     width = max(len(n) for n in names) + 2
-    corner = "file \\ long run"
-    lines = [f"{corner:<{width + 4}}" + "".join(f"{n:>{width}}" for n in names)]
-    for code, name in enumerate(names):
-        counts = [np.count_nonzero((in_file == code) & (in_long == c)) for c in range(len(names))]
-        lines.append(f"{name:<{width + 4}}" + "".join(f"{c:>{width}d}" for c in counts))
-    n, agree = in_file.size, int(audit["agree"].sum())
-    share = 100.0 * agree / n if n else 100.0
-    lines.append(f"agreement: {agree} of {n} {_audited(audit)} ({share:.1f} %)")
+    corners = ["file \\ " + label for _, _, label in reruns]
+    left = max(len(c) for c in corners) + 2
+    in_file, lines = audit["regime_file"].values, []
+    for (regime, agree, _), corner in zip(reruns, corners, strict=True):
+        in_rerun = audit[regime].values
+        lines.append(f"{corner:<{left}}" + "".join(f"{n:>{width}}" for n in names))
+        for code, name in enumerate(names):
+            counts = [
+                np.count_nonzero((in_file == code) & (in_rerun == c)) for c in range(len(names))
+            ]
+            lines.append(f"{name:<{left}}" + "".join(f"{c:>{width}d}" for c in counts))
+        n, same = in_file.size, int(audit[agree].sum())
+        share = 100.0 * same / n if n else 100.0
+        lines.append(f"agreement: {same} of {n} {_audited(audit)} ({share:.1f} %)")
     return lines
 
 
 def disagreement_lines(audit):
-    """One line per audited run whose regimes differ: axes (and ensemble member), K/Kc
-    and both labels."""
+    """One line per audited run where a rerun's regime differs from the file's: axes
+    (and ensemble member), K/Kc and every label."""
+    import numpy as np
+
     names = audit["regime_file"].attrs["flag_meanings"].split()
     axes = audit.attrs["sweep_axes"].split()
+    reruns = [r for r in AUDIT_RERUNS if r[0] in audit]
+    differ = np.zeros(audit.sizes["point"], bool)
+    for _, agree, _ in reruns:
+        differ |= audit[agree].values == 0
     lines = []
-    for i in (audit["agree"].values == 0).nonzero()[0]:
+    for i in differ.nonzero()[0]:
         point = audit.isel(point=i)
         at = " ".join(f"{a}={point[a].item():g}" for a in axes)
         if "member" in audit.coords:
             at += f" member={point['member'].item()}"
+        labels = "  ".join(f"{label}: {names[int(point[regime])]}" for regime, _, label in reruns)
         lines.append(
             f"  {at}  K/Kc={point['K_over_Kc'].item():.4g}  "
-            f"file: {names[int(point['regime_file'])]}  "
-            f"long run: {names[int(point['regime_audit'])]}"
+            f"file: {names[int(point['regime_file'])]}  {labels}"
         )
     return lines
 
@@ -454,19 +478,21 @@ def cmd_audit(args):
     from .audit import audit_result
 
     audit = audit_result(
-        args.result, args.sample, args.near_kc, args.t_end, args.seed, args.threads
-    )
-    near = int(audit["near_kc"].sum())
+        args.result, args.sample, args.near_kc, args.t_end, args.seed, args.threads,
+        tighten=args.tighten,
+    )  # fmt: skip
+    near, unit = int(audit["near_kc"].sum()), audit.attrs["audit_t_unit"]
     print(
         f"audited {audit.sizes['point']} {_audited(audit)} of {args.result} ({near} within "
         f"{audit.attrs['audit_near_kc']:g} of Kc): runs to {audit.attrs['audit_t_end']:g} "
-        f"{audit.attrs['audit_t_unit']} without early exit"
+        f"{unit} without early exit, and to {audit.attrs['file_t_end']:g} {unit} with rtol "
+        f"and atol / {audit.attrs['audit_tighten']:g}"
     )
     for line in agreement_lines(audit):
         print(line)
     wrong = disagreement_lines(audit)
     if wrong:
-        print(f"{_audited(audit)} where the long run disagrees:")
+        print(f"{_audited(audit)} where a rerun disagrees:")
         for line in wrong:
             print(line)
         return 1

@@ -1,5 +1,7 @@
 """Self-audit (``sweep/audit.py``, ``python -m sweep audit``): long reruns without early
-exit agree with clearly classified points and catch a regime that is wrong in the file."""
+exit and reruns with tighter tolerances agree with clearly classified points, catch a
+regime that is wrong in the file, and catch a chaotic transient whose runaway the
+default tolerance misses (checked against SciPy)."""
 
 import dataclasses
 import subprocess
@@ -8,10 +10,13 @@ import sys
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import SUBPROCESS_TIMEOUT, make_config
+from conftest import PAPER_A, PAPER_B, SUBPROCESS_TIMEOUT, make_config
+from nblock_reference import Chain, run, start_state
 
+import sweep
 from sweep import cli, runner
-from sweep.audit import audit_config, audit_points, audit_result
+from sweep.audit import audit_config, audit_points, audit_result, tight_config
+from sweep.codes import ATTRACTORS, code
 from sweep.dataset import write_netcdf
 from sweep.kernels import layout
 
@@ -32,8 +37,11 @@ def test_clear_points_agree(clear):
     assert regimes.tolist() == [[layout.RUNAWAY, layout.STICK_SLIP]] * 2 + [[layout.STEADY] * 2]
     audit = audit_result(clear)
     assert audit.sizes["point"] == 6  # a sample of 20 takes the whole grid of 6
-    assert audit["agree"].all()
+    assert audit["agree"].all() and audit["agree_tight"].all()
     np.testing.assert_array_equal(audit["regime_audit"], regimes.ravel())
+    np.testing.assert_array_equal(audit["regime_tight"], regimes.ravel())
+    assert audit.attrs["audit_tighten"] == 100.0
+    assert "regime_tight" not in audit_result(clear, tighten=None)
     np.testing.assert_array_equal(audit["K_W"], [0.03, 0.03, 0.04, 0.04, 0.07, 0.07])
     np.testing.assert_array_equal(audit["eta_W"], [0.0, 0.05] * 3)
     np.testing.assert_array_equal(audit["K_over_Kc"], clear["K_over_Kc"].values.ravel())
@@ -50,6 +58,44 @@ def test_audit_config_turns_early_exit_off():
     assert (longer.axes, longer.parameters, longer.initial) == (
         config.axes, config.parameters, config.initial,
     )  # fmt: skip
+
+
+def test_tight_config_divides_the_tolerances_only():
+    config = make_config(CLEAR, integrator={"method": "rk4", "dt": 0.01})
+    tight = tight_config(config, 100.0)
+    assert (tight.integrator.rtol, tight.integrator.atol) == (1e-10, 1e-12)
+    assert tight.integrator.dt == pytest.approx(0.01 / 100**0.25)
+    assert tight.integrator.t_end == config.integrator.t_end
+    assert (tight.classification, tight.axes, tight.parameters, tight.initial) == (
+        config.classification, config.axes, config.parameters, config.initial,
+    )  # fmt: skip
+
+
+def test_a_chaotic_transient_is_caught_by_the_tighter_rerun():
+    """Three unequal quasi-static blocks (D0 1.0/1.3/0.8 µm, chain, k2/W 0.02 µm⁻¹) at
+    0.9 of the reference's Kc, from Φ/Φss = [1.01, 1, 1]: SciPy (DOP853, rtol 1e-10) runs
+    away after a chaotic transient; so does the engine at rtol 1e-10, to 2e-3 of its
+    time. At the default rtol 1e-8 the engine's trajectory has left the true one by the
+    escape (λ1 ≈ 0.0011 s⁻¹ grows the error about 1e5-fold by then) and stays chaotic to
+    max_t_end: the file's label is of another trajectory, and the tighter rerun says
+    so."""
+    chain = Chain(PAPER_A, PAPER_B, [1.0, 1.3, 0.8], 0.05, 0.02)
+    k_w = 0.9 * chain.critical_K_W()
+    start = {"phi_over_phi_ss": [1.01, 1.0, 1.0], "v_over_V": 1.0, "ensemble": 0}
+    config = sweep.with_changes(
+        "unequal_chain", {"sweep": {"K_W": [k_w], "k2_W": [0.02]}, "initial": start}
+    )
+    ds = runner.compute(config, show_progress=False)
+    audit = audit_result(ds, sample=1, near_kc=0.0)
+    tight = runner.compute(tight_config(config, 100.0), show_progress=False)
+    _, t_scipy = run(chain.with_K(k_w), start_state(3, 1.0, [1.01, 1.0, 1.0]), 2000.0)
+    assert t_scipy is not None  # in the reference's unit 1 µm / V = 10 s
+    assert int(tight["regime"].item()) == layout.RUNAWAY
+    assert tight["t_runaway"].item() == pytest.approx(10.0 * t_scipy, rel=2e-3)
+    assert int(audit["regime_tight"].item()) == layout.RUNAWAY
+    assert int(ds["regime"].item()) == layout.STICK_SLIP
+    assert int(ds["attractor"].item()) == code(ATTRACTORS, "chaotic")
+    assert not audit["agree_tight"].item()
 
 
 def test_points_sample_and_near_kc():
@@ -86,16 +132,22 @@ def test_planted_disagreement_is_found(planted):
     )  # fmt: skip
     assert proc.returncode == 1, proc.stderr
     lines = proc.stdout.splitlines()
-    assert lines[0].startswith("audited 6 points of r.nc (0 within 0.01 of Kc): runs to 3000 D0/V")
-    assert lines[1].split() == ["file", "\\", "long", "run", "steady", "stick_slip", "runaway",
-                                "undecided"]  # fmt: skip
-    table = {line.split()[0]: [int(c) for c in line.split()[1:]] for line in lines[2:6]}
-    assert table == {"steady": [1, 0, 0, 0], "stick_slip": [1, 2, 0, 0],
-                     "runaway": [0, 0, 2, 0], "undecided": [0, 0, 0, 0]}  # fmt: skip
-    assert lines[6] == "agreement: 5 of 6 points (83.3 %)"
-    assert lines[7:] == [
-        "points where the long run disagrees:",
-        "  K_W=0.07 eta_W=0.05  K/Kc=1.556  file: stick_slip  long run: steady",
+    assert lines[0] == (
+        "audited 6 points of r.nc (0 within 0.01 of Kc): runs to 3000 D0/V without early exit, "
+        "and to 300 D0/V with rtol and atol / 100"
+    )
+    regimes = ["steady", "stick_slip", "runaway", "undecided"]
+    expected = {"steady": [1, 0, 0, 0], "stick_slip": [1, 2, 0, 0],
+                "runaway": [0, 0, 2, 0], "undecided": [0, 0, 0, 0]}  # fmt: skip
+    for first, rerun in ((1, ["long", "run"]), (7, ["tighter", "tolerance"])):
+        assert lines[first].split() == ["file", "\\", *rerun, *regimes]
+        rows = lines[first + 1 : first + 5]
+        assert {line.split()[0]: [int(c) for c in line.split()[1:]] for line in rows} == expected
+        assert lines[first + 5] == "agreement: 5 of 6 points (83.3 %)"
+    assert lines[13:] == [
+        "points where a rerun disagrees:",
+        "  K_W=0.07 eta_W=0.05  K/Kc=1.556  file: stick_slip  long run: steady  "
+        "tighter tolerance: steady",
     ]
 
 
@@ -103,14 +155,23 @@ def test_all_agree_exits_0(clear, tmp_path, capsys):
     write_netcdf(clear, tmp_path / "r.nc")
     assert cli.main(["audit", str(tmp_path / "r.nc"), "--sample", "3", "--seed", "5"]) == 0
     out = capsys.readouterr().out
-    assert "agreement: 3 of 3 points (100.0 %)" in out
+    assert out.count("agreement: 3 of 3 points (100.0 %)") == 2
     assert "disagrees" not in out
 
 
-def test_bad_input_exits_2(tmp_path, capsys):
+def test_bad_input_exits_2(clear, tmp_path, capsys):
     assert cli.main(["audit", str(tmp_path / "missing.nc")]) == 2
     assert "missing.nc: cannot read result file" in capsys.readouterr().err
-    for option in (["--t-end", "0"], ["--near-kc", "-0.1"], ["--sample", "-1"], ["--seed", "x"]):
+    write_netcdf(clear, tmp_path / "r.nc")
+    for factor in ("1", "1e6"):  # no tighter, or rtol 1e-14
+        assert cli.main(["audit", str(tmp_path / "r.nc"), "--tighten", factor]) == 2
+        assert (
+            "--tighten must be finite, above 1 and keep rtol / FACTOR >= 1e-13 (the file's rtol "
+            f"is 1e-08), got {float(factor):g}"
+        ) in capsys.readouterr().err
+    bad = (["--t-end", "0"], ["--near-kc", "-0.1"], ["--sample", "-1"], ["--seed", "x"],
+           ["--tighten", "0"], ["--tighten", "nan"])  # fmt: skip
+    for option in bad:
         with pytest.raises(SystemExit) as info:
             cli.main(["audit", "r.nc", *option])
         assert info.value.code == 2, option
@@ -131,6 +192,8 @@ def test_ensemble_members_are_audited_as_runs(tmp_path, capsys):
     np.testing.assert_array_equal(audit["regime_file"], ds["regime"].values[points].ravel())
     long = runner.compute(audit_config(config, audit.attrs["audit_t_end"]), show_progress=False)
     np.testing.assert_array_equal(audit["regime_audit"], long["regime"].values[points].ravel())
+    tight = runner.compute(tight_config(config, 100.0), show_progress=False)
+    np.testing.assert_array_equal(audit["regime_tight"], tight["regime"].values[points].ravel())
     np.testing.assert_array_equal(audit["K_W"], np.repeat(ds["K_W"].values[points], 3))
     write_netcdf(ds, tmp_path / "e.nc")
     cli.main(["audit", str(tmp_path / "e.nc"), "--sample", "2", "--near-kc", "0", "--seed", "1"])
