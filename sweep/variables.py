@@ -124,11 +124,14 @@ VARIABLES = (
              column="R_N_REJECTED"),
     Variable("n_peaks", "int32", "1", "maxima of ln v of block 0", "", column="R_N_PEAKS"),
     Variable("sync_error", "float64", "1", "synchronisation error",
-             "max |ln v_i - ln v_0| over blocks in the final window", min_blocks=2,
-             column="R_SYNC_ERROR"),
+             "max |ln v_i - ln v_0| over blocks in the final window, at the ends of the "
+             "accepted steps (a peak between them reads low: 0.3-0.8 % in two cases checked)",
+             min_blocks=2, column="R_SYNC_ERROR"),
     Variable("phase_lag", "float64", "1", "phase lag of the last block",
              "time from a maximum of ln v_0 to the next maximum of ln v of the last block, "
-             "as a fraction of the period in [-0.5, 0.5)", min_blocks=2, column="R_PHASE_LAG"),
+             "as a fraction in [-0.5, 0.5) of the last interval between maxima of ln v_0 (for a "
+             "cycle of n events that event's interval, not period)", min_blocks=2,
+             column="R_PHASE_LAG"),
     Variable("lnv_final", "float64", "1", "final ln(v/V) per block",
              "state at t_final", per_block=True),
     Variable("ln_state_final", "float64", "1", "final ln(Phi/Phi_ss) per block",
@@ -140,8 +143,10 @@ VARIABLES = (
     Variable("sync_order", "float64", "1", "synchronisation order parameter",
              "Kuramoto R = |mean_i exp(i theta_i)| of the blocks' oscillation phases in the final "
              "window, theta_i = 2 pi (time of block i's last maximum of ln v - time of block 0's "
-             "maximum) / period: 1 in phase, 0 spread evenly; NaN without two maxima of block 0 "
-             "or where a block had none", feature="nblock", column="R_SYNC_ORDER"),
+             "maximum) / (the last interval between maxima of ln v_0; for a cycle of n events "
+             "that event's interval, not period): 1 in phase, 0 spread evenly; NaN without two "
+             "maxima of block 0 or where a block had none in that interval", feature="nblock",
+             column="R_SYNC_ORDER"),
     Variable("slip_participation", "float64", "1", "fraction of blocks taking part in a slip",
              "mean over the slip events of the final window of the fraction of blocks that slip "
              "(v > classification_slip_v_over_V * V) during the event; an event lasts while any "
