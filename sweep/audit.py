@@ -27,7 +27,7 @@ from .grid import build_grid
 from .kernels import layout
 from .physics import PARAMETERS
 from .runner import integrate_in_memory
-from .variables import REGIMES
+from .variables import ATTRACTORS, REGIMES
 
 
 def audit_points(ds, sample=20, near_kc=0.01, seed=0):
@@ -118,9 +118,11 @@ def audit_result(
         of each drawn grid point, ``member`` saying which): the sweep axes'
         values (physical units), ``index`` (flat grid index), ``near_kc``
         (audited for being near Kc), ``K_over_Kc``, ``regime_file``,
-        ``regime_audit`` and ``agree`` (the long run), and unless ``tighten`` is
-        None ``regime_tight`` and ``agree_tight`` (the rerun with tighter
-        tolerances). Attributes: the audit settings.
+        ``regime_audit`` and ``agree`` (the long run's regime), and unless
+        ``tighten`` is None the rerun with tighter tolerances: ``regime_tight``,
+        ``attractor_file`` / ``attractor_tight``, ``cycle_events_file`` /
+        ``cycle_events_tight``, and ``agree_tight`` (all three the same).
+        Attributes: the audit settings.
 
     Raises
     ------
@@ -157,7 +159,7 @@ def audit_result(
     runs = (points[:, None] * members + np.arange(members)).ravel()
     rows, near = np.repeat(points, members), np.repeat(near_points, members)
     regime_file = ds["regime"].values.ravel()[runs]
-    regime_audit = rerun_regimes(audit_config(config, t_end), runs, threads)
+    regime_audit = rerun_labels(audit_config(config, t_end), runs, threads)[0]
     flags = {
         "flag_values": np.arange(len(REGIMES), dtype=np.int8),
         "flag_meanings": " ".join(REGIMES),
@@ -186,17 +188,7 @@ def audit_result(
         "agree": ("point", regime_file == regime_audit, {"long_name": "same regime"}),
     }
     if tighten is not None:
-        regime_tight = rerun_regimes(tight_config(config, tighten), runs, threads)
-        data_vars["regime_tight"] = (
-            "point",
-            regime_tight,
-            {"long_name": f"regime of the rerun with rtol and atol / {tighten:g}", **flags},
-        )
-        data_vars["agree_tight"] = (
-            "point",
-            regime_file == regime_tight,
-            {"long_name": "same regime with tighter tolerances"},
-        )
+        data_vars.update(tight_labels(ds, config, runs, tighten, threads, flags))
     attrs = {
         "title": f"Audit of the rsf-sweep result {source}",
         "audit_source": source,
@@ -212,10 +204,58 @@ def audit_result(
     return xr.Dataset(data_vars, coords=coords, attrs=attrs)
 
 
-def rerun_regimes(config, runs, threads):
-    """Regime codes (int8) of the flat run indices ``runs`` of ``config``'s grid."""
+def rerun_labels(config, runs, threads):
+    """Regime (int8), attractor (int8) and cycle_events (int32) of the flat run indices
+    ``runs`` of ``config``'s grid."""
     if not runs.size:
-        return np.empty(0, np.int8)
+        return np.empty(0, np.int8), np.empty(0, np.int8), np.empty(0, np.int32)
     picked = build_grid(config).rows(runs)
     results, _ = integrate_in_memory(picked.params, picked.y0, picked.settings, threads)
-    return results[:, layout.R_REGIME].astype(np.int8)
+    return (
+        results[:, layout.R_REGIME].astype(np.int8),
+        results[:, layout.R_ATTRACTOR].astype(np.int8),
+        results[:, layout.R_CYCLE_EVENTS].astype(np.int32),
+    )
+
+
+def tight_labels(ds, config, runs, tighten, threads, regime_flags):
+    """The audit's variables of the rerun with tolerances / ``tighten``: its regime,
+    attractor and cycle_events beside the file's, and ``agree_tight`` (all three equal)."""
+    regime, attractor, events = rerun_labels(tight_config(config, tighten), runs, threads)
+    attractor_flags = {
+        "flag_values": np.arange(len(ATTRACTORS), dtype=np.int8),
+        "flag_meanings": " ".join(ATTRACTORS),
+    }
+    in_file = {
+        name: ds[name].values.ravel()[runs] for name in ("regime", "attractor", "cycle_events")
+    }
+    same = (
+        (in_file["regime"] == regime)
+        & (in_file["attractor"] == attractor)
+        & (in_file["cycle_events"] == events)
+    )
+    rerun = f"the rerun with rtol and atol / {tighten:g}"
+    return {
+        "regime_tight": ("point", regime, {"long_name": f"regime of {rerun}", **regime_flags}),
+        "attractor_file": (
+            "point",
+            in_file["attractor"],
+            {"long_name": "attractor in the file", **attractor_flags},
+        ),
+        "attractor_tight": (
+            "point",
+            attractor,
+            {"long_name": f"attractor of {rerun}", **attractor_flags},
+        ),
+        "cycle_events_file": (
+            "point",
+            in_file["cycle_events"],
+            {"long_name": "events per cycle in the file"},
+        ),
+        "cycle_events_tight": ("point", events, {"long_name": f"events per cycle of {rerun}"}),
+        "agree_tight": (
+            "point",
+            same,
+            {"long_name": "same regime, attractor and events per cycle with tighter tolerances"},
+        ),
+    }

@@ -412,10 +412,10 @@ def cmd_extend(args):
     return 0
 
 
-#: The audit's reruns: (regime variable, agreement variable, column heading, label).
+#: The audit's reruns: (regime variable, agreement variable, label, what agreement means).
 AUDIT_RERUNS = (
-    ("regime_audit", "agree", "long run"),
-    ("regime_tight", "agree_tight", "tighter tolerance"),
+    ("regime_audit", "agree", "long run", "regime"),
+    ("regime_tight", "agree_tight", "tighter tolerance", "regime, attractor and events per cycle"),
 )
 
 
@@ -427,10 +427,10 @@ def agreement_lines(audit):
     names = audit["regime_file"].attrs["flag_meanings"].split()
     reruns = [r for r in AUDIT_RERUNS if r[0] in audit]
     width = max(len(n) for n in names) + 2
-    corners = ["file \\ " + label for _, _, label in reruns]
+    corners = ["file \\ " + label for _, _, label, _ in reruns]
     left = max(len(c) for c in corners) + 2
     in_file, lines = audit["regime_file"].values, []
-    for (regime, agree, _), corner in zip(reruns, corners, strict=True):
+    for (regime, agree, _, compared), corner in zip(reruns, corners, strict=True):
         in_rerun = audit[regime].values
         lines.append(f"{corner:<{left}}" + "".join(f"{n:>{width}}" for n in names))
         for code, name in enumerate(names):
@@ -440,20 +440,33 @@ def agreement_lines(audit):
             lines.append(f"{name:<{left}}" + "".join(f"{c:>{width}d}" for c in counts))
         n, same = in_file.size, int(audit[agree].sum())
         share = 100.0 * same / n if n else 100.0
-        lines.append(f"agreement: {same} of {n} {_audited(audit)} ({share:.1f} %)")
+        lines.append(f"agreement: {same} of {n} {_audited(audit)} ({share:.1f} %; {compared})")
     return lines
 
 
+def _label(audit, point, regime, source):
+    """A run's label in an audit line: its regime, and for stick-slip its attractor (and
+    events per cycle) where ``source`` ("file" or "tight") has them."""
+    name = audit[regime].attrs["flag_meanings"].split()[int(point[regime])]
+    if name != "stick_slip" or f"attractor_{source}" not in audit:
+        return name
+    kind = audit["attractor_file"].attrs["flag_meanings"].split()
+    attractor = kind[int(point[f"attractor_{source}"])]
+    events = int(point[f"cycle_events_{source}"])
+    if attractor == "periodic":
+        attractor += f", {events} event" + ("s" if events != 1 else "")
+    return f"{name} ({attractor})"
+
+
 def disagreement_lines(audit):
-    """One line per audited run where a rerun's regime differs from the file's: axes
-    (and ensemble member), K/Kc and every label."""
+    """One line per audited run where a rerun disagrees with the file: axes (and ensemble
+    member), K/Kc and every label."""
     import numpy as np
 
-    names = audit["regime_file"].attrs["flag_meanings"].split()
     axes = audit.attrs["sweep_axes"].split()
     reruns = [r for r in AUDIT_RERUNS if r[0] in audit]
     differ = np.zeros(audit.sizes["point"], bool)
-    for _, agree, _ in reruns:
+    for _, agree, _, _ in reruns:
         differ |= audit[agree].values == 0
     lines = []
     for i in differ.nonzero()[0]:
@@ -461,11 +474,12 @@ def disagreement_lines(audit):
         at = " ".join(f"{a}={point[a].item():g}" for a in axes)
         if "member" in audit.coords:
             at += f" member={point['member'].item()}"
-        labels = "  ".join(f"{label}: {names[int(point[regime])]}" for regime, _, label in reruns)
-        lines.append(
-            f"  {at}  K/Kc={point['K_over_Kc'].item():.4g}  "
-            f"file: {names[int(point['regime_file'])]}  {labels}"
-        )
+        labels = [f"file: {_label(audit, point, 'regime_file', 'file')}"]
+        if "regime_audit" in audit:
+            labels.append(f"long run: {_label(audit, point, 'regime_audit', 'audit')}")
+        if "regime_tight" in audit:
+            labels.append(f"tighter tolerance: {_label(audit, point, 'regime_tight', 'tight')}")
+        lines.append(f"  {at}  K/Kc={point['K_over_Kc'].item():.4g}  " + "  ".join(labels))
     return lines
 
 

@@ -40,6 +40,9 @@ def test_clear_points_agree(clear):
     assert audit["agree"].all() and audit["agree_tight"].all()
     np.testing.assert_array_equal(audit["regime_audit"], regimes.ravel())
     np.testing.assert_array_equal(audit["regime_tight"], regimes.ravel())
+    for name in ("attractor", "cycle_events"):
+        np.testing.assert_array_equal(audit[f"{name}_file"], clear[name].values.ravel())
+        np.testing.assert_array_equal(audit[f"{name}_tight"], clear[name].values.ravel())
     assert audit.attrs["audit_tighten"] == 100.0
     assert "regime_tight" not in audit_result(clear, tighten=None)
     np.testing.assert_array_equal(audit["K_W"], [0.03, 0.03, 0.04, 0.04, 0.07, 0.07])
@@ -139,14 +142,18 @@ def test_planted_disagreement_is_found(planted):
     regimes = ["steady", "stick_slip", "runaway", "undecided"]
     expected = {"steady": [1, 0, 0, 0], "stick_slip": [1, 2, 0, 0],
                 "runaway": [0, 0, 2, 0], "undecided": [0, 0, 0, 0]}  # fmt: skip
-    for first, rerun in ((1, ["long", "run"]), (7, ["tighter", "tolerance"])):
+    reruns = (
+        (1, ["long", "run"], "regime"),
+        (7, ["tighter", "tolerance"], "regime, attractor and events per cycle"),
+    )
+    for first, rerun, compared in reruns:
         assert lines[first].split() == ["file", "\\", *rerun, *regimes]
         rows = lines[first + 1 : first + 5]
         assert {line.split()[0]: [int(c) for c in line.split()[1:]] for line in rows} == expected
-        assert lines[first + 5] == "agreement: 5 of 6 points (83.3 %)"
+        assert lines[first + 5] == f"agreement: 5 of 6 points (83.3 %; {compared})"
     assert lines[13:] == [
         "points where a rerun disagrees:",
-        "  K_W=0.07 eta_W=0.05  K/Kc=1.556  file: stick_slip  long run: steady  "
+        "  K_W=0.07 eta_W=0.05  K/Kc=1.556  file: stick_slip (fixed_point)  long run: steady  "
         "tighter tolerance: steady",
     ]
 
@@ -155,7 +162,7 @@ def test_all_agree_exits_0(clear, tmp_path, capsys):
     write_netcdf(clear, tmp_path / "r.nc")
     assert cli.main(["audit", str(tmp_path / "r.nc"), "--sample", "3", "--seed", "5"]) == 0
     out = capsys.readouterr().out
-    assert out.count("agreement: 3 of 3 points (100.0 %)") == 2
+    assert out.count("agreement: 3 of 3 points (100.0 %;") == 2
     assert "disagrees" not in out
 
 
@@ -193,7 +200,8 @@ def test_ensemble_members_are_audited_as_runs(tmp_path, capsys):
     long = runner.compute(audit_config(config, audit.attrs["audit_t_end"]), show_progress=False)
     np.testing.assert_array_equal(audit["regime_audit"], long["regime"].values[points].ravel())
     tight = runner.compute(tight_config(config, 100.0), show_progress=False)
-    np.testing.assert_array_equal(audit["regime_tight"], tight["regime"].values[points].ravel())
+    for name in ("regime", "attractor", "cycle_events"):
+        np.testing.assert_array_equal(audit[f"{name}_tight"], tight[name].values[points].ravel())
     np.testing.assert_array_equal(audit["K_W"], np.repeat(ds["K_W"].values[points], 3))
     write_netcdf(ds, tmp_path / "e.nc")
     cli.main(["audit", str(tmp_path / "e.nc"), "--sample", "2", "--near-kc", "0", "--seed", "1"])
