@@ -26,6 +26,7 @@ from .extend import load_result
 from .grid import build_grid
 from .kernels import layout
 from .physics import PARAMETERS
+from .progress import Progress
 from .runner import integrate_in_memory
 from .variables import ATTRACTORS, REGIMES
 
@@ -82,6 +83,7 @@ def audit_result(
     threads: int | None = None,
     source: str | None = None,
     tighten: float | None = 100.0,
+    show_progress: bool = False,
 ) -> xr.Dataset:
     """Rerun a sample of a result's grid points for longer, and with tighter tolerances,
     and compare regimes.
@@ -110,6 +112,8 @@ def audit_result(
         exit) but its ``rtol`` and ``atol`` divided by ``tighten`` (> 1; the tightened
         rtol at least 1e-13; rk4: its step ``dt`` by ``tighten`` ** (1/4)). None: no
         such rerun.
+    show_progress : bool, default False
+        Report each rerun's progress on stderr (as a sweep does).
 
     Returns
     -------
@@ -159,7 +163,8 @@ def audit_result(
     runs = (points[:, None] * members + np.arange(members)).ravel()
     rows, near = np.repeat(points, members), np.repeat(near_points, members)
     regime_file = ds["regime"].values.ravel()[runs]
-    regime_audit = rerun_labels(audit_config(config, t_end), runs, threads)[0]
+    long_run = audit_config(config, t_end)
+    regime_audit = rerun_labels(long_run, runs, threads, "audit: long run", show_progress)[0]
     flags = {
         "flag_values": np.arange(len(REGIMES), dtype=np.int8),
         "flag_meanings": " ".join(REGIMES),
@@ -188,7 +193,8 @@ def audit_result(
         "agree": ("point", regime_file == regime_audit, {"long_name": "same regime"}),
     }
     if tighten is not None:
-        data_vars.update(tight_labels(ds, config, runs, tighten, threads, flags))
+        tight = tight_labels(ds, config, runs, tighten, threads, flags, show_progress)
+        data_vars.update(tight)
     attrs = {
         "title": f"Audit of the rsf-sweep result {source}",
         "audit_source": source,
@@ -204,13 +210,19 @@ def audit_result(
     return xr.Dataset(data_vars, coords=coords, attrs=attrs)
 
 
-def rerun_labels(config, runs, threads):
+def rerun_labels(config, runs, threads, desc, show_progress):
     """Regime (int8), attractor (int8) and cycle_events (int32) of the flat run indices
-    ``runs`` of ``config``'s grid."""
+    ``runs`` of ``config``'s grid; progress as ``desc`` if ``show_progress``."""
     if not runs.size:
         return np.empty(0, np.int8), np.empty(0, np.int8), np.empty(0, np.int32)
     picked = build_grid(config).rows(runs)
-    results, _ = integrate_in_memory(picked.params, picked.y0, picked.settings, threads)
+    progress = Progress(runs.size, desc=desc, enabled=show_progress)
+    try:
+        results, _ = integrate_in_memory(
+            picked.params, picked.y0, picked.settings, threads, progress=progress
+        )
+    finally:
+        progress.close()
     return (
         results[:, layout.R_REGIME].astype(np.int8),
         results[:, layout.R_ATTRACTOR].astype(np.int8),
@@ -218,10 +230,12 @@ def rerun_labels(config, runs, threads):
     )
 
 
-def tight_labels(ds, config, runs, tighten, threads, regime_flags):
+def tight_labels(ds, config, runs, tighten, threads, regime_flags, show_progress):
     """The audit's variables of the rerun with tolerances / ``tighten``: its regime,
     attractor and cycle_events beside the file's, and ``agree_tight`` (all three equal)."""
-    regime, attractor, events = rerun_labels(tight_config(config, tighten), runs, threads)
+    tight = tight_config(config, tighten)
+    desc = "audit: tighter tolerance"
+    regime, attractor, events = rerun_labels(tight, runs, threads, desc, show_progress)
     attractor_flags = {
         "flag_values": np.arange(len(ATTRACTORS), dtype=np.int8),
         "flag_meanings": " ".join(ATTRACTORS),

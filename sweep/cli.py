@@ -205,6 +205,7 @@ def add_check_commands(sub):
     aud.add_argument("--seed", type=_seed, default=0,
                      help="seed of the random sample, in [0, 2147483647] (default 0)")  # fmt: skip
     aud.add_argument("--threads", type=_threads, help="threads (default: all cores)")
+    aud.add_argument("--quiet", action="store_true", help="no progress output")
 
 
 def _assignment(text):
@@ -493,7 +494,7 @@ def cmd_audit(args):
 
     audit = audit_result(
         args.result, args.sample, args.near_kc, args.t_end, args.seed, args.threads,
-        tighten=args.tighten,
+        tighten=args.tighten, show_progress=not args.quiet,
     )  # fmt: skip
     near, unit = int(audit["near_kc"].sum()), audit.attrs["audit_t_unit"]
     print(

@@ -161,7 +161,11 @@ def test_planted_disagreement_is_found(planted):
 def test_all_agree_exits_0(clear, tmp_path, capsys):
     write_netcdf(clear, tmp_path / "r.nc")
     assert cli.main(["audit", str(tmp_path / "r.nc"), "--sample", "3", "--seed", "5"]) == 0
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
+    for rerun in ("long run", "tighter tolerance"):  # progress, on stderr
+        assert f"audit: {rerun}: 3/3 runs (100%)" in err
+    assert cli.main(["audit", str(tmp_path / "r.nc"), "--sample", "3", "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
     assert out.count("agreement: 3 of 3 points (100.0 %;") == 2
     assert "disagrees" not in out
 
