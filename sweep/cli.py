@@ -176,6 +176,7 @@ def add_check_commands(sub):
     )  # fmt: skip
     ext.add_argument("--out", type=_path, help="output NetCDF (default: replace RESULT)")
     ext.add_argument("--threads", type=_threads, help="threads (default: all cores)")
+    ext.add_argument("--quiet", action="store_true", help="no progress output")
     aud = sub.add_parser(
         "audit",
         help="rerun a sample of a result's points for longer and with tighter tolerances, "
@@ -402,7 +403,9 @@ def refine_options(config, levels, max_runs):
 def cmd_extend(args):
     from .extend import extend_file
 
-    ds, n_continued = extend_file(args.result, args.t_end, args.out, args.threads)
+    ds, n_continued = extend_file(
+        args.result, args.t_end, args.out, args.threads, show_progress=not args.quiet
+    )
     if not n_continued:
         print(f"no undecided runs in {args.result}; nothing to do, the file is unchanged")
         return 0

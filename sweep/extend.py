@@ -37,6 +37,7 @@ from .dataset import (
 from .errors import InputError, RunError
 from .grid import build_grid
 from .kernels import layout
+from .progress import Progress
 from .runner import integrate_in_memory
 from .store import ZARR_SUFFIX, check_writable, output_lock
 from .variables import variables_for
@@ -113,6 +114,7 @@ def extend_result(
     t_end: float | None = None,
     threads: int | None = None,
     source: str | None = None,
+    show_progress: bool = False,
 ) -> xr.Dataset:
     """Continue the undecided runs of a result up to the end time ``t_end``.
 
@@ -129,6 +131,8 @@ def extend_result(
         Threads on this machine (default: all cores).
     source : str, optional
         Name of the result in error messages (default: its path).
+    show_progress : bool, default False
+        Report the continued runs' progress on stderr (as a sweep does).
 
     Returns
     -------
@@ -178,7 +182,11 @@ def extend_result(
     elif settings[layout.S_LYAPUNOV] == layout.LYAP_UNSETTLED:
         settings[layout.S_LYAPUNOV] = layout.LYAP_ALWAYS  # fixed length: λ1 over all of it
     y0 = np.ascontiguousarray(y_stored[rows])
-    results, y_final = integrate_in_memory(params, y0, settings, threads)
+    progress = Progress(rows.size, desc="extend", enabled=show_progress)
+    try:
+        results, y_final = integrate_in_memory(params, y0, settings, threads, progress=progress)
+    finally:
+        progress.close()
     fields = derived_fields(undecided, results, y_final)
     out = ds.copy(deep=True)
     for var in variables_for(config.blocks, config.model, config.features):
@@ -224,6 +232,7 @@ def extend_file(
     t_end: float | None = None,
     out: str | os.PathLike | None = None,
     threads: int | None = None,
+    show_progress: bool = False,
 ) -> tuple[xr.Dataset, int]:
     """Extend a result file's undecided runs (:func:`extend_result`) and write it.
 
@@ -242,6 +251,8 @@ def extend_file(
         in place).
     threads : int, optional
         Threads on this machine (default: all cores).
+    show_progress : bool, default False
+        As for :func:`extend_result`.
 
     Returns
     -------
@@ -273,7 +284,7 @@ def extend_file(
     check_writable(out, path, "--out")
     with output_lock(out):
         ds = read_result(path, needs_config=True)
-        extended = extend_result(ds, t_end, threads, source=path)
+        extended = extend_result(ds, t_end, threads, source=path, show_progress=show_progress)
         n_continued = undecided_rows(ds).size
         if n_continued:
             write_extended(extended, out, path)

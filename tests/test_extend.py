@@ -220,7 +220,13 @@ def test_cli_end_to_end(short_file):
         ["steady", "2"], ["stick_slip", "1"], ["runaway", "0"], ["undecided", "0"],
     ]  # fmt: skip
     assert lines[-1] == "wrote longer.nc (1 undecided runs continued to 200 D0/V)"
+    assert "extend: 1/1 runs (100%)" in proc.stderr  # progress, off with --quiet
     assert short_file.read_bytes() == before
+    quiet = subprocess.run(
+        [sys.executable, "-m", "sweep", "extend", "r.nc", "--out", "q.nc", "--quiet"],
+        cwd=short_file.parent, capture_output=True, text=True, timeout=SUBPROCESS_TIMEOUT,
+    )  # fmt: skip
+    assert quiet.returncode == 0 and quiet.stderr == "", quiet.stderr
     with xr.open_dataset(short_file.parent / "longer.nc") as ds:
         assert ds["regime"].values.tolist() == [STICK_SLIP, STEADY, STEADY]
 
