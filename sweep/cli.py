@@ -487,6 +487,27 @@ def disagreement_lines(audit):
     return lines
 
 
+def merged_lines(audit):
+    """One line per audited stick-slip run (in the file) whose blocks round-off merged:
+    axes (and ensemble member), K/Kc and how many blocks."""
+    if "merged_blocks" not in audit:
+        return []
+    names = audit["regime_file"].attrs["flag_meanings"].split()
+    axes = audit.attrs["sweep_axes"].split()
+    stick_slip = audit["regime_file"].values == names.index("stick_slip")
+    lines = []
+    for i in (stick_slip & (audit["merged_blocks"].values > 0)).nonzero()[0]:
+        point = audit.isel(point=i)
+        at = " ".join(f"{a}={point[a].item():g}" for a in axes)
+        if "member" in audit.coords:
+            at += f" member={point['member'].item()}"
+        lines.append(
+            f"  {at}  K/Kc={point['K_over_Kc'].item():.4g}  "
+            f"{int(point['merged_blocks'])} blocks equal bit for bit"
+        )
+    return lines
+
+
 def _audited(audit):
     """What an audit's rows are: grid points, or runs of an initial-condition ensemble."""
     return "runs" if "member" in audit.coords else "points"
@@ -508,6 +529,15 @@ def cmd_audit(args):
     )
     for line in agreement_lines(audit):
         print(line)
+    merged = merged_lines(audit)
+    if merged:
+        print(
+            f"stick-slip {_audited(audit)} whose blocks ended equal bit for bit though they "
+            "started apart (merged by round-off: their label may be of a symmetric orbit they "
+            "would leave):"
+        )
+        for line in merged:
+            print(line)
     wrong = disagreement_lines(audit)
     if wrong:
         print(f"{_audited(audit)} where a rerun disagrees:")

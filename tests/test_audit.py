@@ -101,6 +101,32 @@ def test_a_chaotic_transient_is_caught_by_the_tighter_rerun():
     assert not audit["agree_tight"].item()
 
 
+def test_blocks_merged_by_round_off_are_named(tmp_path, capsys):
+    """Three identical quasi-static blocks in a ring (k2/W 0.002 µm⁻¹) at 0.99 Kc from
+    Φ/Φss = [1.02, 1, 0.98]: the engine ends on a cycle with blocks 1 and 2 equal bit for
+    bit. SciPy, from that state with ln v_1 moved by 1e-10, leaves the cycle (|ln v_1 −
+    ln v_2| > 0.1 within 15 000 s): it is unstable across the two blocks, and the audit
+    names the point."""
+    start = {"phi_over_phi_ss": [1.02, 1.0, 0.98], "v_over_V": 1.0, "ensemble": 0}
+    changes = {"sweep": {"K_W": [0.0495, 0.0485], "k2_W": [0.002]}, "coupling": "ring",
+               "parameters": {"D0": 1.0}, "initial": start}  # fmt: skip
+    ds = runner.compute(sweep.with_changes("unequal_chain", changes), show_progress=False)
+    audit = audit_result(ds, sample=2, near_kc=0.0, tighten=None)
+    np.testing.assert_array_equal(audit["merged_blocks"], [2, 0])  # 0.0485 runs away
+    on_cycle = ds.isel(K_W=0, k2_W=0)
+    assert int(on_cycle["attractor"]) == code(ATTRACTORS, "periodic")
+    end = np.concatenate([on_cycle["lnv_final"].values, on_cycle["ln_state_final"].values])
+    assert end[1] == end[2] and end[4] == end[5]
+    end[1] += 1e-10
+    sol, _ = run(Chain(PAPER_A, PAPER_B, 1.0, 0.0495, 0.002, "ring", n_blocks=3), end, 1500.0)
+    lnv = sol.sol(np.linspace(0.0, 1500.0, 300_001))  # time unit 1 µm / V = 10 s
+    assert np.abs(lnv[1] - lnv[2]).max() > 0.1
+    write_netcdf(ds, tmp_path / "ring.nc")
+    cli.main(["audit", str(tmp_path / "ring.nc"), "--quiet"])
+    out = capsys.readouterr().out
+    assert "K_W=0.0495 k2_W=0.002  K/Kc=0.99  2 blocks equal bit for bit" in out
+
+
 def test_points_sample_and_near_kc():
     """Seeded draw: the same seed draws the same points; every point near Kc is added."""
     k_over_kc = np.linspace(0.5, 1.5, 101)  # 0.01 apart: 0.99, 1.0 and 1.01 within 1.5 %
