@@ -448,10 +448,12 @@ def agreement_lines(audit):
     return lines
 
 
-def _label(audit, point, regime, source):
-    """A run's label in an audit line: its regime, and for stick-slip its attractor (and
-    events per cycle) where ``source`` ("file" or "tight") has them."""
+def _label(audit, point, regime):
+    """A run's label in an audit line: the regime in variable ``regime``, and for
+    stick-slip its attractor (and events per cycle) where the audit has them beside it
+    (``regime_file`` and ``regime_tight``)."""
     name = audit[regime].attrs["flag_meanings"].split()[int(point[regime])]
+    source = regime.removeprefix("regime_")
     if name != "stick_slip" or f"attractor_{source}" not in audit:
         return name
     kind = audit["attractor_file"].attrs["flag_meanings"].split()
@@ -463,11 +465,10 @@ def _label(audit, point, regime, source):
 
 
 def disagreement_lines(audit):
-    """One line per audited run where a rerun disagrees with the file: axes (and ensemble
-    member), K/Kc and every label."""
+    """One line per audited run where a rerun disagrees with the file: where it is and
+    every label."""
     import numpy as np
 
-    axes = audit.attrs["sweep_axes"].split()
     reruns = [r for r in AUDIT_RERUNS if r[0] in audit]
     differ = np.zeros(audit.sizes["point"], bool)
     for _, agree, _, _ in reruns:
@@ -475,37 +476,33 @@ def disagreement_lines(audit):
     lines = []
     for i in differ.nonzero()[0]:
         point = audit.isel(point=i)
-        at = " ".join(f"{a}={point[a].item():g}" for a in axes)
-        if "member" in audit.coords:
-            at += f" member={point['member'].item()}"
-        labels = [f"file: {_label(audit, point, 'regime_file', 'file')}"]
-        if "regime_audit" in audit:
-            labels.append(f"long run: {_label(audit, point, 'regime_audit', 'audit')}")
-        if "regime_tight" in audit:
-            labels.append(f"tighter tolerance: {_label(audit, point, 'regime_tight', 'tight')}")
-        lines.append(f"  {at}  K/Kc={point['K_over_Kc'].item():.4g}  " + "  ".join(labels))
+        labels = [f"file: {_label(audit, point, 'regime_file')}"]
+        labels += [f"{label}: {_label(audit, point, regime)}" for regime, _, label, _ in reruns]
+        lines.append(f"  {_where(audit, point)}  " + "  ".join(labels))
     return lines
 
 
 def merged_lines(audit):
     """One line per audited stick-slip run (in the file) whose blocks round-off merged:
-    axes (and ensemble member), K/Kc and how many blocks."""
+    where it is and how many blocks."""
     if "merged_blocks" not in audit:
         return []
     names = audit["regime_file"].attrs["flag_meanings"].split()
-    axes = audit.attrs["sweep_axes"].split()
     stick_slip = audit["regime_file"].values == names.index("stick_slip")
     lines = []
     for i in (stick_slip & (audit["merged_blocks"].values > 0)).nonzero()[0]:
         point = audit.isel(point=i)
-        at = " ".join(f"{a}={point[a].item():g}" for a in axes)
-        if "member" in audit.coords:
-            at += f" member={point['member'].item()}"
-        lines.append(
-            f"  {at}  K/Kc={point['K_over_Kc'].item():.4g}  "
-            f"{int(point['merged_blocks'])} blocks equal bit for bit"
-        )
+        blocks = int(point["merged_blocks"])
+        lines.append(f"  {_where(audit, point)}  {blocks} blocks equal bit for bit")
     return lines
+
+
+def _where(audit, point):
+    """An audited run in a line: its sweep axes (and ensemble member) and K/Kc."""
+    at = " ".join(f"{a}={point[a].item():g}" for a in audit.attrs["sweep_axes"].split())
+    if "member" in audit.coords:
+        at += f" member={point['member'].item()}"
+    return f"{at}  K/Kc={point['K_over_Kc'].item():.4g}"
 
 
 def _audited(audit):
