@@ -23,7 +23,7 @@ import xarray as xr
 from .dataset import stored_config
 from .errors import InputError
 from .extend import final_state, load_result
-from .grid import build_grid
+from .grid import build_grid, initial_state
 from .kernels import layout
 from .physics import PARAMETERS
 from .progress import Progress
@@ -232,7 +232,7 @@ def merged_blocks(ds, config, runs):
         return np.zeros(0, np.int32)
     nb = config.blocks
     end = end.reshape(runs.size, -1, nb)
-    start = build_grid(config).rows(runs).y0.reshape(runs.size, -1, nb)
+    start = initial_state(config, ds["regime"].size)[runs].reshape(runs.size, -1, nb)
     same_end = (end[:, :, :, None] == end[:, :, None, :]).all(axis=1)
     same_start = (start[:, :, :, None] == start[:, :, None, :]).all(axis=1)
     return (same_end & ~same_start).any(axis=2).sum(axis=1).astype(np.int32)
