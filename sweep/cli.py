@@ -6,6 +6,7 @@ failures and for an audit that found a disagreement.
 """
 
 import argparse
+import contextlib
 import logging
 import math
 import shlex
@@ -673,22 +674,34 @@ COMMANDS = {
 }
 
 
+@contextlib.contextmanager
 def _log_to_stderr(quiet):
-    """The package's log messages (resume, parts, cluster) as plain lines on stderr."""
+    """The package's log messages (resume, parts, cluster) as plain lines on stderr while
+    a command runs; the ``sweep`` logger's handlers and level are restored after it, so
+    that a notebook or test calling :func:`main` keeps no handler of it."""
     logger = logging.getLogger("sweep")
-    for handler in [h for h in logger.handlers if getattr(h, "sweep_cli", False)]:
-        logger.removeHandler(handler)
+    level = logger.level
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("%(message)s"))
-    handler.sweep_cli = True
     logger.addHandler(handler)
     logger.setLevel(logging.WARNING if quiet else logging.INFO)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
 
 
 def main(argv=None):
     args = build_parser().parse_args(argv)
     args.argv = sys.argv[1:] if argv is None else list(argv)
-    _log_to_stderr(quiet=getattr(args, "quiet", False))
+    with _log_to_stderr(quiet=getattr(args, "quiet", False)):
+        return _run_command(args)
+
+
+def _run_command(args):
+    """Run the parsed command; errors the user can act on become a message and an exit
+    status."""
     try:
         return COMMANDS[args.command](args)
     except InputError as exc:  # ConfigError included

@@ -1,9 +1,10 @@
 """Small runs whose every number must stay bit-identical across refactoring.
 
-``tests/test_bit_identity.py`` runs this file twice on the same machine: as it stands
-in the reference commit (``python tests/bit_identity_cases.py`` writes
-``tests/data/bit_identity.npz`` beside that copy) and as it is now, and compares
-every number. Keep the ``__main__`` block: a later reference commit needs it.
+``tests/test_bit_identity.py`` runs these cases twice on the same machine: as this file
+stands in the reference commit (``python tests/bit_identity_cases.py [NAME ...]`` writes
+the named cases, by default all, to ``tests/data/bit_identity.npz`` beside that copy) and
+as it is now, and compares every number. Keep that command line: the test runs the
+reference commit's copy through it.
 """
 
 import sys
@@ -72,23 +73,29 @@ CASES = {
     ),
 }
 
-#: A trace: the recorded state of one run (interpolated dense output).
+#: A trace: the recorded state of one run (interpolated dense output), computed as the
+#: case "trace".
 TRACE_CASE = "two_blocks"
+#: Every case name: the configs, then the trace.
+NAMES = (*CASES, "trace")
 
 
-def compute_all():
-    """name → {variable: array} for every case, plus the trace of :data:`TRACE_CASE`."""
+def compute(names=NAMES):
+    """name → {variable: array} for the cases ``names`` ("trace": the trace of
+    :data:`TRACE_CASE`)."""
     import sweep
     from sweep.trace import compute_trace
 
     out = {}
-    for name, mapping in CASES.items():
-        ds = sweep.run(mapping, threads=1, progress=False)
-        out[name] = {v: np.asarray(ds[v].values) for v in sorted(ds.data_vars)}
-    trace_cfg = sweep.with_changes(CASES[TRACE_CASE], {"sweep": {"K_W": [0.0495]}})
-    tr = compute_trace(trace_cfg, points=300)
-    out["trace"] = {v: np.asarray(tr[v].values) for v in sorted(tr.data_vars)}
-    out["trace"]["time"] = np.asarray(tr["time"].values)
+    for name in names:
+        if name == "trace":
+            trace_cfg = sweep.with_changes(CASES[TRACE_CASE], {"sweep": {"K_W": [0.0495]}})
+            tr = compute_trace(trace_cfg, points=300)
+            out["trace"] = {v: np.asarray(tr[v].values) for v in sorted(tr.data_vars)}
+            out["trace"]["time"] = np.asarray(tr["time"].values)
+        else:
+            ds = sweep.run(CASES[name], threads=1, progress=False)
+            out[name] = {v: np.asarray(ds[v].values) for v in sorted(ds.data_vars)}
     return out
 
 
@@ -98,6 +105,7 @@ def flatten(computed):
 
 
 if __name__ == "__main__":
+    # python tests/bit_identity_cases.py [NAME ...]: the named cases (default: all)
     REFERENCE.parent.mkdir(exist_ok=True)
-    np.savez_compressed(REFERENCE, **flatten(compute_all()))
+    np.savez_compressed(REFERENCE, **flatten(compute(sys.argv[1:] or NAMES)))
     print(f"wrote {REFERENCE}", file=sys.stderr)

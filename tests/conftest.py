@@ -128,6 +128,30 @@ def run_recorded(config, rec_dt, index=0):
     return result[0], rec_t[:n], rec_y[:n]
 
 
+#: The anti-phase start of two blocks: block 0 1 % above steady sliding, block 1 1 % below.
+ANTI = {"v_over_V": [1.01, 0.99], "phi_over_phi_ss": [1.01, 0.99]}
+
+
+@pytest.fixture(scope="session")
+def anti_phase_cycle():
+    """``(row, ds)``: the kernel's result row (``layout.R_*`` columns) and the result
+    Dataset of one run that three test modules check (test_classification,
+    test_nblock_findings, test_readme), computed once per test process: two quasi-static
+    blocks in a chain, k2/W = 0.001 µm⁻¹, K/Kc = 0.99, the :data:`ANTI` start, t_end =
+    max_t_end = 8000 D0/V. SciPy has them settle on a bounded out-of-phase cycle
+    (physics brief §4)."""
+    from sweep.dataset import build_dataset
+
+    config = make_config(
+        {"blocks": 2, "coupling": "chain", "parameters": {"k2_W": 0.001}},
+        sweep={"K_W": [0.99 * KC_W]}, initial=ANTI, integrator={"t_end": 8000.0},
+        classification={"max_t_end": 8000.0},
+    )  # fmt: skip
+    g = grid.build_grid(config)
+    results, y_final = runner.integrate_in_memory(g.params, g.y0, g.settings)
+    return results[0], build_dataset(g, results, y_final).isel(K_W=0)
+
+
 def scipy_runaway_time(kappa_over_kc, lnv0, psi0, v_cap_over_V=1e6, t_max=3000.0):
     """Time (D0/V) at which one quasi-static block (paper A, B) first reaches the cap.
 

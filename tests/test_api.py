@@ -2,14 +2,16 @@
 (sweep/examples.py): configs from paths, names, mappings and changes; results that
 combine along a fixed parameter; nothing written."""
 
+import contextlib
 import json
 import os
+import signal
 import time
 
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import QUICK, ROOT, python_stdout, without_provenance
+from conftest import QUICK, ROOT, SUBPROCESS_TIMEOUT, python_stdout, without_provenance
 
 import sweep
 from sweep import examples, runner
@@ -278,6 +280,7 @@ spec = dispatch.compile_spec([[(g.params, g.settings, False)]], sys.argv[1])
 code = "import sys; from sweep.dispatch import compile_specs; compile_specs(sys.argv[1])"
 with open(sys.argv[2], "w") as out:
     child = subprocess.Popen([sys.executable, "-c", code + "; print('done')", spec], stdout=out)
+print(child.pid, flush=True)
 os._exit(0)  # killed, as it were, while its compile process starts
 """
 
@@ -288,12 +291,16 @@ def test_a_compile_process_whose_parent_died_takes_no_variant(tmp_path):
     ends, instead of compiling the rest of the list on its own."""
     claims, out = tmp_path / "claims", tmp_path / "child.out"
     claims.mkdir()
-    python_stdout(ORPHANED_COMPILE, str(claims), str(out))  # its parent has ended
-    deadline = time.monotonic() + 60
-    while "done" not in out.read_text() and time.monotonic() < deadline:
-        time.sleep(0.1)
-    assert out.read_text().split() == ["done"]
-    assert list(claims.iterdir()) == []
+    child = int(python_stdout(ORPHANED_COMPILE, str(claims), str(out)))  # its parent has ended
+    try:
+        deadline = time.monotonic() + SUBPROCESS_TIMEOUT
+        while "done" not in out.read_text() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert out.read_text().split() == ["done"]
+        assert list(claims.iterdir()) == []
+    finally:  # an orphan that hangs is not left running after the test
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(child, signal.SIGKILL)
 
 
 @pytest.mark.parametrize("processes", [0, -1, 1.5, True, "2"])

@@ -18,12 +18,17 @@ archive and :data:`REFERENCE_COMMIT`::
 Move it only in a commit that says which numbers changed and why (a changed method,
 controller or classifier), never to make the test pass.
 
-The reference commit's code is compiled cold in a fresh tree (about 100 s of a core),
-and its numbers are a function of that code, this machine and the compiling and numeric
-libraries: they are kept in :func:`reference_cache` under a key of exactly those
-(:func:`reference_key`), so that a later run on the same machine, from any clone,
-compares with them instead of recompiling. ``SWEEP_BIT_IDENTITY_CACHE=0`` turns the
-cache off; another path moves it.
+The reference commit's code is compiled cold in a fresh tree (about 3 minutes of a core
+for every case here), and its numbers are a function of that code, this machine and the
+compiling and numeric libraries: they are kept in :func:`reference_cache`, a folder of
+this clone, under a key of exactly those (:func:`reference_key`), so that a later run in
+the same clone compares with them instead of recompiling (as numba's cache of the
+package's own kernels does; ``make clean`` removes both). A fresh clone always computes
+them: the suite's cost does not depend on what ran on the machine before.
+``SWEEP_BIT_IDENTITY_CACHE=0`` turns the cache off; another path moves it.
+
+The cases come in two sets (:data:`CASE_SETS`): ``make test`` compares the first (the
+default method, the inertial model's, two blocks and a trace), ``make test-all`` both.
 """
 
 import hashlib
@@ -41,7 +46,7 @@ import numpy as np
 import pytest
 from conftest import SUBPROCESS_TIMEOUT
 
-from bit_identity_cases import compute_all, flatten
+from bit_identity_cases import NAMES, compute, flatten
 
 #: The code every number is compared with: main after issue 36 (the tangent as the exact
 #: derivative of each method's step), the base of issue 38's restructuring of the kernels,
@@ -54,20 +59,21 @@ REFERENCE_ARCHIVE = Path(__file__).parent / "data" / "bit_identity_reference.tar
 REFERENCE_TIMEOUT = 1800
 
 
+#: Where the reference's numbers computed in this clone are kept (``.gitignore``d).
+CACHE = Path(__file__).resolve().parents[1] / ".cache" / "bit-identity"
+
+#: The cases compared by ``make test`` ("fast") and those only ``make test-all`` adds.
+FAST_CASES = ("dop853", "inertial", "two_blocks", "trace")
+CASE_SETS = {"fast": FAST_CASES, "rest": tuple(n for n in NAMES if n not in FAST_CASES)}
+
+
 def reference_cache():
-    """Folder of the reference's numbers computed on this machine: ``$SWEEP_BIT_IDENTITY_CACHE``,
-    else ``$XDG_CACHE_HOME/rsf-sweep/bit-identity`` (``~/.cache``); None if that variable
-    is ``0``."""
+    """Folder of the reference's numbers computed in this clone: ``$SWEEP_BIT_IDENTITY_CACHE``,
+    else :data:`CACHE`; None if that variable is ``0``."""
     setting = os.environ.get("SWEEP_BIT_IDENTITY_CACHE")
     if setting == "0":
         return None
-    if setting:
-        return Path(setting)
-    return (
-        Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-        / "rsf-sweep"
-        / "bit-identity"
-    )
+    return Path(setting) if setting else CACHE
 
 
 def reference_key(archive=None):
@@ -119,26 +125,33 @@ def test_the_archive_holds_the_reference_commit():
     )
 
 
+@pytest.fixture(scope="module", params=["fast", pytest.param("rest", marks=pytest.mark.slow)])
+def case_set(request):
+    """The name of a set of :data:`CASE_SETS` (its cases: ``CASE_SETS[name]``)."""
+    return request.param
+
+
 @pytest.fixture(scope="module")
-def reference_run(tmp_path_factory):
-    """The reference's numbers from :func:`reference_cache` if this machine computed them
-    before, else the reference commit's code extracted from :data:`REFERENCE_ARCHIVE` to a
-    temporary tree and started there in its own process, which computes while this one
-    computes :func:`computed` (two cores: half the wait). Yields ``(file, process)``:
-    the ``.npz`` the numbers are (or will be) in, and the process (None if cached)."""
+def reference_run(case_set, tmp_path_factory):
+    """The reference's numbers of ``case_set`` from :func:`reference_cache` if this clone
+    computed them before, else the reference commit's code extracted from
+    :data:`REFERENCE_ARCHIVE` to a temporary tree and started there on the set's cases in
+    its own process, which computes while this one computes :func:`computed` (two cores:
+    half the wait). Yields ``(file, process)``: the ``.npz`` the numbers are (or will be)
+    in, and the process (None if cached)."""
     cache = reference_cache()
-    cached = cache / f"{reference_key()}.npz" if cache else None
+    cached = cache / f"{reference_key()}-{case_set}.npz" if cache else None
     if cached is not None and cached.is_file():
         yield cached, None
         return
-    tree = tmp_path_factory.mktemp("reference_commit")
+    tree = tmp_path_factory.mktemp(f"reference_commit_{case_set}")
     extract(REFERENCE_ARCHIVE, tree)
     # The reference commit's script writes tests/data/bit_identity.npz beside itself.
     script = tree / "tests" / "bit_identity_cases.py"
     env = dict(os.environ, PYTHONPATH=str(tree))
     with open(tree / "stderr.txt", "w") as stderr:
-        proc = subprocess.Popen([sys.executable, str(script)], cwd=tree, env=env,
-                                stdout=subprocess.DEVNULL, stderr=stderr)  # fmt: skip
+        proc = subprocess.Popen([sys.executable, str(script), *CASE_SETS[case_set]], cwd=tree,
+                                env=env, stdout=subprocess.DEVNULL, stderr=stderr)  # fmt: skip
     yield tree / "tests" / "data" / "bit_identity.npz", proc
     if proc.poll() is None:
         proc.kill()
@@ -146,17 +159,17 @@ def reference_run(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def computed(reference_run):
-    """``{"case/var": array}`` computed by the code as it is now (the reference is
-    being computed meanwhile)."""
-    return flatten(compute_all())
+def computed(case_set, reference_run):
+    """``{"case/var": array}`` of ``case_set`` computed by the code as it is now (the
+    reference is being computed meanwhile)."""
+    return flatten(compute(CASE_SETS[case_set]))
 
 
 @pytest.fixture(scope="module")
-def reference(reference_run, computed):
-    """``{"case/var": array}`` computed by the reference commit's code, on this machine;
-    a fresh computation is kept in :func:`reference_cache` (written to a temporary name
-    and renamed, so a concurrent or killed run leaves no partial file)."""
+def reference(case_set, reference_run, computed):
+    """``{"case/var": array}`` of ``case_set`` computed by the reference commit's code, on
+    this machine; a fresh computation is kept in :func:`reference_cache` (written to a
+    temporary name and renamed, so a concurrent or killed run leaves no partial file)."""
     numbers, proc = reference_run
     if proc is not None:
         assert proc.wait(timeout=REFERENCE_TIMEOUT) == 0, (
@@ -165,11 +178,18 @@ def reference(reference_run, computed):
         cache = reference_cache()
         if cache is not None:
             cache.mkdir(parents=True, exist_ok=True)
-            partial = cache / f"{reference_key()}.{os.getpid()}.tmp"
+            name = f"{reference_key()}-{case_set}"
+            partial = cache / f"{name}.{os.getpid()}.tmp"
             partial.write_bytes(numbers.read_bytes())
-            os.replace(partial, cache / f"{reference_key()}.npz")
+            os.replace(partial, cache / f"{name}.npz")
+    cases = CASE_SETS[case_set]
     with np.load(numbers) as ref:
-        return {key: ref[key] for key in ref.files}
+        # a reference commit older than the case sets computes every case: keep the set's
+        return {key: ref[key] for key in ref.files if key.split("/")[0] in cases}
+
+
+def test_the_case_sets_are_every_case_once():
+    assert sorted(CASE_SETS["fast"] + CASE_SETS["rest"]) == sorted(NAMES)
 
 
 def test_the_cache_key_is_the_archives(tmp_path):
@@ -182,9 +202,11 @@ def test_the_cache_key_is_the_archives(tmp_path):
     assert reference_key(copy) != reference_key()
 
 
-def test_every_reference_number_is_still_computed(reference, computed):
-    """Variables may be added (new outputs); none of the reference's may vanish."""
+def test_every_reference_number_is_still_computed(case_set, reference, computed):
+    """Variables may be added (new outputs); none of the reference's may vanish, and the
+    reference has every case of the set."""
     assert set(reference) <= set(computed), sorted(set(reference) - set(computed))
+    assert {key.split("/")[0] for key in reference} == set(CASE_SETS[case_set])
 
 
 def test_numbers_are_bit_identical(reference, computed):

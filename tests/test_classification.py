@@ -50,7 +50,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import PAPER_A, PAPER_B, make_config, run_grid
+from conftest import ANTI, PAPER_A, PAPER_B, make_config, run_grid
 from scipy.integrate import solve_ivp
 
 from sweep.kernels import layout
@@ -467,7 +467,6 @@ def test_small_damped_cycle_near_kc(damped_small_cycle, start):
 # --- c. two weakly coupled quasi-static blocks, anti-phase starts ---------------------
 
 K2_C = 0.001
-ANTI = {"v_over_V": [1.01, 0.99], "phi_over_phi_ss": [1.01, 0.99]}
 # near the out-of-phase cycles: states at maxima of ℓ_0 at the end of LSODA (rtol 1e-10,
 # atol 1e-12) runs from ANTI to τ = 30 000 (6 min each, run once); Newton refines them
 GUESS_C = {
@@ -483,7 +482,7 @@ def two_block_cycle(ratio):
 
 
 @pytest.mark.slow
-def test_two_blocks_anti_phase_start_out_of_phase_cycle():
+def test_two_blocks_anti_phase_start_out_of_phase_cycle(anti_phase_cycle):
     """K/Kc = 0.99, ANTI start, t_end = 8000. SciPy (LSODA rtol 1e-10 to τ = 30 000, run
     once; also LSODA rtol 1e-8 and DOP853 rtol 1e-12 to 5000): the anti-phase mode decays,
     the in-phase mode grows, then the blocks desynchronise onto a bounded out-of-phase
@@ -493,7 +492,7 @@ def test_two_blocks_anti_phase_start_out_of_phase_cycle():
     |0.9844| (pair), 0.8715: attracting. Required: stick_slip with these features."""
     ref = two_block_cycle(0.99)
     assert_attracting(ref)
-    row = engine([0.99 * KC_QS], 8000.0, ANTI, blocks=2, parameters={"k2_W": K2_C})[0]
+    row, _ = anti_phase_cycle  # the run above (conftest), K2_C = 0.001
     assert_label(row, {STICK_SLIP}, "attracting out-of-phase cycle, SciPy converged by 4470")
     assert_cycle_matches(row, ref, sync=True)
 

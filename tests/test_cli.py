@@ -156,6 +156,22 @@ def test_extend_of_a_config_says_it_reads_results(capsys):
     assert "must be a file name" not in err  # it used to blame an --out never given
 
 
+def test_main_leaves_the_sweep_logger_as_it_found_it(tmp_path, capsys):
+    """The CLI logs to the stderr of the command it runs and removes its handler after:
+    a notebook or a later test calling ``main`` again sees no handler it left behind,
+    bound to an earlier stderr (a handler used to stay on the ``sweep`` logger)."""
+    import logging
+
+    logger = logging.getLogger("sweep")
+    before = (list(logger.handlers), logger.level)
+    out = tmp_path / "q.nc"
+    assert cli.main(["run", str(QUICK), "--out", str(out)]) == 0
+    assert "wrote" in capsys.readouterr().out
+    assert (list(logger.handlers), logger.level) == before
+    assert cli.main(["extend", str(QUICK)]) == 2  # an error too restores them
+    assert (list(logger.handlers), logger.level) == before
+
+
 def test_out_of_memory_is_an_error_message_not_a_traceback(monkeypatch, capsys):
     """A grid too large for memory (numpy's MemoryError) ends with a message and exit 1."""
 

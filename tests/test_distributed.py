@@ -134,14 +134,28 @@ def test_api_runs_on_a_client_a_cluster_or_not_a_client(quick, quick_reference_f
 
 
 @pytest.mark.slow
-def test_run_sweep_takes_a_client_and_logs_its_dashboard(quick, quick_reference_file, local_client,
-                                                         tmp_path, caplog):  # fmt: skip
-    """``run_sweep`` with a Client as scheduler used to raise TypeError; the dashboard link (which
-    the CLI prints) is logged whenever the scheduler serves one."""
-    caplog.set_level("INFO", logger="sweep")
+def test_run_sweep_takes_a_client(quick, quick_reference_file, local_client, tmp_path):
+    """``run_sweep`` with a Client as scheduler used to raise TypeError."""
     result = runner.run_sweep(quick, out=tmp_path / "c.nc", show_progress=False,
                               resources=Resources(scheduler=local_client))  # fmt: skip
     assert_same_file(result.path, quick_reference_file)
-    link = sweep_distributed.dashboard_link(local_client)
-    if link is not None:  # None without bokeh, which serves the dashboard
-        assert f"Dask dashboard: {link}" in caplog.text
+
+
+@pytest.mark.slow
+def test_the_dashboard_of_a_cluster_that_serves_one_is_logged(quick, quick_reference_file,
+                                                              tmp_path, caplog):  # fmt: skip
+    """A scheduler with a dashboard (bokeh, which serves it, is in the ``distributed``
+    extra): its link is logged, which the CLI prints on stderr. (``--dask-local`` starts
+    its cluster without one.)"""
+    import logging
+
+    caplog.set_level("INFO", logger="sweep")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address="127.0.0.1:0",
+                                  silence_logs=logging.ERROR) as cluster:  # fmt: skip
+        link = cluster.dashboard_link
+        result = runner.run_sweep(quick, out=tmp_path / "d.nc", show_progress=False,
+                                  resources=Resources(scheduler=cluster))  # fmt: skip
+    assert link.startswith("http://127.0.0.1:")
+    assert f"Dask dashboard: {link}" in caplog.text
+    assert_same_file(result.path, quick_reference_file)

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from conftest import PAPER_A, PAPER_B, config_dict
 from nblock_reference import FAST_CALL, Chain, cycle_features, run, start_state
-from test_classification import ANTI, K2_C, two_block_cycle
+from test_classification import K2_C, two_block_cycle
 
 import sweep
 from sweep.grid import ensemble_offsets
@@ -136,7 +136,7 @@ def test_identical_blocks_with_the_mean_d0_run_away():
         assert run(chain, y0, 1000.0, **FAST_CALL)[1] is not None
 
 
-def test_two_block_anti_phase_cycle_n_block_outputs():
+def test_two_block_anti_phase_cycle_n_block_outputs(anti_phase_cycle):
     """Finding 1 through the N-block interface (``coupling: chain``): K/Kc = 0.99, k2/W =
     0.001 µm⁻¹, anti-phase start, t_end 8000 as test_classification. Its SciPy cycle
     (``test_classification.two_block_cycle``) has max |ℓ1 − ℓ0| 0.84: the blocks slip at
@@ -147,15 +147,7 @@ def test_two_block_anti_phase_cycle_n_block_outputs():
     chain = Chain(A, B, 1.0, 0.99 * (B - A), K2_C, n_blocks=2)
     sol, _ = run(chain, ref["y0"], 20 * ref["period"], rtol=1e-12, atol=1e-14)
     want = cycle_features(chain, sol, 2 * ref["period"], dt=5e-4)
-    ds = engine(
-        2,
-        {"k2_W": K2_C},
-        [0.99 * (B - A)],
-        t_end=8000.0,
-        initial=ANTI,
-        classification={"max_t_end": 8000.0},
-    )
-    row = ds.isel(K_W=0)
+    _, row = anti_phase_cycle  # the run above (conftest), K2_C = 0.001
     assert regime_names(row) == ["stick_slip"]
     np.testing.assert_allclose(row.sync_order, want["sync_order"], atol=1e-3)
     assert want["slip_participation"] == float(row.slip_participation) == 0.5

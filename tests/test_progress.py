@@ -85,7 +85,7 @@ def test_a_sweep_prints_every_ten_seconds(quick, tmp_path, monkeypatch, capsys):
     ticks = iter(range(0, 1000, 4))
     monkeypatch.setattr(progress_module, "time", SimpleNamespace(monotonic=lambda: next(ticks)))
     runner.run_sweep(quick, out=tmp_path / "r.nc", chunk_size=1, resources=Resources(threads=1))
-    err = capsys.readouterr().err  # (log lines too, where an earlier test set up logging)
+    err = capsys.readouterr().err
     lines = re.findall(r"^quick: \d+/9 runs.*$", err, re.M)
     assert [line.split()[1] for line in lines] == ["3/9", "6/9", "9/9"], err
     assert [line.split("elapsed ")[1].split(",")[0] for line in lines] == ["12.0 s", "24.0 s",

@@ -27,6 +27,7 @@ from conftest import (
     PAPER_B,
     QUICK,
     ROOT,
+    SUBPROCESS_TIMEOUT,
     assert_as_printed,
     config_dict,
     scipy_runaway_time,
@@ -34,7 +35,6 @@ from conftest import (
 from nblock_reference import Chain, start_state, window_amplitudes
 from nblock_reference import run as scipy_run
 from scipy.integrate import solve_ivp
-from test_classification import ANTI
 
 from sweep import figures, run
 from sweep.config import (
@@ -212,30 +212,41 @@ sys.exit(status)
 """
 
 
-@pytest.mark.slow
-@pytest.mark.drift
-def test_memory_of_a_million_point_sweep_drift(tmp_path):
-    """Drift check (a measurement of this engine): "a one-block sweep of 10⁶ grid
-    points peaks at about … GB": the peak resident memory of ``python -m sweep run``
-    on configs/quick.yaml with 10⁶ K/W values, its kernel compiled and cached by a
-    9-point run first (the compiler's own memory is the performance page's separate
-    figure). The runs are cut short (t_end = 1 D0/V): memory holds the result arrays,
-    not the history of a run. Within 15 %: the allocator and library versions move it."""
-    (gb,) = doc_numbers(r"a one-block sweep of 10⁶ grid points peaks at about ([\d.]+) GB")
-    config = tmp_path / "million.yaml"
-    short = QUICK.read_text().replace("t_end: 2000.0", "t_end: 1.0")
-    config.write_text(short)
-    warm = [sys.executable, "-m", "sweep", "run", str(config), "--out", "w.nc", "--quiet"]
-    assert subprocess.run(warm, cwd=tmp_path, timeout=300).returncode == 0
-    config.write_text(short.replace("num: 9}", "num: 1000000}"))
+def peak_memory(config, points, t_end, cwd):
+    """Peak resident memory (bytes) of ``python -m sweep run`` on ``config`` (a path to
+    configs/quick.yaml's text) with ``points`` K/W values and runs cut at ``t_end``
+    (D0/V), its kernel already cached."""
+    text = QUICK.read_text().replace("t_end: 2000.0", f"t_end: {t_end}")
+    config.write_text(text.replace("num: 9}", f"num: {points}}}"))
     proc = subprocess.run(
         [sys.executable, "-c", MEASURED_RUN, "run", str(config), "--out", "m.nc", "--quiet"],
-        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+        cwd=cwd, capture_output=True, text=True, timeout=SUBPROCESS_TIMEOUT,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
-    assert "wrote m.nc (1000000 runs" in proc.stdout
-    peak_kib = int(proc.stderr.split()[-2])  # "VmHWM:  1009076 kB"
-    assert peak_kib * 1024 / 1e9 == pytest.approx(float(gb), rel=0.15)
+    assert f"wrote m.nc ({points} runs" in proc.stdout
+    return int(proc.stderr.split()[-2]) * 1024  # "VmHWM:  1009076 kB"
+
+
+def test_memory_grows_with_the_result_arrays_only(tmp_path):
+    """ "Memory grows only with the result arrays … whatever the run length": the peak
+    resident memory of ``python -m sweep run`` (configs/quick.yaml, one block) does not
+    change with the run length (2·10⁵ runs cut at 1 and at 20 D0/V, within 5 %: the
+    allocator's rounding), and grows with the number of runs by between 1 and 3 times
+    the bytes per run of the result's variables (a run's result row and its Dataset
+    are held at once while the file is written; 3: one more copy for the write). The
+    docs' figure for 10⁶ runs lies within the same bounds (it is a measurement, which
+    the allocator and library versions move)."""
+    config = tmp_path / "many.yaml"
+    config.write_text(QUICK.read_text().replace("t_end: 2000.0", "t_end: 1.0"))
+    small = run(str(config), progress=False)  # compiles and caches the kernel
+    per_run = sum(v.nbytes for v in small.data_vars.values() if "K_W" in v.dims) / small.K_W.size
+    short, longer = (peak_memory(config, 200_000, t, tmp_path) for t in (1.0, 20.0))
+    assert longer == pytest.approx(short, rel=0.05)
+    slope = (peak_memory(config, 1_000_000, 1.0, tmp_path) - short) / 800_000
+    assert per_run <= slope <= 3 * per_run, (slope, per_run)
+    base = short - 200_000 * slope  # the interpreter, numba, xarray and the kernel
+    (gb,) = doc_numbers(r"a one-block sweep of 10⁶ grid points peaks at about ([\d.]+) GB")
+    assert base + per_run * 1e6 <= float(gb) * 1e9 <= base + 3 * per_run * 1e6, (base, per_run)
 
 
 def setting_comments(section):
@@ -336,16 +347,12 @@ def test_unequal_chain_cycle_at_0_97_kc_drift():
 
 
 @pytest.mark.drift
-def test_two_weakly_coupled_blocks_sync_order_drift():
+def test_two_weakly_coupled_blocks_sync_order_drift(anti_phase_cycle):
     """Drift check: "(`sync_order` 0.919, one block per slip)": the engine on the
-    anti-phase start of test_classification (K/Kc = 0.99, k2/W = 0.001 µm⁻¹, t_end 8000 D0/V)."""
+    anti-phase start of test_classification (K/Kc = 0.99, k2/W = 0.001 µm⁻¹, t_end 8000
+    D0/V; conftest's ``anti_phase_cycle``)."""
     (order,) = doc_numbers(r"out-of-phase cycle \(`sync_order` ([\d.]+), one block per slip\)")
-    cfg = config_dict(
-        {"blocks": 2, "coupling": "chain", "parameters": {"k2_W": 0.001},
-         "sweep": {"K_W": [0.99 * (PAPER_B - PAPER_A)]}, "initial": ANTI,
-         "integrator": {"t_end": 8000.0}, "classification": {"max_t_end": 8000.0}},
-    )  # fmt: skip
-    row = run(cfg, progress=False).isel(K_W=0)
+    _, row = anti_phase_cycle
     assert REGIMES[int(row.regime)] == "stick_slip"
     assert_as_printed(float(row.sync_order), order)
     assert float(row.slip_participation) == 0.5

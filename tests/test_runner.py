@@ -6,6 +6,7 @@ size, thread count, resumption or interruption: ``assert_same_file`` compares
 every variable and attribute, all but the creation time and command line.
 """
 
+import ctypes
 import errno
 import os
 import re
@@ -15,6 +16,7 @@ import sys
 import threading
 import time
 
+import numba
 import numpy as np
 import pytest
 import xarray as xr
@@ -33,7 +35,7 @@ from sweep import backends, chunks, runner, store
 from sweep.backends import LocalThreads, Resources
 from sweep.cli import main
 from sweep.config import load_config, parse_config
-from sweep.dispatch import integrate_grid, load_kernel
+from sweep.dispatch import ready_kernel
 from sweep.grid import build_grid
 
 #: 8 slow runs, for a kernel call long enough to signal during it: fixed-step RK4 with
@@ -260,35 +262,58 @@ def test_a_second_ctrl_c_stops_at_once(quick, tmp_path, monkeypatch, signals, sa
     assert not out.exists()
 
 
-@pytest.mark.slow
+#: libc's usleep, which compiled code calls while it waits: an opaque call, after which
+#: the compiled loop reads its flag from memory again.
+_usleep = ctypes.CDLL(None).usleep
+_usleep.argtypes, _usleep.restype = [ctypes.c_uint], ctypes.c_int
+
+
+@pytest.mark.skipif(numba.config.DISABLE_JIT, reason="NUMBA_DISABLE_JIT=1: no compiled code")
 def test_signals_during_a_kernel_are_seen_when_it_returns(monkeypatch):
     """The README's caveat: compiled code cannot be interrupted. Two SIGINTs sent while
-    a chunk of 8 slow runs computes on one thread (its first run done, its last not)
-    reach the Python handler once, when the kernel has returned with all 8 runs done
-    (CPython runs handlers between bytecodes and keeps one pending flag per signal)."""
-    g = build_grid(parse_config(SLOW))
-    load_kernel(g.params, g.settings)
+    the main thread is inside compiled code, which then integrates a chunk of 8 runs
+    on one thread, reach the Python handler once, when the kernel has returned with all
+    8 runs done (CPython runs handlers between bytecodes and keeps one pending flag per
+    signal). No race: the compiled code says it has started (``flags[0]``), the other
+    thread signals, then lets it go on (``flags[1]``)."""
+    g = build_grid(parse_config(SLOW.replace("dt: 0.002", "dt: 0.02")))  # 8 × 0.02 s
+    grid_kernel = ready_kernel(g.params, g.settings)
+    flags = np.zeros(2, np.int64)
+
+    @numba.njit(nogil=True)
+    def signalled_then_integrate(flags, params, y0, settings, results, y_final, rec_t, rec_y):
+        flags[0] = 1
+        while flags[1] == 0:
+            _usleep(1000)
+        grid_kernel(params, y0, settings, results, y_final, 0.0, rec_t, rec_y)
+
     finals = []  # the kernel's y_final, NaN until each run writes its final state
 
     def kernel(params, y0, settings, results, y_final):
         y_final[:] = np.nan
         finals.append(y_final)
-        integrate_grid(params, y0, settings, results, y_final)
+        signalled_then_integrate(flags, params, y0, settings, results, y_final, np.empty(0),
+                                 np.empty((0, y0.shape[1])))  # fmt: skip
 
     def runs_done():
         return int(np.isfinite(finals[0]).all(axis=1).sum()) if finals else 0
 
-    sent, handled = [], []  # runs done just after each signal was sent / when handled
-    over, lock = threading.Event(), threading.Lock()  # no signal once the test is over
+    sent, handled = [], []  # runs done when each signal was sent / when it was handled
+    over = threading.Event()
 
     def send_two():
-        while runs_done() == 0 and not over.is_set():
+        while flags[0] == 0 and not over.is_set():
             time.sleep(0.001)
-        with lock:
-            for _ in range(0 if over.is_set() else 2):
+        if not over.is_set():
+            for _ in range(2):
                 os.kill(os.getpid(), signal.SIGINT)
                 sent.append(runs_done())
+        flags[1] = 1
 
+    flags[1] = 1  # compiled first, on no runs and without waiting
+    signalled_then_integrate(flags, g.params[:0], g.y0[:0], g.settings, np.empty((0, 0)),
+                             g.y0[:0].copy(), np.empty(0), np.empty((0, 2)))  # fmt: skip
+    flags[:] = 0
     monkeypatch.setattr(backends, "integrate_grid", kernel)
     previous = signal.signal(signal.SIGINT, lambda *_: handled.append(runs_done()))
     sender = threading.Thread(target=send_two)
@@ -296,12 +321,11 @@ def test_signals_during_a_kernel_are_seen_when_it_returns(monkeypatch):
         sender.start()
         (chunk,) = LocalThreads(threads=1).run(g.params, g.y0, g.settings, [(0, 8)])
     finally:
-        with lock:
-            over.set()
+        over.set()
         sender.join(timeout=SUBPROCESS_TIMEOUT)
         signal.signal(signal.SIGINT, previous)
-    assert len(sent) == 2 and max(sent) < 8, f"the kernel ended before the signals: {sent}"
-    assert handled == [8]
+    assert sent == [0, 0]  # both while compiled code ran, before any run
+    assert handled == [8]  # once, after the kernel returned with every run done
     assert np.isfinite(chunk[3]).all()
 
 

@@ -7,20 +7,27 @@ import numpy as np
 import pytest
 from conftest import make_config
 
-from sweep import dispatch, grid
+from sweep import codes, dispatch, grid
 from sweep.kernels import integrate, layout
 
 NO_JIT = pytest.mark.skipif(numba.config.DISABLE_JIT, reason="NUMBA_DISABLE_JIT=1: no stack")
 
-#: (method, overrides): each method once, one and two blocks, the three models; the
-#: K/W grids cross the transition, so runs settle steady, stick-slip and run away.
+#: (method, overrides): every method (``codes.METHODS``, checked below), one and two
+#: blocks, the three models and both state laws; the K/W grids cross the transition,
+#: so runs settle steady, stick-slip and run away.
 CASES = {
     "dop853, two blocks": ("dop853", {"blocks": 2, "sweep": {"K_W": [0.03, 0.045, 0.055],
                                                              "k2_W": [0.01, 0.05]}}),
     "dopri5, one block": ("dopri5", {"sweep": {"K_W": [0.03, 0.045, 0.049, 0.06]}}),
     "rk4, quasi-dynamic": ("rk4", {"model": "quasi-dynamic", "parameters": {"eta_W": 0.1},
                                    "sweep": {"K_W": [0.02, 0.035, 0.05]}}),
+    "bs23, one slip-law block": ("bs23", {"state_law": "slip",
+                                          "sweep": {"K_W": [0.03, 0.045, 0.06]},
+                                          "integrator": {"rtol": 1e-6, "atol": 1e-9}}),
     "rosenbrock, two inertial blocks": ("rosenbrock", {
+        "blocks": 2, "model": "inertial", "parameters": {"m_W": 1.0},
+        "sweep": {"K_W": [0.04, 0.08], "k2_W": [0.02]}}),
+    "rosenbrock-structured, two inertial blocks": ("rosenbrock-structured", {
         "blocks": 2, "model": "inertial", "parameters": {"m_W": 1.0},
         "sweep": {"K_W": [0.04, 0.08], "k2_W": [0.02]}}),
     # the kernels with the tangent for λ1
@@ -40,21 +47,23 @@ def run(kernel, g):
     return results, y_final
 
 
+@pytest.mark.slow
 @NO_JIT
 @pytest.mark.parametrize("case", CASES)
 def test_fixed_size_kernels_give_the_same_numbers(case):
     method, overrides = CASES[case]
-    integrator = {"method": method, "t_end": 600.0}
+    overrides = dict(overrides)
+    integrator = {"method": method, "t_end": 600.0, **overrides.pop("integrator", {})}
     if method == "rk4":
         integrator["dt"] = 0.01
     config = make_config(overrides, integrator=integrator)
     g = grid.build_grid(config)
-    codes = dispatch.variant(g.params, g.settings)
+    variant = dispatch.variant(g.params, g.settings)
     n = g.y0.shape[1]
-    assert codes[-1] == n  # small systems get the kernel for their size
-    assert codes[-2] == ("tangent" in case)
-    fixed = run(integrate.grid_kernel(*codes), g)
-    any_size = run(integrate.grid_kernel(*codes[:-1], 0), g)
+    assert variant[-1] == n  # small systems get the kernel for their size
+    assert variant[-2] == ("tangent" in case)
+    fixed = run(integrate.grid_kernel(*variant), g)
+    any_size = run(integrate.grid_kernel(*variant[:-1], 0), g)
     # the runs integrated, and settled differently across the transition
     assert (fixed[0][:, layout.R_N_STEPS] > 10).all()
     assert len(set(fixed[0][:, layout.R_REGIME])) >= 2
@@ -62,6 +71,10 @@ def test_fixed_size_kernels_give_the_same_numbers(case):
         assert np.isfinite(fixed[0][:, layout.R_LYAPUNOV]).any()
     np.testing.assert_array_equal(fixed[0], any_size[0])
     np.testing.assert_array_equal(fixed[1], any_size[1])
+
+
+def test_every_method_is_a_case():
+    assert {method for method, _ in CASES.values()} == set(codes.METHODS)
 
 
 def test_only_small_systems_get_a_kernel_of_their_size():
@@ -81,7 +94,7 @@ def test_only_small_systems_get_a_kernel_of_their_size():
 @NO_JIT
 def test_a_kernel_refuses_another_state_size():
     g = grid.build_grid(make_config({"sweep": {"K_W": [0.05]}}))
-    codes = dispatch.variant(g.params, g.settings)
-    kernel = integrate.grid_kernel(*codes[:-1], 4)  # compiled for two blocks
+    variant = dispatch.variant(g.params, g.settings)
+    kernel = integrate.grid_kernel(*variant[:-1], 4)  # compiled for two blocks
     with pytest.raises(ValueError, match="state size"):
         run(kernel, g)
