@@ -1,20 +1,23 @@
-"""The kernel variants the test suite runs, compiled once before the tests (``make test``).
+"""The kernel variants a tier of the test suite runs, compiled once before its tests
+(``make test``, ``make test-all``).
 
 A variant (model, state law, method, coupling, equal or unequal blocks, with or without
-the tangent, state size: ``dispatch.variant``) compiles in 6-10 s; the suite uses about
-eighty. Left to the tests, two pytest workers and the processes that tests start
+the tangent, state size: ``dispatch.variant``) compiles in 6-10 s; the whole suite uses
+about eighty. Left to the tests, two pytest workers and the processes that tests start
 compile them as each first needs one, often the same one at once. Here they are
 compiled side by side in one fresh process per core, each variant once, into numba's
 cache (``dispatch.load_kernels``), and the tests then load them. A variant missing from
 the list is still compiled by the first test that needs it: the list makes the suite
 faster, never different.
 
-    python tests/precompile.py            # compile the listed variants (warm: loads)
-    python tests/precompile.py --write    # list the variants the package's cache holds
+    python tests/precompile.py [--tier fast]            # compile a tier's variants
+    python tests/precompile.py [--tier fast] --write    # list what the cache holds
 
-``--write`` reads the names of the grid kernels' files in numba's cache folder of
-``sweep/kernels`` (``NUMBA_CACHE_DIR`` if set): run it in a fresh clone after
-``make test``, whose cache then holds exactly what the suite compiled.
+Each tier has its list (:data:`VARIANTS`): ``fast`` the variants of ``make test`` (the
+tests not marked ``slow``), ``all`` those of ``make test-all``. ``--write`` reads the
+names of the grid kernels' files in numba's cache folder of ``sweep/kernels``
+(``NUMBA_CACHE_DIR`` if set): run it in a fresh clone after ``make test`` (``--tier
+fast``) or ``make test-all``, whose cache then holds exactly what the tier compiled.
 """
 
 import argparse
@@ -32,9 +35,13 @@ sys.path.insert(0, str(ROOT))
 from sweep import codes, dispatch  # noqa: E402
 from sweep.kernels import layout  # noqa: E402
 
-#: One variant per line: model, state law, method, coupling, blocks (equal, unequal),
-#: tangent (plain, tangent) and the state size its kernel is compiled for (0: any).
-VARIANTS = Path(__file__).parent / "data" / "kernel_variants.txt"
+#: Per tier, the list of its variants, one per line: model, state law, method, coupling,
+#: blocks (equal, unequal), tangent (plain, tangent) and the state size its kernel is
+#: compiled for (0: any).
+VARIANTS = {
+    "fast": Path(__file__).parent / "data" / "kernel_variants_fast.txt",
+    "all": Path(__file__).parent / "data" / "kernel_variants.txt",
+}
 BLOCKS, TANGENT = ("equal", "unequal"), ("plain", "tangent")
 TABLES = (codes.MODELS, codes.STATE_LAWS, tuple(codes.METHODS), codes.COUPLINGS, BLOCKS,
           TANGENT)  # fmt: skip
@@ -65,9 +72,9 @@ def job(words):
     return out
 
 
-def listed():
-    """The variants of :data:`VARIANTS`, as lists of words."""
-    lines = VARIANTS.read_text().splitlines()
+def listed(tier="all"):
+    """The variants of ``tier``'s list (:data:`VARIANTS`), as lists of words."""
+    lines = VARIANTS[tier].read_text().splitlines()
     return [line.split() for line in lines if line.strip() and not line.startswith("#")]
 
 
@@ -87,13 +94,15 @@ def cached_variants():
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tier", choices=sorted(VARIANTS), default="all",
+                        help="the tests of make test (fast) or of make test-all (all)")  # fmt: skip
     parser.add_argument("--write", action="store_true", help="list the cached variants")
     args = parser.parse_args(argv)
     if args.write:
         rows = cached_variants()
         header = "# model law method coupling blocks tangent state_size (tests/precompile.py)\n"
-        VARIANTS.write_text(header + "".join(" ".join(r) + "\n" for r in rows))
-        print(f"wrote {len(rows)} variants to {VARIANTS}")
+        VARIANTS[args.tier].write_text(header + "".join(" ".join(r) + "\n" for r in rows))
+        print(f"wrote {len(rows)} variants to {VARIANTS[args.tier]}")
         return 0
     import numba
 
@@ -102,9 +111,10 @@ def main(argv=None):
     if numba.config.DISABLE_JIT or not CACHE:
         print("precompile: no JIT or no cache (NUMBA_DISABLE_JIT, SWEEP_NUMBA_CACHE): skipped")
         return 0
-    jobs = [job(words) for words in listed()]
+    jobs = [job(words) for words in listed(args.tier)]
     start = time.perf_counter()
-    print(f"compiling (or loading) the {len(jobs)} kernel variants the tests use ...", flush=True)
+    print(f"compiling (or loading) the {len(jobs)} kernel variants of the tier {args.tier} ...",
+          flush=True)  # fmt: skip
     dispatch.load_kernels(jobs, here=False)
     print(f"... in {time.perf_counter() - start:.0f} s", flush=True)
     return 0

@@ -178,6 +178,7 @@ def test_license_and_citation_are_shipped():
     assert [a["family-names"] for a in paper["authors"]] == ["Szkutnik", "Kułakowski"]
 
 
+@pytest.mark.slow
 def test_compile_kernels_compiles_only_the_configs_variants():
     """``sweep.compile_kernels(config)`` (warming numba's cache before job arrays)
     compiles, in a fresh process, the grid kernel of that config's variant and, where

@@ -116,6 +116,7 @@ def doubling():
     return run(inertial_pair({"K_W": [0.0041, 0.0042, 0.005]}))
 
 
+@pytest.mark.slow
 def test_period_two_of_the_issue_matches_scipy(doubling):
     """K/W = k2/W = 0.005 µm⁻¹: a cycle of 2 events, ln(v1/V) maxima 1.4943 / 1.4197,
     191.42 and 27.90 D0/V apart with D0 = 1 µm (the issue's SciPy LSODA, rtol 1e-10);
@@ -135,6 +136,7 @@ def test_period_two_of_the_issue_matches_scipy(doubling):
     assert float(point["lnv_max"]) >= engine_peaks.max()  # the whole cycle's extremes
 
 
+@pytest.mark.slow
 def test_first_period_doubling_matches_scipy(doubling):
     """K/W = 0.0042 µm⁻¹: a simple cycle; 0.0041: two alternating maxima (the simple
     cycle doubles in between, at 0.00412–0.00413 on configs/route_to_chaos.yaml).
@@ -166,6 +168,7 @@ def chain_points():
     return run(unequal_chain([0.0425, 0.0435], classification={"events": 128}))
 
 
+@pytest.mark.slow
 def test_chaotic_point_is_chaotic_by_lyapunov_and_by_the_zero_one_test(chain_points):
     """K/W = 0.0425: λ1 > 0 beyond three standard errors, stick_slip; the 0-1 test
     (Gottwald & Melbourne) on the SciPy reference's event maxima (DOP853, rtol 1e-9,
@@ -181,6 +184,7 @@ def test_chaotic_point_is_chaotic_by_lyapunov_and_by_the_zero_one_test(chain_poi
     assert zero_one_test(point["event_lnv_peak"].values) > 0.7  # 128 points: a noisier K
 
 
+@pytest.mark.slow
 def test_quasi_periodic_point(chain_points):
     """K/W = 0.0435: the engine finds no cycle of up to 32 events and λ1 consistent with
     zero: quasi_periodic, stick_slip. The SciPy reference's maxima (as above) give a
@@ -198,6 +202,7 @@ def test_quasi_periodic_point(chain_points):
     assert all(np.abs(last[n:] - last[:-n]).max() > 1e-2 for n in range(1, 33))
 
 
+@pytest.mark.slow
 def test_lyapunov_exponent_is_scipys_benettin_estimate():
     """λ1 of one run with ``lyapunov: always`` at the chaotic point against the SciPy
     reference's Benettin estimate over the same 600 D0/V from the same start (same

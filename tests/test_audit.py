@@ -74,6 +74,7 @@ def test_tight_config_divides_the_tolerances_only():
     )  # fmt: skip
 
 
+@pytest.mark.slow
 def test_a_chaotic_transient_is_caught_by_the_tighter_rerun():
     """Three unequal quasi-static blocks (D0 1.0/1.3/0.8 µm, chain, k2/W 0.02 µm⁻¹) at
     0.9 of the reference's Kc, from Φ/Φss = [1.01, 1, 1]: SciPy (DOP853, rtol 1e-10) runs
@@ -101,6 +102,7 @@ def test_a_chaotic_transient_is_caught_by_the_tighter_rerun():
     assert not audit["agree_tight"].item()
 
 
+@pytest.mark.slow
 def test_blocks_merged_by_round_off_are_named(tmp_path, capsys):
     """Three identical quasi-static blocks in a ring (k2/W 0.002 µm⁻¹) at 0.99 Kc from
     Φ/Φss = [1.02, 1, 0.98]: the engine ends on a cycle with blocks 1 and 2 equal bit for

@@ -201,7 +201,8 @@ def test_compile_loads_every_configs_kernels(tmp_path, capsys):
     from sweep.dispatch import grid_kernel
     from sweep.grid import build_grid
 
-    path = write_config(tmp_path / "dopri5.yaml", {"integrator": {"method": "dopri5"}})
+    path = write_config(tmp_path / "damped.yaml", {"model": "quasi-dynamic",
+                                                    "parameters": {"eta_W": 0.01}})  # fmt: skip
     assert cli.main(["compile", str(QUICK), str(path)]) == 0
     assert "the kernels of 2 config(s)" in capsys.readouterr().out
     for config in (load_config(QUICK), load_config(path)):

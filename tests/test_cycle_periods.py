@@ -90,6 +90,7 @@ def check_cycle(point, times, states, tol, time_unit):
     assert np.isnan(point.event_lnv_peak.values[:-d]).all()  # the settled cycle's only
 
 
+@pytest.mark.slow
 def test_eight_unequal_blocks_in_a_ring_report_the_minimal_period():
     """The issue's ring (K/W = 0.0455, k2/W = 0.02 µm⁻¹): SciPy (DOP853, rtol 1e-10, to
     1000 mean-D0/V; 9 s) returns to the whole state after 2 events, 7.1639 D0_ref/V
@@ -103,6 +104,7 @@ def test_eight_unequal_blocks_in_a_ring_report_the_minimal_period():
     check_cycle(ds.isel(K_W=0), times, states, 1e-8, np.mean(RING_D0) / 1.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("k_w", "t_end"), [(0.0455, 3500.0), (0.044, 1500.0)])
 def test_three_unequal_blocks_cycles_of_two_and_three_events(k_w, t_end):
     """Three blocks in a chain: SciPy (DOP853, rtol 1e-10, to ``t_end`` mean-D0/V; 8 and
@@ -120,6 +122,7 @@ def test_three_unequal_blocks_cycles_of_two_and_three_events(k_w, t_end):
     check_cycle(ds.isel(K_W=0), times, states, 1e-5, np.mean(CHAIN_D0) / 0.1)
 
 
+@pytest.mark.slow
 def test_two_unequal_inertial_blocks_report_the_minimal_period():
     """configs/route_to_chaos.yaml at K/W = 0.004925 µm⁻¹ (D0 = 1.0 / 0.6 µm, m/W = 1
     s²/µm, k2/W = 0.005 µm⁻¹, V = 1 µm/s, RODAS4): SciPy (LSODA, rtol 1e-10, to 6000

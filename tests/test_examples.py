@@ -5,11 +5,13 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from conftest import SUBPROCESS_TIMEOUT
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow
 def test_gallery_runs_and_writes_its_figures(tmp_path):
     out = tmp_path / "gallery"
     proc = subprocess.run(

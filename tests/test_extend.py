@@ -206,6 +206,7 @@ def test_bad_input_exits_2(short_file, capsys):
     assert short_file.read_bytes() == before
 
 
+@pytest.mark.slow
 def test_cli_end_to_end(short_file):
     """``python -m sweep extend r.nc --out longer.nc`` in a fresh folder: the regime
     summary, the file written, the input untouched."""

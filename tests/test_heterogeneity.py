@@ -166,6 +166,7 @@ def test_parts_of_other_couplings_or_blocks_are_not_reused():
     assert store.config_hash(base) not in hashes and len(hashes) == len(variants)
 
 
+@pytest.mark.slow
 def test_unequal_chain_example_loses_steady_sliding_at_its_own_kc():
     """configs/unequal_chain.yaml (D0 = 1.0/1.3/0.8 µm, K/W × k2/W, four starts): every
     start is steady above the stored Jacobian ``critical_K_W`` and none below, within

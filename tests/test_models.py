@@ -480,6 +480,7 @@ def test_transition_two_blocks(model_name):
     np.testing.assert_array_equal(aging == layout.STEADY, slip == layout.STEADY)
 
 
+@pytest.mark.slow
 def test_beating_modes_are_not_steady():
     """Two inertial blocks at K = 0.99 Kc with weak coupling: the decaying
     anti-phase mode beats against the slowly growing in-phase mode, so ℓ_0 shrinks
@@ -545,7 +546,7 @@ def test_phase_lag_and_sync_error_of_shifted_blocks(damped_cycle, shift):
     np.testing.assert_allclose(float(ds.sync_error), sync, rtol=0.02, atol=1e-9)
 
 
-@pytest.mark.parametrize("law", sorted(LAW_CODES))
+@pytest.mark.parametrize("law", ["aging", pytest.param("slip", marks=pytest.mark.slow)])
 @pytest.mark.parametrize(
     "model_name, param, value", [("quasi-dynamic", "eta_W", 0.1), ("inertial", "m_W", 10.0)]
 )

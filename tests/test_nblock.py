@@ -72,6 +72,7 @@ def test_unequal_blocks_switch_at_the_jacobian_prediction(blocks, coupling, extr
     assert np.all((ds.linear_growth_rate > 0) == (ds.K_W < kc))
 
 
+@pytest.mark.slow
 def test_critical_stiffness_varies_along_a_spread_axis():
     """A swept spread: zero spread gives the analytic Kc; the pattern is scaled."""
     cfg = nblock(4, "ring", sweep={"K_W": [0.05], "spread_D0": [0.0, 0.1, 0.2]},
@@ -85,6 +86,7 @@ def test_critical_stiffness_varies_along_a_spread_axis():
     )  # no spread: exactly the common value
 
 
+@pytest.mark.slow
 def test_two_block_chain_is_the_existing_two_block_model():
     """Naming the coupling (chain) and passing through the per-block columns (a zero
     spread) changes no number of the two-block model."""
@@ -101,6 +103,7 @@ def test_two_block_chain_is_the_existing_two_block_model():
         np.testing.assert_array_equal(zero[var].values, old[var].values, err_msg=var)
 
 
+@pytest.mark.slow
 def test_ensemble_does_not_depend_on_chunks_or_threads():
     cfg = nblock(3, "ring", sweep={"K_W": [0.046, 0.054]},
                  initial={"ensemble": 5, "seed": 3, "amplitude": 0.3},
@@ -143,6 +146,7 @@ def test_weakly_coupled_blocks_slip_one_at_a_time():
     assert 0.5 < float(ds.sync_order) < 0.99
 
 
+@pytest.mark.slow
 def test_identical_starts_stay_in_phase():
     """Identical blocks started identically move as one: R = 1 and every block takes
     part in every slip (quasi-dynamic limit cycle well below Kc)."""
@@ -174,6 +178,7 @@ def test_extending_an_ensemble_updates_its_regime_fractions(tmp_path):
     np.testing.assert_array_equal(out.regime_fraction.transpose("regime_name", "K_W"), counts)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model_name", ["quasi-static", "inertial"])
 def test_sixty_four_unequal_blocks_run(model_name):
     """64 unequal blocks, every pair coupled (the dense Jacobian of the Rosenbrock

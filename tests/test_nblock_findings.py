@@ -118,6 +118,7 @@ def test_unequal_chain_is_bounded_from_every_start(unequal_chain):
         assert t_runaway is None
 
 
+@pytest.mark.slow
 def test_identical_blocks_with_the_mean_d0_run_away():
     """Identical blocks with D0 = 1.0333 µm (the chain's mean) at 0.97 of their Kc =
     (B − A)/D0: runaway, at SciPy's time (258.59 units in phase: DOP853 rtol 1e-10; to

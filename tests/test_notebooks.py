@@ -36,6 +36,7 @@ def test_notebook_is_in_sync_with_its_source(source):
     assert all(not c.get("outputs") for c in cells if c["cell_type"] == "code")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("source", SOURCES, ids=[p.stem for p in SOURCES])
 def test_notebook_runs_in_a_jupyter_kernel(source, tmp_path):
     """Every cell runs without error in an ipykernel, and each figure a cell ends with

@@ -311,6 +311,7 @@ def small_nblock_configs():
     return nblock, heterogeneous
 
 
+@pytest.mark.slow
 def test_nblock_figure_draws_the_ensemble_and_kc():
     """Panels 2 and 3: the regime of most starts in each cell (hatched where they
     disagree, in the heterogeneous map at least one), the stored critical_K_W as a

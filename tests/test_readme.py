@@ -227,6 +227,7 @@ def peak_memory(config, points, t_end, cwd):
     return int(proc.stderr.split()[-2]) * 1024  # "VmHWM:  1009076 kB"
 
 
+@pytest.mark.slow
 def test_memory_grows_with_the_result_arrays_only(tmp_path):
     """ "Memory grows only with the result arrays … whatever the run length": the peak
     resident memory of ``python -m sweep run`` (configs/quick.yaml, one block) does not
@@ -316,6 +317,7 @@ def sweep_chain(d0, k_w, **sections):
     return run(cfg, progress=False)
 
 
+@pytest.mark.slow
 @pytest.mark.drift
 def test_unequal_chain_cycle_at_0_97_kc_drift():
     """Drift check, but for max |ln Φ/Φss| (SciPy; the engine's cycle is checked against

@@ -65,6 +65,7 @@ def two_blocks_file(two_blocks, tmp_path_factory):
 # --- every refined point is the uniform grid's run there ------------------------------------
 
 
+@pytest.mark.slow
 def test_refined_points_are_the_runs_of_the_uniform_grid_of_their_level(tmp_path):
     """On a map where cycles of one and two events and steady sliding meet, every run of
     the refinement equals (bit for bit, every output) the run of the uniform grid of the
@@ -112,6 +113,7 @@ def test_a_stop_keeps_the_saved_chunks_and_resume_completes(two_blocks, two_bloc
     assert_same_file(out, two_blocks_file)
 
 
+@pytest.mark.slow
 def test_sigkill_in_a_later_level_then_resume(two_blocks, tmp_path):
     """kill -9 while level 2 runs (its first chunk saved); --resume reuses every saved
     chunk of every level and writes the same file."""

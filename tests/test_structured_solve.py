@@ -98,8 +98,10 @@ def inertial_blocks(coupling, method, blocks=4, **sections):
     )  # fmt: skip
 
 
-@pytest.mark.parametrize("coupling, blocks", [("chain", 4), ("ring", 4), ("all", 4),
-                                             ("chain", 2)])  # fmt: skip
+@pytest.mark.parametrize("coupling, blocks", [
+    ("chain", 2),
+    *(pytest.param(c, 4, marks=pytest.mark.slow) for c in ("chain", "ring", "all")),
+])  # fmt: skip
 def test_structured_runs_agree_with_dense_runs(coupling, blocks):
     """The same runs with either solve: the same labels, and numbers equal to 1e-6
     relative or 1e-9 absolute (the integration's rtol 1e-8, atol 1e-10: the solves
@@ -114,6 +116,7 @@ def test_structured_runs_agree_with_dense_runs(coupling, blocks):
     np.testing.assert_allclose(band.n_steps, dense.n_steps, rtol=1e-3)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("coupling", ["chain", "all"])
 def test_structured_tangent_agrees_with_dense_tangent(coupling):
     """λ1 over the whole run (``lyapunov: always``) with either solve: the tangent reuses

@@ -132,7 +132,9 @@ def lyapunov_run(case, t_end=2000.0):
     return compute(make_config(base, **sections), show_progress=False).isel(K_W=0)
 
 
-@pytest.mark.parametrize("name", STEADY_CASES)
+@pytest.mark.parametrize("name", [
+    pytest.param(n, marks=pytest.mark.slow) if n == "two blocks" else n for n in STEADY_CASES
+])  # fmt: skip
 def test_lyapunov_exponent_of_steady_sliding_is_the_linear_growth_rate(name):
     """At a stable fixed point λ1 is the largest real part of the Jacobian's eigenvalues
     (the stored linear_growth_rate, from the physics' normal modes): within 1 %."""
