@@ -34,10 +34,22 @@ from .physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
 #: spends 2e7 steps on the first 30 D0/V) and their stability-limited ripple adds false
 #: maxima; the linearly implicit rosenbrock stepper needs ~1e3 steps per cycle.
 DEFAULT_METHODS = {"inertial": "rosenbrock"}
+#: Blocks from which such a run gets the default's structured solve instead, per
+#: coupling: ``rosenbrock-structured``, the same RODAS4 steps with their linear systems
+#: solved in O(N) operations (a band, or block by block with a rank-one correction)
+#: instead of the dense LU's O(N³), costs less per step from there on and more below.
+#: Measured by ``bench_structured_crossing`` in ``benchmarks/bench.py`` (its
+#: ``crossing``; ``results/bench.json``, ``structured_crossing``; the table in
+#: docs/performance.md): equal and unequal blocks, each pair of runs timed alternately.
+STRUCTURED_FROM = {"chain": 10, "ring": 12, "all": 6}
+#: The structured solve of a default method (:data:`STRUCTURED_FROM`).
+STRUCTURED_METHODS = {"rosenbrock": "rosenbrock-structured"}
 #: Default step-size cap (D0/V) of the methods that have one: RODAS4 (either way of
 #: solving) reads extrema from a cubic Hermite interpolant, whose error grows with the step.
 DEFAULT_MAX_STEPS = {"rosenbrock": 0.5, "rosenbrock-structured": 0.5}
 TIME_UNITS = ("D0/V", "s")
+#: How the docs name each coupling (``coupling:``).
+COUPLING_WORDS = {"chain": "a chain", "ring": "a ring", "all": "all-to-all coupling"}
 #: Most events whose maxima a run can report: the cycles the classifier keeps
 #: (``kernels.classify.state.HISTORY``; a test checks the two agree).
 MAX_EVENTS = 128
@@ -188,8 +200,11 @@ class Integrator:
     sizes ``dt`` and ``max_step`` resolve the dynamics, whose time scale is D0/V,
     so they are always in units of D0/V."""
 
-    method: str = setting("dop853", "stepper (the inertial model's default: rosenbrock)",
-                          METHODS)  # fmt: skip
+    method: str = setting(
+        "dop853", "stepper", METHODS,
+        default_text="dop853; for model inertial rosenbrock, and rosenbrock-structured from "
+        + ", ".join(f"{n} blocks in {COUPLING_WORDS[c]}" for c, n in STRUCTURED_FROM.items()),
+    )  # fmt: skip
     rtol: float = setting(1e-8, "relative tolerance of the adaptive methods", "(0, 1)")
     atol: float = setting(1e-10, "absolute tolerance of the adaptive methods", "(0, inf)")
     dt: float = setting(0.01, "fixed step of rk4", "(0, inf)", "D0/V")
@@ -690,7 +705,7 @@ def _validate(raw, text, source):
     _check_runs(c, axes, initial.ensemble)
     if not c.problems:
         _check_spread_values(c, params, spread, axes, blocks)
-    integrator = _parse_integrator(c, raw, model)
+    integrator = _parse_integrator(c, raw, model, blocks, coupling)
     classification = _parse_classification(c, raw, integrator.t_end)
     catalogue = _parse_catalogue(c, raw, axes, initial)
     output = raw.get("output", f"results/{name}.nc")
@@ -1119,9 +1134,21 @@ def _parse_initial(c, raw, blocks):
     return Initial(v, phi, ensemble, seed, amplitude)
 
 
-def _parse_integrator(c, raw, model):
-    spec = c.mapping(raw.get("integrator", {}), "integrator")
+def default_method(model, blocks=1, coupling="chain"):
+    """The method a run of ``model`` gets when its config names none, for ``blocks``
+    blocks coupled as ``coupling``: ``dop853``; the inertial model's ``rosenbrock``,
+    and ``rosenbrock-structured`` from :data:`STRUCTURED_FROM` blocks on (the solve that
+    costs less per step there). The parser stores it in the config, so a result's
+    ``integrator_method`` is the method its runs used."""
     method = DEFAULT_METHODS.get(model, Integrator.method)
+    if method in STRUCTURED_METHODS and blocks >= STRUCTURED_FROM.get(coupling, MAX_BLOCKS + 1):
+        return STRUCTURED_METHODS[method]
+    return method
+
+
+def _parse_integrator(c, raw, model, blocks, coupling):
+    spec = c.mapping(raw.get("integrator", {}), "integrator")
+    method = default_method(model, blocks, coupling or "chain")
     chosen = spec.get("method", method)
     cap = DEFAULT_MAX_STEPS.get(chosen, math.inf) if isinstance(chosen, str) else math.inf
     defaults = Integrator(method=method, max_step=cap)
