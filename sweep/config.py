@@ -653,6 +653,45 @@ def parse_config(config: str | Mapping[str, Any], source: str | None = None) -> 
     return _validate(raw, text, source)
 
 
+def parse_stored_config(text: str, source: str, method: str | None = None) -> Config:
+    """The config stored in a result (its ``config_text``), as the result's runs used it.
+
+    A config that names no method gets the default of the version that ran it, which a
+    later version may change (the inertial model's became ``rosenbrock-structured`` from
+    :data:`STRUCTURED_FROM` blocks on): where the result's ``method`` (its
+    ``integrator_method``) is not today's default, the config is read with ``method``
+    named, so extending or auditing it integrates as its runs did. A config that names
+    its method is read as it stands.
+
+    Parameters
+    ----------
+    text : str
+        The stored config (YAML text).
+    source : str
+        How error messages and provenance name it.
+    method : str, optional
+        The method the result's runs used (its ``integrator_method``); None: unknown.
+
+    Returns
+    -------
+    Config
+        The validated config, with ``method`` where it names none.
+
+    Raises
+    ------
+    ConfigError
+        The text is no longer a valid config.
+    """
+    config = parse_config(text, source)
+    if method is None or method == config.integrator.method or method not in METHODS:
+        return config
+    raw = yaml.load(text, Loader=_Loader)
+    if "method" in raw.get("integrator", {}):
+        return config
+    raw["integrator"] = {**raw.get("integrator", {}), "method": method}
+    return parse_config(raw, source)
+
+
 def _plain(value):
     """A config mapping with numpy scalars and arrays, tuples and Mappings made plain
     Python (what ``yaml.safe_dump`` and the checks expect)."""
