@@ -929,7 +929,7 @@ SIZES = {
               "attractors": (3, 100),
               "threads_large": (4, 100), "throughput": (1, 10), "rk4": 1_000,
               "block_scaling": (1, 10), "implicit_scaling": (1, 2),
-              "structured_crossing": (1, 2, 0.0),
+              "structured_crossing": (1, 2, 0.0, (1, 3)),
               "configs": ("quick",), "dask": "quick", "compile": "quick", "empty_cache": False,
               "refine": (("quick", 2),)},
 }  # fmt: skip
