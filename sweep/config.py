@@ -48,8 +48,6 @@ STRUCTURED_METHODS = {"rosenbrock": "rosenbrock-structured"}
 #: solving) reads extrema from a cubic Hermite interpolant, whose error grows with the step.
 DEFAULT_MAX_STEPS = {"rosenbrock": 0.5, "rosenbrock-structured": 0.5}
 TIME_UNITS = ("D0/V", "s")
-#: How the docs name each coupling (``coupling:``).
-COUPLING_WORDS = {"chain": "a chain", "ring": "a ring", "all": "all-to-all coupling"}
 #: Most events whose maxima a run can report: the cycles the classifier keeps
 #: (``kernels.classify.state.HISTORY``; a test checks the two agree).
 MAX_EVENTS = 128
@@ -202,8 +200,9 @@ class Integrator:
 
     method: str = setting(
         "dop853", "stepper", METHODS,
-        default_text="dop853; for model inertial rosenbrock, and rosenbrock-structured from "
-        + ", ".join(f"{n} blocks in {COUPLING_WORDS[c]}" for c, n in STRUCTURED_FROM.items()),
+        default_text=f"dop853; model inertial: rosenbrock, and rosenbrock-structured from "
+        f"{STRUCTURED_FROM['chain']} blocks in a chain, {STRUCTURED_FROM['ring']} in a ring and "
+        f"{STRUCTURED_FROM['all']} all-to-all",
     )  # fmt: skip
     rtol: float = setting(1e-8, "relative tolerance of the adaptive methods", "(0, 1)")
     atol: float = setting(1e-10, "absolute tolerance of the adaptive methods", "(0, inf)")
