@@ -310,6 +310,110 @@ def bench_implicit_scaling(n_systems, t_end, sizes=(8, 32, 128)):
     return out
 
 
+#: Numbers of blocks at which :func:`bench_structured_crossing` compares the two RODAS4
+#: solves (rings from 3 blocks, all-to-all and unequal blocks from 2).
+CROSSING_SIZES = (1, 2, 3, 4, 5, 6, 7, 8, 10, 12, 14, 16, 20, 24, 32)
+#: The unequal blocks of :func:`bench_structured_crossing`: a seeded spread of D0 and A.
+CROSSING_SPREAD = {"D0": 0.2, "A": 0.05, "seed": 0}
+
+
+def bench_structured_crossing(n_systems, t_end, seconds, sizes=CROSSING_SIZES, min_pairs=5):
+    """Where the inertial model's structured RODAS4 (``rosenbrock-structured``) becomes
+    cheaper per step than the dense one (``rosenbrock``): the number of blocks from which
+    an inertial run that names no method gets the structured one
+    (``sweep.config.STRUCTURED_FROM``).
+
+    Per coupling (chain, ring, all) and equal or unequal blocks (a seeded spread,
+    :data:`CROSSING_SPREAD`), at each of ``sizes`` blocks: the same runs (m/W = 1 s²/µm,
+    K/Kc = 0.95 of identical blocks, k2/W = 0.05 µm⁻¹, Φ_i/Φss = 1.01 + 0.005 sin(1.7 i),
+    early exit off, 1 thread) with either method, both kernels compiled beforehand, run
+    in pairs, dense and structured one after the other (the order swapped every pair),
+    as many pairs as take about ``seconds`` of CPU time (at least ``min_pairs``; both
+    methods take the same steps). Each pair gives a ratio of CPU time per step (accepted
+    and rejected steps), dense over structured; the entry keeps their median and the
+    ratio of each method's shortest time per step. ``crossing``: per case the smallest
+    size from which the median ratio is above 1 at every larger size measured (None:
+    dense is as fast at the largest size). The machine's load average before and after
+    says how much other work shared it.
+    """
+    extra = {"m_W": 1.0}
+    k_values = np.linspace(0.95, 0.95 * 1.01, n_systems) * _critical_k_w("inertial", extra)
+    methods = ("rosenbrock", "rosenbrock-structured")
+    out = {"sizes": list(sizes), "seconds_per_size": seconds, "t_end_D0_over_V": t_end,
+           "systems": n_systems, "load_average_before": os.getloadavg()[0]}  # fmt: skip
+    crossing = {}
+    for coupling in ("chain", "ring", "all"):
+        for blocks_differ in (False, True):
+            case = f"{coupling} {'unequal' if blocks_differ else 'equal'}"
+            ratios = {}
+            for blocks in sizes:
+                if (coupling == "ring" and blocks < 3) or (
+                    (coupling == "all" or blocks_differ) and blocks < 2
+                ):
+                    continue
+                changes = {"coupling": coupling,
+                           "initial": {"phi_over_phi_ss": [1.01 + 0.005 * math.sin(1.7 * i)
+                                                           for i in range(blocks)]}}  # fmt: skip
+                if blocks_differ:
+                    changes["spread"] = CROSSING_SPREAD
+                configs = [
+                    with_changes(one_block_config(k_values, t_end, "inertial", blocks, extra,
+                                                  early=False, method=method), changes)
+                    for method in methods
+                ]  # fmt: skip
+                us, steps = _paired_us_per_step(configs, seconds, min_pairs)
+                pairs = np.divide(us[0], us[1])
+                ratios[blocks] = float(np.median(pairs))
+                out[f"{case}/{blocks}"] = {
+                    "steps": steps,
+                    "pairs": len(pairs),
+                    "dense_us_per_step": float(np.median(us[0])),
+                    "structured_us_per_step": float(np.median(us[1])),
+                    "dense_over_structured": ratios[blocks],
+                    "dense_over_structured_quartiles": np.quantile(pairs, [0.25, 0.75]).tolist(),
+                    "dense_over_structured_shortest": min(us[0]) / min(us[1]),
+                }
+            faster = [n for n in ratios if all(ratios[m] > 1.0 for m in ratios if m >= n)]
+            crossing[case] = min(faster) if faster else None
+    out["crossing"] = crossing
+    out["load_average_after"] = os.getloadavg()[0]  # other work on the machine's cores
+    return out
+
+
+#: Most pairs :func:`_paired_us_per_step` times (the smallest systems take milliseconds).
+MAX_PAIRS = 100
+
+
+def _paired_us_per_step(configs, seconds, min_pairs):
+    """CPU µs per step (accepted and rejected) of each config's runs on 1 thread, timed
+    in turn, one integration of the runs each, as many rounds as take about ``seconds``
+    (``min_pairs`` to :data:`MAX_PAIRS`; the order reversed every other round), after
+    compiling each kernel (a call on one run); and each config's steps. Timing the
+    configs run by run puts each pair under the same load of a shared machine; the
+    process's CPU time, not the wall time, leaves out the time other work holds the
+    core (it still shares the caches)."""
+    grids = [build_grid(config) for config in configs]
+    for g in grids:  # compile or load every kernel before any timing
+        integrate_in_memory(g.params[:1], g.y0[:1], g.settings, threads=1)
+    steps, once = [], []
+    for g in grids:  # one untimed integration: the step counts and the time of a round
+        start = time.process_time()
+        results, _ = integrate_in_memory(g.params, g.y0, g.settings, threads=1)
+        once.append(time.process_time() - start)
+        steps.append(
+            int(results[:, layout.R_N_STEPS].sum() + results[:, layout.R_N_REJECTED].sum())
+        )
+    rounds = min(MAX_PAIRS, max(min_pairs, math.ceil(seconds / max(sum(once), 1e-9))))
+    us = [[] for _ in grids]
+    for r in range(rounds):
+        for i in range(len(grids)) if r % 2 == 0 else reversed(range(len(grids))):
+            g = grids[i]
+            start = time.process_time()
+            integrate_in_memory(g.params, g.y0, g.settings, threads=1)
+            us[i].append(1e6 * (time.process_time() - start) / steps[i])
+    return us, steps
+
+
 def _critical_k_w(model, extra):
     d = physics.dimensionless(
         PAPER["A"],
@@ -811,18 +915,21 @@ SIZES = {
              "attractors": (201, 2000),
              "threads_large": (10_000, 2000), "throughput": (16, 500), "rk4": 2_000_000,
              "block_scaling": (8, 500), "implicit_scaling": (2, 100),
+             "structured_crossing": (2, 100, 4.0),
              "configs": ("oneblock", "twoblock"), "dask": "twoblock", "compile": "twoblock",
              "refine": (("unequal_qd", 8),)},
     "quick": {"scipy": (6, 300), "single_purpose": (21, 300), "scipy_hard": (5, 2000),
               "attractors": (21, 300),
               "threads_large": (200, 2000), "throughput": (2, 50), "rk4": 10_000,
               "block_scaling": (2, 50), "implicit_scaling": (1, 30),
+              "structured_crossing": (1, 30, 0.5),
               "configs": ("quick", "quick"), "dask": "quick", "compile": "quick",
               "refine": (("unequal_qd", 2),)},
     "smoke": {"scipy": (3, 100), "single_purpose": (3, 100), "scipy_hard": (2, 100),
               "attractors": (3, 100),
               "threads_large": (4, 100), "throughput": (1, 10), "rk4": 1_000,
               "block_scaling": (1, 10), "implicit_scaling": (1, 2),
+              "structured_crossing": (1, 2, 0.0, (1, 3)),
               "configs": ("quick",), "dask": "quick", "compile": "quick", "empty_cache": False,
               "refine": (("quick", 2),)},
 }  # fmt: skip
@@ -847,8 +954,23 @@ def main(argv=None):
         action="store_true",
         help="run only the refinements; update the refine entry of --out",
     )
+    parser.add_argument(
+        "--crossing-only",
+        action="store_true",
+        help="run only the structured-vs-dense RODAS4 crossing; update the "
+        "structured_crossing entry of --out",
+    )
     args = parser.parse_args(argv)
     size = SIZES[args.size or "full"]
+    if args.crossing_only:
+        out = Path(args.out)
+        figures = json.loads(out.read_text()) if out.exists() else {}
+        figures["structured_crossing"] = bench_structured_crossing(*size["structured_crossing"])
+        _print_structured_crossing(figures["structured_crossing"])
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(figures, indent=2) + "\n")
+        print(f"wrote {out}")
+        return 0
     if args.refine_only:
         out = Path(args.out)
         figures = json.loads(out.read_text()) if out.exists() else {}
@@ -893,6 +1015,8 @@ def main(argv=None):
     _print_block_scaling(figures["block_scaling"])
     figures["implicit_scaling"] = bench_implicit_scaling(*size["implicit_scaling"])
     _print_implicit_scaling(figures["implicit_scaling"])
+    figures["structured_crossing"] = bench_structured_crossing(*size["structured_crossing"])
+    _print_structured_crossing(figures["structured_crossing"])
     figures["rk4"] = r = bench_rk4_reference(size["rk4"])
     print(
         f"RK4 kernel {r['engine_ns_per_step']:.0f} ns/step vs plain loop "
@@ -1068,6 +1192,23 @@ def _print_implicit_scaling(b):
             f"({value['relative_to_smallest']:.2f}x the smallest)"
             + (f", {versus:.1f}x faster than dense" if versus else "")
         )
+
+
+def _print_structured_crossing(c):
+    for key, value in c.items():
+        if "/" not in key:
+            continue
+        case, blocks = key.rsplit("/", 1)
+        print(
+            f"inertial {case:<13} {blocks:>3} blocks: dense {value['dense_us_per_step']:7.2f} us "
+            f"per step, structured {value['structured_us_per_step']:7.2f} us: dense / "
+            f"structured {value['dense_over_structured']:.2f} (quartiles "
+            f"{value['dense_over_structured_quartiles'][0]:.2f}-"
+            f"{value['dense_over_structured_quartiles'][1]:.2f} of {value['pairs']} pairs; "
+            f"shortest times {value['dense_over_structured_shortest']:.2f})"
+        )
+    for case, blocks in c["crossing"].items():
+        print(f"rosenbrock-structured faster per step from: {case}: {blocks} blocks")
 
 
 def _print_throughput(t):

@@ -34,6 +34,18 @@ from .physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
 #: spends 2e7 steps on the first 30 D0/V) and their stability-limited ripple adds false
 #: maxima; the linearly implicit rosenbrock stepper needs ~1e3 steps per cycle.
 DEFAULT_METHODS = {"inertial": "rosenbrock"}
+#: Blocks from which such a run gets the default's structured solve instead, per
+#: coupling: ``rosenbrock-structured``, the same RODAS4 steps with their linear systems
+#: solved in O(N) operations (a band, or block by block with a rank-one correction)
+#: instead of the dense LU's O(N³), costs less per step from there on and more below.
+#: Measured by ``bench_structured_crossing`` in ``benchmarks/bench.py`` (its
+#: ``crossing``; ``results/bench.json``, ``structured_crossing``; the table in
+#: docs/performance.md), the two timed run by run: dense over structured time per step,
+#: equal blocks (unequal alike), 0.94 at 8 and 1.13 at 10 blocks in a chain, 0.94 at 10
+#: and 1.04 at 12 in a ring, 0.92 at 5 and 1.12 at 6 all-to-all.
+STRUCTURED_FROM = {"chain": 10, "ring": 12, "all": 6}
+#: The structured solve of a default method (:data:`STRUCTURED_FROM`).
+STRUCTURED_METHODS = {"rosenbrock": "rosenbrock-structured"}
 #: Default step-size cap (D0/V) of the methods that have one: RODAS4 (either way of
 #: solving) reads extrema from a cubic Hermite interpolant, whose error grows with the step.
 DEFAULT_MAX_STEPS = {"rosenbrock": 0.5, "rosenbrock-structured": 0.5}
@@ -188,8 +200,12 @@ class Integrator:
     sizes ``dt`` and ``max_step`` resolve the dynamics, whose time scale is D0/V,
     so they are always in units of D0/V."""
 
-    method: str = setting("dop853", "stepper (the inertial model's default: rosenbrock)",
-                          METHODS)  # fmt: skip
+    method: str = setting(
+        "dop853", "stepper", METHODS,
+        default_text=f"dop853; model inertial: rosenbrock, and rosenbrock-structured from "
+        f"{STRUCTURED_FROM['chain']} blocks in a chain, {STRUCTURED_FROM['ring']} in a ring and "
+        f"{STRUCTURED_FROM['all']} all-to-all",
+    )  # fmt: skip
     rtol: float = setting(1e-8, "relative tolerance of the adaptive methods", "(0, 1)")
     atol: float = setting(1e-10, "absolute tolerance of the adaptive methods", "(0, inf)")
     dt: float = setting(0.01, "fixed step of rk4", "(0, inf)", "D0/V")
@@ -638,6 +654,45 @@ def parse_config(config: str | Mapping[str, Any], source: str | None = None) -> 
     return _validate(raw, text, source)
 
 
+def parse_stored_config(text: str, source: str, method: str | None = None) -> Config:
+    """The config stored in a result (its ``config_text``), as the result's runs used it.
+
+    A config that names no method gets the default of the version that ran it, which a
+    later version may change (the inertial model's became ``rosenbrock-structured`` from
+    :data:`STRUCTURED_FROM` blocks on): where the result's ``method`` (its
+    ``integrator_method``) is not today's default, the config is read with ``method``
+    named, so extending or auditing it integrates as its runs did. A config that names
+    its method is read as it stands.
+
+    Parameters
+    ----------
+    text : str
+        The stored config (YAML text).
+    source : str
+        How error messages and provenance name it.
+    method : str, optional
+        The method the result's runs used (its ``integrator_method``); None: unknown.
+
+    Returns
+    -------
+    Config
+        The validated config, with ``method`` where it names none.
+
+    Raises
+    ------
+    ConfigError
+        The text is no longer a valid config.
+    """
+    config = parse_config(text, source)
+    if method is None or method == config.integrator.method or method not in METHODS:
+        return config
+    raw = yaml.load(text, Loader=_Loader)
+    if "method" in raw.get("integrator", {}):
+        return config
+    raw["integrator"] = {**raw.get("integrator", {}), "method": method}
+    return parse_config(raw, source)
+
+
 def _plain(value):
     """A config mapping with numpy scalars and arrays, tuples and Mappings made plain
     Python (what ``yaml.safe_dump`` and the checks expect)."""
@@ -690,7 +745,7 @@ def _validate(raw, text, source):
     _check_runs(c, axes, initial.ensemble)
     if not c.problems:
         _check_spread_values(c, params, spread, axes, blocks)
-    integrator = _parse_integrator(c, raw, model)
+    integrator = _parse_integrator(c, raw, model, blocks, coupling)
     classification = _parse_classification(c, raw, integrator.t_end)
     catalogue = _parse_catalogue(c, raw, axes, initial)
     output = raw.get("output", f"results/{name}.nc")
@@ -1119,9 +1174,21 @@ def _parse_initial(c, raw, blocks):
     return Initial(v, phi, ensemble, seed, amplitude)
 
 
-def _parse_integrator(c, raw, model):
-    spec = c.mapping(raw.get("integrator", {}), "integrator")
+def default_method(model, blocks=1, coupling="chain"):
+    """The method a run of ``model`` gets when its config names none, for ``blocks``
+    blocks coupled as ``coupling``: ``dop853``; the inertial model's ``rosenbrock``,
+    and ``rosenbrock-structured`` from :data:`STRUCTURED_FROM` blocks on (the solve that
+    costs less per step there). The parser stores it in the config, so a result's
+    ``integrator_method`` is the method its runs used."""
     method = DEFAULT_METHODS.get(model, Integrator.method)
+    if method in STRUCTURED_METHODS and blocks >= STRUCTURED_FROM.get(coupling, MAX_BLOCKS + 1):
+        return STRUCTURED_METHODS[method]
+    return method
+
+
+def _parse_integrator(c, raw, model, blocks, coupling):
+    spec = c.mapping(raw.get("integrator", {}), "integrator")
+    method = default_method(model, blocks, coupling or "chain")
     chosen = spec.get("method", method)
     cap = DEFAULT_MAX_STEPS.get(chosen, math.inf) if isinstance(chosen, str) else math.inf
     defaults = Integrator(method=method, max_step=cap)

@@ -20,7 +20,7 @@ import xarray as xr
 from . import heterogeneity
 from ._version import __version__
 from .catalogue import MAGNITUDE_EDGES, catalogue_fields
-from .config import parse_config
+from .config import parse_stored_config
 from .errors import ConfigError, InputError
 from .physics import PARAMETERS
 from .result_check import RESULT_VARIABLES, missing_parts
@@ -404,7 +404,8 @@ def read_result(path: str | Path, needs_config: bool = False) -> xr.Dataset:
 
 
 def stored_config(ds, source):
-    """The :class:`~sweep.config.Config` stored in a result (``config_text``).
+    """The :class:`~sweep.config.Config` stored in a result (``config_text``), with the
+    method its runs used (``integrator_method``; :func:`~sweep.config.parse_stored_config`).
 
     ``source`` names the result file in errors; the Config keeps the original
     config path (``config_path``) as its source. Raises
@@ -412,7 +413,8 @@ def stored_config(ds, source):
     :class:`~sweep.errors.InputError` if its grid is not the file's.
     """
     try:
-        config = parse_config(ds.attrs["config_text"], f"{source} (config_text)")
+        config = parse_stored_config(ds.attrs["config_text"], f"{source} (config_text)",
+                                     ds.attrs.get("integrator_method"))  # fmt: skip
     except ConfigError as exc:
         raise ConfigError(source, [f"stored config_text: {p}" for p in exc.problems]) from None
     if "point" in ds["regime"].dims and config.refine is not None:

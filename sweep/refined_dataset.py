@@ -17,7 +17,7 @@ import dataclasses
 import numpy as np
 import xarray as xr
 
-from .config import parse_config
+from .config import parse_stored_config
 from .dataset import (
     data_variables,
     derived_fields,
@@ -98,7 +98,8 @@ def refined_config(ds, source="result"):
     if "regime" not in ds or not is_refined(ds) or "config_text" not in ds.attrs:
         raise InputError(source, ["not a refined result (runs along point, featureType point)"])
     try:
-        config = parse_config(ds.attrs["config_text"], f"{source} (config_text)")
+        config = parse_stored_config(ds.attrs["config_text"], f"{source} (config_text)",
+                                     ds.attrs.get("integrator_method"))  # fmt: skip
     except ConfigError as exc:
         raise ConfigError(source, [f"stored config_text: {p}" for p in exc.problems]) from None
     if config.refine is None:

@@ -10,7 +10,15 @@ from conftest import ROOT, config_dict, kc_w, make_config, write_config
 
 from sweep import cli
 from sweep.cli import main
-from sweep.config import METHODS, ConfigError, load_config, parse_config
+from sweep.config import (
+    METHODS,
+    STRUCTURED_FROM,
+    ConfigError,
+    default_method,
+    load_config,
+    parse_config,
+)
+from sweep.dataset import settings_attrs
 
 SENTINEL = b"an earlier result that must survive\n"
 
@@ -332,6 +340,57 @@ def test_inertial_model_defaults_to_rosenbrock():
     assert method("inertial", {"m_W": 1.0}) == "rosenbrock"
     assert method("quasi-dynamic", {"eta_W": 0.1}) == "dop853"
     assert method("inertial", {"m_W": 1.0}, method="dopri5") == "dopri5"
+
+
+def blocks_config(blocks, coupling=None, model="inertial", **integrator):
+    """A config of ``blocks`` blocks of ``model`` coupled as ``coupling`` (None: the key
+    left out, an open chain) with the ``integrator`` settings given (no others)."""
+    extra = {"inertial": {"m_W": 1.0}, "quasi-dynamic": {"eta_W": 0.1}}.get(model, {})
+    overrides = {"blocks": blocks, "model": model, "integrator": None,
+                 "parameters": {**extra, **({"k2_W": 0.05} if blocks > 1 else {})}}  # fmt: skip
+    if coupling is not None:
+        overrides["coupling"] = coupling
+    return make_config(overrides, integrator=integrator)
+
+
+@pytest.mark.parametrize("coupling", sorted(STRUCTURED_FROM))
+def test_inertial_default_is_structured_from_the_crossing(coupling):
+    """An inertial config that names no method gets the dense ``rosenbrock`` below
+    ``STRUCTURED_FROM`` blocks of its coupling and ``rosenbrock-structured`` from there on
+    (cheaper per step there: ``bench_structured_crossing``), with the same step cap; the
+    parsed config and the result's attributes hold the method chosen; a named method is
+    kept at any size; the other models keep ``dop853``."""
+    n = STRUCTURED_FROM[coupling]
+    assert n > 2  # systems of one or two inertial blocks (the stack kernel) stay dense
+    below, at = blocks_config(n - 1, coupling).integrator, blocks_config(n, coupling).integrator
+    assert (below.method, at.method) == ("rosenbrock", "rosenbrock-structured")
+    assert below.max_step == at.max_step == 0.5
+    assert blocks_config(4 * n, coupling).integrator.method == "rosenbrock-structured"
+    for method in ("rosenbrock", "dopri5"):
+        assert blocks_config(4 * n, coupling, method=method).integrator.method == method
+    assert blocks_config(n - 1, coupling, method="rosenbrock-structured").integrator.method == (
+        "rosenbrock-structured"
+    )
+    assert blocks_config(4 * n, coupling, "quasi-dynamic").integrator.method == "dop853"
+    if coupling == "chain":  # no coupling key: an open chain
+        assert blocks_config(n - 1).integrator.method == "rosenbrock"
+        assert blocks_config(n).integrator.method == "rosenbrock-structured"
+    assert settings_attrs("integrator", at)["integrator_method"] == "rosenbrock-structured"
+    assert default_method("inertial", n, coupling) == "rosenbrock-structured"
+    assert default_method("inertial", 1) == "rosenbrock"
+
+
+def test_shipped_configs_keep_their_methods():
+    """Every shipped config names its method, so none changes with the default; the
+    inertial ones name the method they would get without it (one or two blocks: the
+    dense ``rosenbrock``; the 100-block chain: ``rosenbrock-structured``)."""
+    for path in sorted((ROOT / "configs").glob("*.yaml")):
+        raw = yaml.safe_load(path.read_text())
+        config = load_config(path)
+        assert raw["integrator"]["method"] == config.integrator.method, path.name
+        if config.model == "inertial":
+            want = default_method("inertial", config.blocks, config.coupling)
+            assert config.integrator.method == want, path.name
 
 
 def test_only_rosenbrock_caps_its_steps_by_default():

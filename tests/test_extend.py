@@ -16,6 +16,7 @@ from conftest import SUBPROCESS_TIMEOUT, make_config
 from test_dataset import failing_to_netcdf
 
 from sweep import cli, runner
+from sweep.config import STRUCTURED_FROM, parse_config, parse_stored_config
 from sweep.dataset import read_result, stored_config, write_netcdf
 from sweep.extend import extend_file, extend_result
 from sweep.kernels import layout
@@ -92,6 +93,31 @@ def test_same_as_a_run_straight_to_the_later_end(continued):
         )
     assert abs(float(extended["t_final"][row]) - float(straight["t_final"][row])) < 5.0
     assert extended["n_peaks"][row] == straight["n_peaks"][row]
+
+
+def test_a_result_is_read_with_the_method_its_runs_used():
+    """A config that names no method is stored as written (``config_text``), the method
+    its runs got in ``integrator_method``: for an inertial chain of ``STRUCTURED_FROM``
+    blocks, ``rosenbrock-structured``. A file written before that default, whose runs
+    used ``rosenbrock``, is read (extended, audited) with ``rosenbrock``, which the
+    extended file's config then names; a text that names its method is read as it stands."""
+    blocks = STRUCTURED_FROM["chain"]
+    config = make_config({"blocks": blocks, **INERTIAL, "integrator": None},
+                         parameters={"k2_W": 0.02}, integrator={"t_end": 50.0},
+                         classification={"max_t_end": 50.0})  # fmt: skip
+    ds = runner.compute(config, show_progress=False)
+    assert "method" not in ds.attrs["config_text"]
+    assert ds.attrs["integrator_method"] == "rosenbrock-structured"
+    assert stored_config(ds, "new.nc").integrator.method == "rosenbrock-structured"
+    assert ds["regime"].values[0] == UNDECIDED  # still growing at 50 D0/V
+    old = ds.copy()
+    old.attrs["integrator_method"] = "rosenbrock"  # as the version before the default wrote it
+    assert stored_config(old, "old.nc").integrator.method == "rosenbrock"
+    extended = extend_result(old)
+    assert parse_config(extended.attrs["config_text"]).integrator.method == "rosenbrock"
+    assert extended["regime"].values[0] == STICK_SLIP
+    named = ds.attrs["config_text"].replace("integrator:\n", "integrator:\n  method: dopri5\n")
+    assert parse_stored_config(named, "named", "rosenbrock").integrator.method == "dopri5"
 
 
 @pytest.mark.parametrize("case", ["quasi-dynamic", "inertial"])

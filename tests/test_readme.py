@@ -452,15 +452,25 @@ def test_readme_and_models_page_state_the_same_numbers(pattern):
 # --- defaults and counts the pages state, against the code (issue 40 §6) -----------------
 
 
-def default_method(model):
-    """``integrator.method`` of a config that does not set it, for ``model``."""
+def default_method(model, blocks=1, coupling="chain"):
+    """``integrator.method`` of a config that does not set it, for ``model`` and
+    ``blocks`` blocks coupled as ``coupling``."""
     from sweep.config import required_parameters
 
-    values = {"A": 0.03, "B": 0.08, "mu0": 0.4, "V": 0.1, "D0": 1.0, "eta_W": 0.01, "m_W": 1.0}
-    fixed = {k: values[k] for k in required_parameters(1, model) if k != "K_W"}
-    raw = {"blocks": 1, "model": model, "parameters": {**fixed, "Phi0": 1.0},
-           "sweep": {"K_W": [0.05]}}  # fmt: skip
+    values = {"A": 0.03, "B": 0.08, "mu0": 0.4, "V": 0.1, "D0": 1.0, "eta_W": 0.01, "m_W": 1.0,
+              "k2_W": 0.05}  # fmt: skip
+    fixed = {k: values[k] for k in required_parameters(blocks, model) if k != "K_W"}
+    raw = {"blocks": blocks, "model": model, "parameters": {**fixed, "Phi0": 1.0},
+           "sweep": {"K_W": [0.05]}, **({"coupling": coupling} if blocks > 1 else {})}  # fmt: skip
     return parse_config(raw).integrator.method
+
+
+def assert_structured_from(sizes, structured):
+    """An inertial config that names no method gets ``structured`` from ``sizes`` (chain,
+    ring, all-to-all: the numbers a page states) blocks on, the dense method one below."""
+    for coupling, n in zip(("chain", "ring", "all"), map(int, sizes), strict=True):
+        assert default_method("inertial", n, coupling) == structured, coupling
+        assert default_method("inertial", n - 1, coupling) == default_method("inertial"), coupling
 
 
 def test_readme_names_each_models_default_method():
@@ -474,22 +484,30 @@ def test_readme_names_each_models_default_method():
 
     readme = " ".join((ROOT / "README.md").read_text().split())
     sentence = (r"by default `(\w+)`[^;]*; `(\w+)` \((\w+),[^)]*\) for the stiff inertial "
-                r"model; ([^)]*) on request\)")  # fmt: skip
+                r"model, and from (\d+) inertial blocks in a chain \((\d+) in a ring, (\d+) all "
+                r"to all\) `([\w-]+)`[^;]*; ([^)]*) on request\)")  # fmt: skip
     match = re.search(sentence, readme)
     assert match, "README: the sentence naming the default methods is gone"
-    default, inertial, inertial_name, others = match.groups()
+    default, inertial, inertial_name, *sizes, structured, others = match.groups()
     for model in MODELS:
         assert default_method(model) == (inertial if model == "inertial" else default), model
+    assert_structured_from(sizes, structured)
     assert dict(zip(METHODS, (m.NAME for m in MODULES), strict=True))[inertial] == inertial_name
-    assert {default, inertial, *re.findall(r"`([\w-]+)`", others)} == set(METHODS)
+    assert {default, inertial, structured, *re.findall(r"`([\w-]+)`", others)} == set(METHODS)
 
 
 def test_models_page_names_each_models_default_method():
     """docs/guide/models.md: the inertial model "defaults to `integrator.method:
-    rosenbrock`", "the other models default to `integrator.method: dop853`"."""
+    rosenbrock`", to `rosenbrock-structured` "from 10 blocks in a chain, 12 in a ring and
+    6 all to all", "the other models default to `integrator.method: dop853`"."""
     (inertial,) = doc_numbers(r"It therefore defaults to `integrator.method: (\w+)`")
     (others,) = doc_numbers(r"The other models default to `integrator.method: (\w+)`")
+    *sizes, structured = doc_numbers(
+        r"It is the default from (\d+) blocks in a chain, (\d+) in a ring and (\d+) all to "
+        r"all \(`integrator.method: ([\w-]+)`\)"
+    )
     assert default_method("inertial") == inertial
+    assert_structured_from(sizes, structured)
     assert {default_method(m) for m in ("quasi-static", "quasi-dynamic")} == {others}
 
 
