@@ -71,8 +71,27 @@ def assert_policy(dispatcher):
 @pytest.mark.parametrize("name", KERNELS)
 def test_kernel_options(name):
     """Every function of the kernel package is compiled with the policy (numba's own
-    record)."""
-    assert_policy(kernel_functions()[name])
+    record); the helpers compiled on their own without a CPython wrapper (accelerate.py:
+    no kernel calls them from Python), the inlined ones (compiled on their own only for
+    a call from Python) with it."""
+    dispatcher = kernel_functions()[name]
+    assert_policy(dispatcher)
+    inlined = dispatcher.targetoptions.get("inline") == "always"
+    assert dispatcher.targetoptions.get("no_cpython_wrapper", False) is not inlined
+    assert isinstance(dispatcher, accelerate.HelperDispatcher) is not inlined
+
+
+@NO_JIT
+def test_a_helper_without_cpython_wrapper_is_called_from_python_through_a_shim():
+    """accelerate.HelperDispatcher: a call from Python goes through a jitted shim (numba
+    would jump through the missing wrapper: a segmentation fault), which gives the plain
+    function's result and is built once."""
+    assert sequences.aitken_limit(1.0, 0.5, 0.25, 0.125, 1e-12) == (
+        sequences.aitken_limit.py_func(1.0, 0.5, 0.25, 0.125, 1e-12))  # fmt: skip
+    shim = sequences.aitken_limit._python_entry
+    assert shim.targetoptions.get("no_cpython_wrapper", False) is False
+    assert sequences.aitken_limit(x0=1.0, x1=0.5, x2=0.25, x3=0.125, noise=0.0)[1] == 0.0
+    assert sequences.aitken_limit._python_entry is shim
 
 
 @NO_JIT
@@ -80,6 +99,7 @@ def test_grid_kernels_follow_the_policy_one_per_variant():
     """The factory's grid kernels: the policy, one dispatcher per variant (built once)."""
     kernel = integrate.grid_kernel(*VARIANT)
     assert_policy(kernel)
+    assert kernel.targetoptions.get("no_cpython_wrapper", False) is False  # Python calls it
     assert integrate.grid_kernel(*VARIANT) is kernel
     other = integrate.grid_kernel(layout.QUASI_DYNAMIC, *VARIANT[1:])
     assert other is not kernel
