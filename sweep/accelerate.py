@@ -39,11 +39,13 @@ are in the engineering notes of the documentation, ``docs/internals.md``):
   closes over the codes and holds the loop itself, so numba prunes the other variants'
   branches before it inlines any helper and a run compiles only its own (tested); the
   kernel with the tangent is compiled only when a run needs λ1
-  (``dispatch.integrate_grid``). The loop is not an inlined function of its own: numba
-  copies an inlined body once per basic block together with its whole scope
-  (numba#8989), which was 10 s of a 27 s cold compile. Specialising with
-  ``numba.literally`` arguments instead compiled each combination as slowly as the
-  whole kernel and made every call through the dispatcher slow.
+  (``dispatch.integrate_grid``), the catalogue of slip events only where runs keep one
+  (a tenth of the default config's cold compile, ``docs/internals.md``). The loop is
+  not an inlined function of its own: numba copies an inlined body once per basic
+  block together with its whole scope (numba#8989), which was 10 s of a 27 s cold
+  compile. Specialising with ``numba.literally`` arguments instead compiled each
+  combination as slowly as the whole kernel and made every call through the dispatcher
+  slow.
 * The right-hand side, the explicit steps (DOP853's too: 4 % per step, no measurable
   compile time) and the dense-output helpers are inlined into the integration loop at
   numba-IR level (``inline="always"``): left to LLVM, they stay calls passing a dozen

@@ -224,6 +224,7 @@ from sweep.grid import build_grid
 from sweep.kernels import tangent
 from sweep.kernels.classify import extrema, state
 from sweep.kernels.classify.cycle import new_event
+from sweep.kernels.catalogue import catalogue_step
 from sweep.kernels.methods import dop853, rodas4
 config = sweep.with_changes(sweep.load_config(CONFIG), {"integrator": {"method": "dopri5"}})
 if MODEL:
@@ -236,7 +237,7 @@ for name, f in (("kernel", grid_kernel(g.params, g.settings)), ("helper", new_ev
 others = {"dop853.dense": dop853.dense, "rodas4.step": rodas4.step,
           "rodas4.tangent_step": rodas4.tangent_step,
           "explicit_tangent_step": tangent.explicit_tangent_step,
-          "history_value": state.history_value}
+          "history_value": state.history_value, "catalogue_step": catalogue_step}
 report["signatures"] = {name: len(f.signatures) for name, f in others.items()}
 report["literal"] = {
     name: sorted({str(a) for s in f.signatures for a in s if isinstance(a, types.Literal)})
@@ -272,7 +273,8 @@ def test_one_copy_of_the_package_compiles_prunes_caches_and_recompiles(tmp_path)
     1. Pruning. The codes are constants of the grid kernel's closure, and numba prunes the
        other variants' branches before it inlines and types the helpers: a DOPRI5 kernel
        without the tangent compiles neither DOP853's interpolant nor RODAS4's step, nor a
-       tangent step (each costs seconds of a cold start). Helpers are specialised on the
+       tangent step, nor, for runs without a catalogue of slip events, the catalogue
+       (each costs seconds of a cold start). Helpers are specialised on the
        codes they are passed and on no other constant: ``history_value``, called with
        constant and variable arguments, compiles once; ``update_cycle``, which takes the
        step record and no code, is shared by every method.
@@ -290,7 +292,7 @@ def test_one_copy_of_the_package_compiles_prunes_caches_and_recompiles(tmp_path)
     first = cached_run(tmp_path)
     assert first["signatures"] == {
         "dop853.dense": 0, "rodas4.step": 0, "rodas4.tangent_step": 0,
-        "explicit_tangent_step": 0, "history_value": 1,
+        "explicit_tangent_step": 0, "history_value": 1, "catalogue_step": 0,
     }  # fmt: skip
     assert first["literal"] == {"history_value": [], "update_cycle": []}
     assert (first["kernel"], first["helper"]) == ([0, 1], [0, 1])
