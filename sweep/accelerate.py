@@ -72,6 +72,16 @@ are in the engineering notes of the documentation, ``docs/internals.md``):
   blocks' state at an event, the end of a slip event) is a plain call in the loop's
   own branch, which costs nothing per step. (``classify_step`` made the last two
   calls itself once: three increfs and decrefs every step, 2-3 % of a two-block step.)
+* Thin wrappers with one caller are inlined at numba-IR level too, where that caller
+  runs them outside the per-step path: the loop's work at an event (``new_event``), at
+  ``tau_end`` (``at_tau_end``), before and after a run (``lyapunov_plan``,
+  ``finish_run``), and a verdict's parts (``cycle_verdict`` and four more in
+  ``classify/sequences.py``). numba compiles a helper as its own LLVM module and links
+  into it, optimises and turns into machine code again everything it calls, so a
+  wrapper compiled on its own cost about as much again as the helpers below it; its
+  inlined copy is small (``docs/internals.md``). Inlined into the grid kernel, the
+  tangent's branches of ``lyapunov_plan`` and ``at_tau_end`` are pruned with the
+  kernel's own, so a kernel without the tangent no longer compiles its start.
 * Threads have one owner, and numba's own thread pool is not used: on one machine
   ``backends.LocalThreads`` runs the serial grid kernel (``nogil``) on Python threads
   that take small batches of systems as they come free; under Dask each task calls

@@ -181,7 +181,7 @@ def read_params(p, early_exit):
     return p[P_A], p[P_B], tau_end, tau_max, p[P_MAX_STEP], p[P_LIN_GROWTH]
 
 
-@jit
+@jit_inline
 def lyapunov_plan(lyap, tangent, ly, delta, tau_end, tau_max):
     """``(needs_tangent, tau_max, t_settle)`` of a run with λ1 asked for as ``lyap``
     (``LYAP_*``): over the whole run (LYAP_ALWAYS) the tangent starts at t = 0 and no run
@@ -195,7 +195,7 @@ def lyapunov_plan(lyap, tangent, ly, delta, tau_end, tau_max):
     return True, 0.0, tau_end
 
 
-@jit
+@jit_inline
 def at_tau_end(cs, lyap, tangent, ly, delta, t, tau_max):
     """``(regime, needs_tangent)`` of a run at ``tau_end``: the verdict that held over one
     whole cycle of events settles it; else, with λ1 asked for unsettled runs
