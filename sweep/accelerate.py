@@ -24,8 +24,13 @@ are in the engineering notes of the documentation, ``docs/internals.md``):
   outcome), not a Python exception raised from inside a kernel running on a
   worker thread.
 * ``no_cfunc_wrapper=True``: no kernel is passed as a first-class function, and the
-  C wrapper numba builds for that by default cost 0.5 s of a cold compile. The
-  CPython wrappers stay: tests and notebooks call the helpers from Python.
+  C wrapper numba builds for that by default cost 0.5 s of a cold compile.
+* The helpers compiled on their own have no CPython wrapper either
+  (``no_cpython_wrapper=True``): only the grid kernels are called from Python, and a
+  wrapper cost about 50 ms of CPU per helper (``docs/internals.md``). A call of a
+  helper from Python (tests, notebooks) goes through a small jitted shim that has one,
+  built on the first such call (:class:`HelperDispatcher`); numba itself would jump
+  through the missing wrapper.
 * One grid kernel per variant (model, state law, method, coupling, equal or unequal
   blocks, with or without the tangent for λ1, and the state size of systems with at
   most ``dispatch.STACK_STATE_MAX`` values, whose scratch is then on the stack, where
@@ -34,11 +39,13 @@ are in the engineering notes of the documentation, ``docs/internals.md``):
   closes over the codes and holds the loop itself, so numba prunes the other variants'
   branches before it inlines any helper and a run compiles only its own (tested); the
   kernel with the tangent is compiled only when a run needs λ1
-  (``dispatch.integrate_grid``). The loop is not an inlined function of its own: numba
-  copies an inlined body once per basic block together with its whole scope
-  (numba#8989), which was 10 s of a 27 s cold compile. Specialising with
-  ``numba.literally`` arguments instead compiled each combination as slowly as the
-  whole kernel and made every call through the dispatcher slow.
+  (``dispatch.integrate_grid``), the catalogue of slip events only where runs keep one
+  (a tenth of the default config's cold compile, ``docs/internals.md``). The loop is
+  not an inlined function of its own: numba copies an inlined body once per basic
+  block together with its whole scope (numba#8989), which was 10 s of a 27 s cold
+  compile. Specialising with ``numba.literally`` arguments instead compiled each
+  combination as slowly as the whole kernel and made every call through the dispatcher
+  slow.
 * The right-hand side, the explicit steps (DOP853's too: 4 % per step, no measurable
   compile time) and the dense-output helpers are inlined into the integration loop at
   numba-IR level (``inline="always"``): left to LLVM, they stay calls passing a dozen
@@ -65,6 +72,16 @@ are in the engineering notes of the documentation, ``docs/internals.md``):
   blocks' state at an event, the end of a slip event) is a plain call in the loop's
   own branch, which costs nothing per step. (``classify_step`` made the last two
   calls itself once: three increfs and decrefs every step, 2-3 % of a two-block step.)
+* Thin wrappers with one caller are inlined at numba-IR level too, where that caller
+  runs them outside the per-step path: the loop's work at an event (``new_event``), at
+  ``tau_end`` (``at_tau_end``), before and after a run (``lyapunov_plan``,
+  ``finish_run``), and a verdict's parts (``cycle_verdict`` and four more in
+  ``classify/sequences.py``). numba compiles a helper as its own LLVM module and links
+  into it, optimises and turns into machine code again everything it calls, so a
+  wrapper compiled on its own cost about as much again as the helpers below it; its
+  inlined copy is small (``docs/internals.md``). Inlined into the grid kernel, the
+  tangent's branches of ``lyapunov_plan`` and ``at_tau_end`` are pruned with the
+  kernel's own, so a kernel without the tangent no longer compiles its start.
 * Threads have one owner, and numba's own thread pool is not used: on one machine
   ``backends.LocalThreads`` runs the serial grid kernel (``nogil``) on Python threads
   that take small batches of systems as they come free; under Dask each task calls
@@ -77,6 +94,7 @@ import contextlib
 import fcntl
 import functools
 import hashlib
+import inspect
 import os
 from pathlib import Path
 
@@ -175,46 +193,79 @@ class VariantDispatcher(CPUDispatcher):
         return super().get_call_template(args, {})
 
 
-def _compiled(func, **options):
-    """``func`` compiled with the project's policy and ``options`` (a
+class HelperDispatcher(VariantDispatcher):
+    """:class:`VariantDispatcher` of a helper compiled without a CPython wrapper (numba's
+    ``no_cpython_wrapper``): compiled code calls it directly, and a call from Python
+    (tests, notebooks) goes through a small jitted shim that has one, built on the
+    first such call (:func:`python_entry`). numba would jump through a null wrapper
+    otherwise (a segmentation fault)."""
+
+    def __call__(self, *args, **kws):
+        entry = self.__dict__.get("_python_entry")
+        if entry is None:
+            entry = self._python_entry = python_entry(self)
+        return entry(*args, **kws)
+
+
+def python_entry(helper):
+    """A jitted function of ``helper``'s parameters that returns ``helper(...)``, with a
+    CPython wrapper: how Python calls a helper compiled without one. Not cached on
+    disk (it has no source file); the helper it calls is."""
+    names = ", ".join(inspect.signature(helper.py_func).parameters)
+    namespace = {"helper": helper}
+    exec(f"def call({names}):\n    return helper({names})\n", namespace)
+    call = namespace["call"]
+    call.__qualname__ = f"{helper.py_func.__qualname__}_from_python"
+    return numba.njit(**_COMMON)(call)
+
+
+def _compiled(func, kind=VariantDispatcher, **options):
+    """``func`` compiled with the project's policy and ``options`` (a ``kind`` of
     :class:`VariantDispatcher`, cached by :class:`SourceKeyedCache` unless
     ``SWEEP_NUMBA_CACHE=0``); the plain function under ``NUMBA_DISABLE_JIT=1``."""
     if numba.config.DISABLE_JIT:
         return func
-    dispatcher = VariantDispatcher(func, targetoptions={"nopython": True, **_COMMON, **options})
+    dispatcher = kind(func, targetoptions={"nopython": True, **_COMMON, **options})
     if CACHE:
         dispatcher._cache = SourceKeyedCache(func)
     return dispatcher
 
 
+def _helper(func, **options):
+    """``func`` compiled as a helper of the kernels: no CPython wrapper
+    (:class:`HelperDispatcher`)."""
+    return _compiled(func, HelperDispatcher, no_cpython_wrapper=True, **options)
+
+
 def jit(func):
-    """Compile a kernel or a helper of the kernels with the project's numba policy,
-    cached on disk: a further variant loads the helpers it shares with one compiled
-    before. ``forceinline=False`` is explicit because numba otherwise passes the option
-    on from the caller being compiled (a helper first called from ``update_cycle``
-    would be inlined everywhere)."""
-    return _compiled(func, forceinline=False)
+    """Compile a helper of the kernels with the project's numba policy, cached on disk:
+    a further variant loads the helpers it shares with one compiled before. Without a
+    CPython wrapper (:class:`HelperDispatcher`). ``forceinline=False`` is explicit
+    because numba otherwise passes the option on from the caller being compiled (a
+    helper first called from ``update_cycle`` would be inlined everywhere)."""
+    return _helper(func, forceinline=False)
 
 
 def jit_variant(func, *codes):
-    """:func:`jit` of a function built per variant, named after its ``codes``
+    """Compile a grid kernel, a function built per variant, named after its ``codes``
     (``_c1_c2…`` appended): the disk cache keys on the name, so each variant's cache
-    files are its own."""
+    files are its own. Python calls it: it keeps its CPython wrapper."""
     func.__qualname__ += "".join(f"_{int(c)}" for c in codes)
-    return jit(func)
+    return _compiled(func, forceinline=False)
 
 
 def jit_inline(func):
     """Compile a small hot helper that numba inlines into every caller (not cached:
-    it is compiled into them)."""
+    it is compiled into them, never on its own but for a call from Python)."""
     return numba.njit(inline="always", **_COMMON)(func)
 
 
 def jit_forceinline(func):
     """Compile a large hot helper on its own (cached, shared by the variants with its
     codes) and have LLVM inline it into every caller: as fast as :func:`jit_inline`,
-    without numba copying its body and scope into the caller."""
-    return _compiled(func, forceinline=True)
+    without numba copying its body and scope into the caller. Without a CPython
+    wrapper, as :func:`jit`."""
+    return _helper(func, forceinline=True)
 
 
 def thread_count(n_threads):

@@ -1,9 +1,9 @@
 """Which compiled kernel a run calls, and compiling it once, before the work starts.
 
 ``kernels.integrate.grid_kernel`` builds one serial grid kernel per variant (model, state law,
-method, coupling, equal or unequal blocks); the kernels' arrays say which variant a
-run is. The backends, the Dask tasks and traces all integrate through
-:func:`integrate_grid`.
+method, coupling, equal or unequal blocks, tangent, catalogue, state size); the kernels'
+arrays say which variant a run is. The backends, the Dask tasks and traces all integrate
+through :func:`integrate_grid`.
 """
 
 import json
@@ -46,7 +46,8 @@ def grid_kernel(params, settings, tangent=None):
 def variant(params, settings, tangent=None):
     """The arguments of ``kernels.integrate.grid_kernel`` for these arrays: model, law,
     method and coupling codes, unequal blocks, with the tangent (see :func:`grid_kernel`),
-    and the state size the kernel is compiled for (0: any; ``STACK_STATE_MAX``)."""
+    with a catalogue of slip events (``S_CATALOGUE`` > 0: only such runs compile it) and
+    the state size the kernel is compiled for (0: any; ``STACK_STATE_MAX``)."""
     if tangent is None:
         tangent = int(settings[layout.S_LYAPUNOV]) == layout.LYAP_ALWAYS
     codes = (layout.S_MODEL, layout.S_LAW, layout.S_METHOD, layout.S_COUPLING)
@@ -54,7 +55,8 @@ def variant(params, settings, tangent=None):
     model = int(settings[layout.S_MODEL])
     n_state = layout.values_per_block(model) * int(settings[layout.S_NBLOCKS])
     n_fixed = n_state if n_state <= STACK_STATE_MAX else 0
-    return (*(int(settings[c]) for c in codes), heterogeneous, bool(tangent), n_fixed)
+    catalogue = int(settings[layout.S_CATALOGUE]) > 0
+    return (*(int(settings[c]) for c in codes), heterogeneous, bool(tangent), catalogue, n_fixed)
 
 
 def may_need_tangent(settings):
@@ -198,8 +200,8 @@ def load_kernels(jobs, processes=None, here=True):
 
 def variant_groups(jobs):
     """``jobs`` of :func:`load_kernels` in groups of the variants that differ only in the
-    tangent or the state size, largest first: the variants that call the same helpers
-    specialised on their codes (model, law, method, coupling, equal blocks)."""
+    tangent, the catalogue or the state size, largest first: the variants that call the
+    same helpers specialised on their codes (model, law, method, coupling, equal blocks)."""
     groups = {}
     for job in jobs:
         groups.setdefault(variant(*job)[:5], []).append(job)

@@ -2,13 +2,13 @@
 (``make test``, ``make test-all``).
 
 A variant (model, state law, method, coupling, equal or unequal blocks, with or without
-the tangent, state size: ``dispatch.variant``) compiles in 6-10 s; the whole suite uses
-about eighty. Left to the tests, two pytest workers and the processes that tests start
-compile them as each first needs one, often the same one at once. Here they are
-compiled side by side in one fresh process per core, each variant once, into numba's
-cache (``dispatch.load_kernels``), and the tests then load them. A variant missing from
-the list is still compiled by the first test that needs it: the list makes the suite
-faster, never different.
+the tangent, with or without a catalogue, state size: ``dispatch.variant``) compiles in
+6-10 s; the suite uses about ninety. Left to the tests, two pytest workers and the
+processes that tests start compile them as each first needs one, often the same one at
+once. Here they are compiled side by side in one fresh process per core, each variant
+once, into numba's cache (``dispatch.load_kernels``), and the tests then load them. A
+variant missing from the list is still compiled by the first test that needs it: the
+list makes the suite faster, never different.
 
     python tests/precompile.py [--tier fast]            # compile a tier's variants
     python tests/precompile.py [--tier fast] --write    # list what the cache holds
@@ -36,15 +36,15 @@ from sweep import codes, dispatch  # noqa: E402
 from sweep.kernels import layout  # noqa: E402
 
 #: Per tier, the list of its variants, one per line: model, state law, method, coupling,
-#: blocks (equal, unequal), tangent (plain, tangent) and the state size its kernel is
-#: compiled for (0: any).
+#: blocks (equal, unequal), tangent (plain, tangent), catalogue (plain, catalogue) and
+#: the state size its kernel is compiled for (0: any).
 VARIANTS = {
     "fast": Path(__file__).parent / "data" / "kernel_variants_fast.txt",
     "all": Path(__file__).parent / "data" / "kernel_variants.txt",
 }
-BLOCKS, TANGENT = ("equal", "unequal"), ("plain", "tangent")
+BLOCKS, TANGENT, CATALOGUE = ("equal", "unequal"), ("plain", "tangent"), ("plain", "catalogue")
 TABLES = (codes.MODELS, codes.STATE_LAWS, tuple(codes.METHODS), codes.COUPLINGS, BLOCKS,
-          TANGENT)  # fmt: skip
+          TANGENT, CATALOGUE)  # fmt: skip
 
 
 def variant_names(variant):
@@ -56,7 +56,7 @@ def variant_names(variant):
 def job(words):
     """The (params, settings, tangent) job of ``dispatch.load_kernels`` for one line."""
     *named, n_fixed = words
-    model, law, method, coupling, unequal, tangent = (
+    model, law, method, coupling, unequal, tangent, catalogue = (
         codes.code(table, name) for table, name in zip(TABLES, named, strict=True)
     )
     per_block = layout.values_per_block(model)
@@ -64,7 +64,8 @@ def job(words):
     settings = np.zeros(layout.N_SETTINGS)
     for column, value in ((layout.S_MODEL, model), (layout.S_LAW, law),
                           (layout.S_METHOD, method), (layout.S_COUPLING, coupling),
-                          (layout.S_NBLOCKS, n_blocks)):  # fmt: skip
+                          (layout.S_NBLOCKS, n_blocks),
+                          (layout.S_CATALOGUE, catalogue)):  # fmt: skip
         settings[column] = value
     width = layout.N_PARAMS + (layout.N_BLOCK_PARAMS * n_blocks if unequal else 0)
     out = (np.empty((0, width)), settings, bool(tangent))
@@ -87,7 +88,7 @@ def cached_variants():
         matches = (ROOT / "sweep" / "kernels" / "__pycache__").glob(pattern)
     found = set()
     for path in matches:
-        codes_ = re.search(r"integrate_grid((?:_\d+){7})-", path.name).group(1)
+        codes_ = re.search(r"integrate_grid((?:_\d+){8})-", path.name).group(1)
         found.add(tuple(int(c) for c in codes_.split("_")[1:]))
     return [variant_names(v) for v in sorted(found)]
 
@@ -100,7 +101,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.write:
         rows = cached_variants()
-        header = "# model law method coupling blocks tangent state_size (tests/precompile.py)\n"
+        header = ("# model law method coupling blocks tangent catalogue state_size "
+                  "(tests/precompile.py)\n")  # fmt: skip
         VARIANTS[args.tier].write_text(header + "".join(" ".join(r) + "\n" for r in rows))
         print(f"wrote {len(rows)} variants to {VARIANTS[args.tier]}")
         return 0

@@ -71,8 +71,27 @@ def assert_policy(dispatcher):
 @pytest.mark.parametrize("name", KERNELS)
 def test_kernel_options(name):
     """Every function of the kernel package is compiled with the policy (numba's own
-    record)."""
-    assert_policy(kernel_functions()[name])
+    record); the helpers compiled on their own without a CPython wrapper (accelerate.py:
+    no kernel calls them from Python), the inlined ones (compiled on their own only for
+    a call from Python) with it."""
+    dispatcher = kernel_functions()[name]
+    assert_policy(dispatcher)
+    inlined = dispatcher.targetoptions.get("inline") == "always"
+    assert dispatcher.targetoptions.get("no_cpython_wrapper", False) is not inlined
+    assert isinstance(dispatcher, accelerate.HelperDispatcher) is not inlined
+
+
+@NO_JIT
+def test_a_helper_without_cpython_wrapper_is_called_from_python_through_a_shim():
+    """accelerate.HelperDispatcher: a call from Python goes through a jitted shim (numba
+    would jump through the missing wrapper: a segmentation fault), which gives the plain
+    function's result and is built once."""
+    assert sequences.aitken_limit(1.0, 0.5, 0.25, 0.125, 1e-12) == (
+        sequences.aitken_limit.py_func(1.0, 0.5, 0.25, 0.125, 1e-12))  # fmt: skip
+    shim = sequences.aitken_limit._python_entry
+    assert shim.targetoptions.get("no_cpython_wrapper", False) is False
+    assert sequences.aitken_limit(x0=1.0, x1=0.5, x2=0.25, x3=0.125, noise=0.0)[1] == 0.0
+    assert sequences.aitken_limit._python_entry is shim
 
 
 @NO_JIT
@@ -80,6 +99,7 @@ def test_grid_kernels_follow_the_policy_one_per_variant():
     """The factory's grid kernels: the policy, one dispatcher per variant (built once)."""
     kernel = integrate.grid_kernel(*VARIANT)
     assert_policy(kernel)
+    assert kernel.targetoptions.get("no_cpython_wrapper", False) is False  # Python calls it
     assert integrate.grid_kernel(*VARIANT) is kernel
     other = integrate.grid_kernel(layout.QUASI_DYNAMIC, *VARIANT[1:])
     assert other is not kernel
@@ -192,8 +212,8 @@ def test_one_cache_decision_in_this_process():
 
 
 # One small run of quick.yaml with DOPRI5 (and another MODEL) in a fresh process: its
-# step count, whether numba's cache served the grid kernel and the classifier's entry
-# point (a helper in another file), and how many signatures the process holds (compiled
+# step count, whether numba's cache served the grid kernel and the end of a cycle
+# (``close_cycle``, a helper in another file), and how many signatures the process holds (compiled
 # or loaded) of parts that only other variants use, and of two helpers that could be
 # specialised on constants they should not be.
 CACHED_RUN = """
@@ -203,7 +223,8 @@ from sweep.dispatch import grid_kernel
 from sweep.grid import build_grid
 from sweep.kernels import tangent
 from sweep.kernels.classify import extrema, state
-from sweep.kernels.classify.cycle import new_event
+from sweep.kernels.classify.cycle import close_cycle
+from sweep.kernels.catalogue import catalogue_step
 from sweep.kernels.methods import dop853, rodas4
 config = sweep.with_changes(sweep.load_config(CONFIG), {"integrator": {"method": "dopri5"}})
 if MODEL:
@@ -211,12 +232,13 @@ if MODEL:
 ds = sweep.run(config, progress=False)
 g = build_grid(config)
 report = {"n_steps": ds["n_steps"].values.tolist()}
-for name, f in (("kernel", grid_kernel(g.params, g.settings)), ("helper", new_event)):
+for name, f in (("kernel", grid_kernel(g.params, g.settings)), ("helper", close_cycle)):
     report[name] = [sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
 others = {"dop853.dense": dop853.dense, "rodas4.step": rodas4.step,
           "rodas4.tangent_step": rodas4.tangent_step,
           "explicit_tangent_step": tangent.explicit_tangent_step,
-          "history_value": state.history_value}
+          "lyapunov_start": tangent.lyapunov_start,
+          "history_value": state.history_value, "catalogue_step": catalogue_step}
 report["signatures"] = {name: len(f.signatures) for name, f in others.items()}
 report["literal"] = {
     name: sorted({str(a) for s in f.signatures for a in s if isinstance(a, types.Literal)})
@@ -252,7 +274,8 @@ def test_one_copy_of_the_package_compiles_prunes_caches_and_recompiles(tmp_path)
     1. Pruning. The codes are constants of the grid kernel's closure, and numba prunes the
        other variants' branches before it inlines and types the helpers: a DOPRI5 kernel
        without the tangent compiles neither DOP853's interpolant nor RODAS4's step, nor a
-       tangent step (each costs seconds of a cold start). Helpers are specialised on the
+       tangent step or the tangent's start, nor, for runs without a catalogue of slip
+       events, the catalogue (each costs seconds of a cold start). Helpers are specialised on the
        codes they are passed and on no other constant: ``history_value``, called with
        constant and variable arguments, compiles once; ``update_cycle``, which takes the
        step record and no code, is shared by every method.
@@ -270,7 +293,8 @@ def test_one_copy_of_the_package_compiles_prunes_caches_and_recompiles(tmp_path)
     first = cached_run(tmp_path)
     assert first["signatures"] == {
         "dop853.dense": 0, "rodas4.step": 0, "rodas4.tangent_step": 0,
-        "explicit_tangent_step": 0, "history_value": 1,
+        "explicit_tangent_step": 0, "lyapunov_start": 0, "history_value": 1,
+        "catalogue_step": 0,
     }  # fmt: skip
     assert first["literal"] == {"history_value": [], "update_cycle": []}
     assert (first["kernel"], first["helper"]) == ([0, 1], [0, 1])

@@ -12,10 +12,11 @@ from catalogue_reference import ChainModel, catalogue
 from conftest import make_config
 
 import sweep
-from sweep import grid, runner
+from sweep import dispatch, grid, runner
 from sweep.catalogue import MAGNITUDE_EDGES, catalogue_statistics, statistics
 from sweep.config import ConfigError
 from sweep.dataset import build_dataset, write_netcdf
+from sweep.kernels import integrate, layout
 
 A, B, V = 0.03, 0.08, 0.1
 N_CHAIN = 16
@@ -153,6 +154,20 @@ def one_block(**extra):
         "classification": {"early_exit": False},
         **extra,
     })  # fmt: skip
+
+
+def test_only_the_runs_that_keep_a_catalogue_compile_one():
+    """A catalogue is a variant of its own (``dispatch.variant``, accelerate.py): the
+    kernels of runs without one do not compile it, and refuse a run that asks for one."""
+    plain = grid.build_grid(one_block())
+    kept = grid.build_grid(one_block(catalogue={"capacity": 5}))
+    *codes, catalogue, n_fixed = dispatch.variant(kept.params, kept.settings)
+    assert catalogue and not dispatch.variant(plain.params, plain.settings)[-2]
+    kernel = integrate.grid_kernel(*codes, False, n_fixed)
+    results = np.empty((kept.params.shape[0], layout.result_width(kept.settings)))
+    with pytest.raises(ValueError, match="catalogue"):
+        kernel(kept.params, kept.y0, kept.settings, results, np.empty_like(kept.y0), 0.0,
+               np.empty(0), np.empty((0, 0)))  # fmt: skip
 
 
 def test_one_block_catalogue_agrees_with_the_event_variables():

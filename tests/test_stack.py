@@ -58,12 +58,12 @@ def test_fixed_size_kernels_give_the_same_numbers(case):
         integrator["dt"] = 0.01
     config = make_config(overrides, integrator=integrator)
     g = grid.build_grid(config)
-    variant = dispatch.variant(g.params, g.settings)
-    n = g.y0.shape[1]
-    assert variant[-1] == n  # small systems get the kernel for their size
-    assert variant[-2] == ("tangent" in case)
-    fixed = run(integrate.grid_kernel(*variant), g)
-    any_size = run(integrate.grid_kernel(*variant[:-1], 0), g)
+    codes = dispatch.variant(g.params, g.settings)
+    *_, tangent, catalogue, size = codes
+    assert size == g.y0.shape[1]  # small systems get the kernel for their size
+    assert tangent == ("tangent" in case) and not catalogue
+    fixed = run(integrate.grid_kernel(*codes), g)
+    any_size = run(integrate.grid_kernel(*codes[:-1], 0), g)
     # the runs integrated, and settled differently across the transition
     assert (fixed[0][:, layout.R_N_STEPS] > 10).all()
     assert len(set(fixed[0][:, layout.R_REGIME])) >= 2

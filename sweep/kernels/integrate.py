@@ -1,12 +1,13 @@
 """The grid kernel: the integration loop of every system, one after another.
 
 ``grid_kernel`` builds one serial kernel per variant (model, state law, method,
-coupling, equal or unequal blocks, with or without the tangent, state size). It runs
-every row of ``params`` (``P_*``) from its row of ``y0`` into ``results`` (``R_*``) and
-``y_final``; a trace passes recording buffers. Its loop
-steps each system with the method's module (``methods``), hands each accepted step as
-a step record (``step.Step``) to the classifier (``classify``), the tangent for λ1 and
-the recorder, and has the classifier write the run's statistics.
+coupling, equal or unequal blocks, with or without the tangent, with or without the
+catalogue of slip events, state size). It runs every row of ``params`` (``P_*``) from
+its row of ``y0`` into ``results`` (``R_*``) and ``y_final``; a trace passes recording
+buffers. Its loop steps each system with the method's module (``methods``), hands each
+accepted step as a step record (``step.Step``) to the classifier (``classify``), the
+tangent for λ1 and the recorder (and the catalogue, compiled only into the kernels of
+runs that keep one), and has the classifier write the run's statistics.
 
 Built and compiled on first use, one per variant. The codes are constants of the
 closure, and the method's module is picked when the kernel is built, so numba prunes
@@ -54,6 +55,7 @@ from .layout import (
     RUNAWAY,
     S_ACCURACY,
     S_ATOL,
+    S_CATALOGUE,
     S_CONFIRM_CYCLES,
     S_EARLY_EXIT,
     S_EVENTS,
@@ -179,7 +181,7 @@ def read_params(p, early_exit):
     return p[P_A], p[P_B], tau_end, tau_max, p[P_MAX_STEP], p[P_LIN_GROWTH]
 
 
-@jit
+@jit_inline
 def lyapunov_plan(lyap, tangent, ly, delta, tau_end, tau_max):
     """``(needs_tangent, tau_max, t_settle)`` of a run with λ1 asked for as ``lyap``
     (``LYAP_*``): over the whole run (LYAP_ALWAYS) the tangent starts at t = 0 and no run
@@ -193,7 +195,7 @@ def lyapunov_plan(lyap, tangent, ly, delta, tau_end, tau_max):
     return True, 0.0, tau_end
 
 
-@jit
+@jit_inline
 def at_tau_end(cs, lyap, tangent, ly, delta, t, tau_max):
     """``(regime, needs_tangent)`` of a run at ``tau_end``: the verdict that held over one
     whole cycle of events settles it; else, with λ1 asked for unsettled runs
@@ -209,9 +211,10 @@ def at_tau_end(cs, lyap, tangent, ly, delta, t, tau_max):
 
 
 @functools.cache
-def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
+def grid_kernel(model, law, method, coupling, het, tangent, catalogue=False, n_fixed=0):
     """The grid kernel ``integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t,
-    rec_y)`` of a variant (bools ``het``, ``tangent``; ``n_fixed``: state size, 0: any)."""
+    rec_y)`` of a variant (bools ``het``, ``tangent``, ``catalogue``: whether runs keep a
+    catalogue of slip events; ``n_fixed``: state size, 0: any)."""
     m = MODULES[method]  # the method: its step, interpolant, controller, scratch shapes
     adaptive, exponent, bound, k_rows, dk_rows = (m.ADAPTIVE, m.EXPONENT, m.EXCURSION,
                                                   m.STAGE_ROWS, m.TANGENT_ROWS)  # fmt: skip
@@ -222,6 +225,8 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
     def integrate_grid(params, y0, settings, results, y_final, rec_dt, rec_t, rec_y):
         if n_fixed > 0 and y0.shape[0] > 0 and y0.shape[1] != n_fixed:
             raise ValueError("the state size differs from the one this kernel is compiled for")
+        if not catalogue and settings[S_CATALOGUE] > 0.0:
+            raise ValueError("a catalogue asked of a kernel compiled without one")
         n = np.int64(n_fixed) if n_fixed > 0 else y0.shape[1]  # LLVM: a constant; numba: int64
         for s in range(params.shape[0]):  # settings read per system: 3 % faster per step
             (nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit,
@@ -237,7 +242,8 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
             needs_tangent, tau_max, t_settle = lyapunov_plan(lyap, tangent, ly, delta,
                                                              tau_end, tau_max)  # fmt: skip
             n_rec = record_start(y, rec_t, rec_y)
-            cat, cat_blocks = catalogue_arrays(results[s], settings, nb, tau_end)
+            if catalogue:  # compiled only where runs keep a catalogue
+                cat, cat_blocks = catalogue_arrays(results[s], settings, nb, tau_end)
             rhs(y, p, model, law, coupling, het, nb, ev, f)
             t, h = 0.0, min(1e-3, max_step, tau_end) if adaptive else p[P_DT]
             n_steps, n_rejected, regime, tau_runaway, tau_stop = 0, 0, -1, np.nan, tau_end
@@ -276,8 +282,8 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                                  dk, t_blocks, p, nb, ev, model, law, coupling, het))  # fmt: skip
                 # the interpolant's coefficients; where they cost stages, only where read
                 if dense_rows > 0 and (dense_stages == 0 or n_rec > 0 or dense_needed(
-                        step, h, p, nb, A, B, turns, rtol, atol) or (cat[K_CAPACITY] > 0.0 and
-                        catalogue_reads(cat, ynew, nb))):  # fmt: skip
+                        step, h, p, nb, A, B, turns, rtol, atol) or (catalogue and
+                        cat[K_CAPACITY] > 0.0 and catalogue_reads(cat, ynew, nb))):  # fmt: skip
                     m.dense(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense)
                 new_peak, theta_peak, slip_ended = classify_step(step, t, h, p, nb, A, B, win,
                                                                  cs, slipped, slip_lnv, turns,
@@ -288,7 +294,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                     end_slip_event(nb, slipped, cs)
                 if n_rec > 0:
                     n_rec = record_step(step, t, h, rec_dt, rec_t, rec_y, n_rec)
-                if cat[K_CAPACITY] > 0.0:
+                if catalogue and cat[K_CAPACITY] > 0.0:
                     catalogue_step(step, t, h, nb, coupling, cat, cat_blocks, results[s])
                 t_new_peak, t, h = t + theta_peak * h, t + h, h_next
                 for j in range(n):
@@ -308,4 +314,5 @@ def grid_kernel(model, law, method, coupling, het, tangent, n_fixed=0):
                 y_final[s, j] = y[j]
             results[s, R_N_RECORDED] = record_end(t, y, rec_t, rec_y, n_rec)
 
-    return jit_variant(integrate_grid, model, law, method, coupling, het, tangent, n_fixed)
+    return jit_variant(integrate_grid, model, law, method, coupling, het, tangent, catalogue,
+                       n_fixed)  # fmt: skip

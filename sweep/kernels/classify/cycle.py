@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ...accelerate import jit
+from ...accelerate import jit, jit_inline
 from ..layout import STICK_SLIP
 from .sequences import SEARCH_FACTOR, cycle_verdict, multi_event_verdict
 from .state import (
@@ -118,12 +118,13 @@ def close_cycle(
         cs[C_LAST_PHASE] = lag - math.floor(lag + 0.5)
 
 
-@jit
+@jit_inline
 def new_event(t_peak, y, p, nb, A, B, win, past, past_cs, hist, limits, section, cs, accuracy,
               steady_amp, lin_growth, rtol, atol):  # fmt: skip
     """An event, the maximum of ℓ_0 at ``t_peak`` (D0/V), the state now ``y``: from the
     second on, close the cycle it ends (:func:`close_cycle`); start the next one there,
-    its highest ℓ_0 the event's."""
+    its highest ℓ_0 the event's. Inlined into the grid kernel's branch at an event: a
+    thin wrapper (accelerate.py)."""
     cs[C_N_PEAKS] += 1
     if cs[C_N_PEAKS] >= 2:
         close_cycle(

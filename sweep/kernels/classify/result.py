@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from ...accelerate import jit
+from ...accelerate import jit, jit_inline
 from ..layout import (
     CHAOTIC,
     LYAP_UNSETTLED,
@@ -175,7 +175,7 @@ def write_result(
     write_events(result, hist, nb, n_cycles, n_events, events)
 
 
-@jit
+@jit_inline
 def finish_run(
     result, regime, t, tau_stop, y, n_steps, n_rejected, tau_runaway, nb, win, past, past_cs,
     hist, limits, cs, steady_amp, lin_growth, accuracy, rtol, atol, ly, lyap, n_events,
@@ -186,7 +186,8 @@ def finish_run(
     (:func:`write_result`), λ1 from the tangent's accumulator ``ly``. λ1 is not reported
     for a run that ran away, nor, with ``lyap`` = LYAP_UNSETTLED, for one the cycle
     classifier settled: it would be a transient's. A run the kernel with the tangent
-    must redo (``needs_tangent``) is marked ``TANGENT_NEEDED``."""
+    must redo (``needs_tangent``) is marked ``TANGENT_NEEDED``. Inlined into the grid
+    kernel after the run: a thin wrapper (accelerate.py)."""
     lam, lam_err, span = lyapunov_estimate(ly)
     by_cycles = regime >= 0 or cs[C_VERDICT] >= 0  # settled by the cycle classifier
     regime, attractor = final_regime(

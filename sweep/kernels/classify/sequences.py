@@ -8,7 +8,7 @@ the event repeats), and onto steady sliding when the amplitudes extrapolate to z
 
 import numpy as np
 
-from ...accelerate import jit
+from ...accelerate import jit, jit_inline
 from ..layout import STEADY, STICK_SLIP
 from .state import HISTORY, MAX_CYCLE_EVENTS, TERMS, event_state_row, history_value, n_observables
 
@@ -68,7 +68,7 @@ def last_four(hist, k, n_cycles):
     )
 
 
-@jit
+@jit_inline
 def last_four_ptp(hist, nb, i, n_cycles):
     """Peak-to-peak ℓ_i (rows i and nb + i of ``hist``) over the last four cycles."""
     a0, a1, a2, a3 = last_four(hist, i, n_cycles)
@@ -76,7 +76,7 @@ def last_four_ptp(hist, nb, i, n_cycles):
     return a0 - b0, a1 - b1, a2 - b2, a3 - b3
 
 
-@jit
+@jit_inline
 def decays_to_zero(x0, x1, x2, x3, accuracy, steady_amp, noise):
     """Whether amplitudes x0 > x1 > x2 > x3 head for zero: already below
     ``steady_amp``, or decreasing with an extrapolated limit of zero to within
@@ -154,7 +154,7 @@ def cycle_convergence(hist, n_cycles, nb, rtol, atol):
     return worst
 
 
-@jit
+@jit_inline
 def cycle_verdict(hist, n_cycles, nb, accuracy, steady_amp, lin_growth, rtol, atol):
     """Regime settled by the last four cycles, or −1; and the cycle's convergence.
 
@@ -354,7 +354,7 @@ def every_limit_known(limits, n, nb):
     return True
 
 
-@jit
+@jit_inline
 def limit_period(limits, n, nb, ptp, accuracy):
     """The smallest d dividing ``n`` after which the state at the event repeats: the
     limits of its rows (:func:`event_state_row`) within twice ``accuracy`` of each
@@ -426,7 +426,7 @@ def multi_event_verdict(hist, n_cycles, nb, accuracy, rtol, atol, limits):
     return 0, best
 
 
-@jit
+@jit_inline
 def simple_cycle_within_spread(hist, n_cycles, nb, accuracy, rtol, atol, limits):
     """Convergence of a run to a simple cycle with the spread test of
     :func:`classes_convergence` (a cycle known to within ``accuracy`` whose
