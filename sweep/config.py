@@ -288,7 +288,10 @@ class Refine:
     value, and only the new points are run, level by level, up to ``levels`` levels or
     ``max_runs`` runs in all. Outputs of integer type and ``regime_fraction`` differ on any
     change; continuous ones where their range over the corners exceeds ``rtol`` times the
-    largest magnitude there (NaN against a number counts as a change).
+    largest magnitude there (NaN against a number counts as a change). Undecided corners
+    count only with ``split_undecided``. Unless ``full_runs``, a run whose oscillation
+    follows the linear theory's rate in the linear regime stops with the label that rate
+    gives (``kernels/classify/linear.py``).
     """
 
     levels: int = setting(
@@ -306,6 +309,11 @@ class Refine:
     )  # fmt: skip
     rtol: float = setting(0.05, "relative tolerance of the continuous outputs in outputs",
                           "(0, inf)")  # fmt: skip
+    split_undecided: bool = setting(
+        False, "whether a cell also splits where an undecided corner differs from the others; "
+        "false: only where its decided corners differ (an undecided band's edges move with "
+        "max_t_end)", (True, False),
+    )  # fmt: skip
     full_runs: bool = setting(
         False, "run every point as a grid sweep does; false: a run in the linear regime whose "
         "envelope follows the linear theory's rate stops with the label that rate gives",
@@ -1224,10 +1232,12 @@ def _parse_refine(c, raw, axes, initial, blocks, model, features, output):
             )
     if isinstance(output, str) and output.endswith(".zarr"):
         c.add(f"output {output}: a refined sweep is written as NetCDF; give a path ending in .nc")
+    split_undecided = c.setting(spec.get("split_undecided", d.split_undecided),
+                                "refine.split_undecided", bool, None)  # fmt: skip
     full_runs = c.setting(spec.get("full_runs", d.full_runs), "refine.full_runs", bool, None)
     if len(c.problems) > problems:
         return d
-    return Refine(levels, max_runs, outputs, rtol, full_runs)
+    return Refine(levels, max_runs, outputs, rtol, split_undecided, full_runs)
 
 
 def _refine_outputs(c, spec, known, ensemble):
