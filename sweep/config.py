@@ -304,7 +304,10 @@ class Refine:
     value, and only the new points are run, level by level, up to ``levels`` levels or
     ``max_runs`` runs in all. Outputs of integer type and ``regime_fraction`` differ on any
     change; continuous ones where their range over the corners exceeds ``rtol`` times the
-    largest magnitude there (NaN against a number counts as a change).
+    largest magnitude there (NaN against a number counts as a change). Undecided corners
+    count only with ``split_undecided``. Unless ``full_runs``, a run whose oscillation
+    follows the linear theory's rate in the linear regime stops with the label that rate
+    gives (``kernels/classify/linear.py``).
     """
 
     levels: int = setting(
@@ -322,6 +325,16 @@ class Refine:
     )  # fmt: skip
     rtol: float = setting(0.05, "relative tolerance of the continuous outputs in outputs",
                           "(0, inf)")  # fmt: skip
+    split_undecided: bool = setting(
+        False, "whether a cell also splits where an undecided corner differs from the others; "
+        "false: only where its decided corners differ (an undecided band's edges move with "
+        "max_t_end)", (True, False),
+    )  # fmt: skip
+    full_runs: bool = setting(
+        False, "run every point as a grid sweep does; false: a run in the linear regime whose "
+        "envelope follows the linear theory's rate stops with the label that rate gives",
+        (True, False),
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -391,8 +404,10 @@ class Config:
     @property
     def features(self) -> tuple[str, ...]:
         """Which optional output groups a result has (``variables.Variable.feature``)."""
+        linear = self.refine is not None and not self.refine.full_runs
         return output_features(self.blocks, self.heterogeneous, self.initial.ensemble,
-                               self.classification.events, self.catalogue.capacity)  # fmt: skip
+                               self.classification.events, self.catalogue.capacity,
+                               linear)  # fmt: skip
 
     @property
     def catalogue_slip_v_over_V(self) -> float:
@@ -427,16 +442,18 @@ def blocks_may_differ(block_parameters, spread, axes):
     )
 
 
-def output_features(blocks, heterogeneous, ensemble, events, catalogue=0):
+def output_features(blocks, heterogeneous, ensemble, events, catalogue=0, linear=False):
     """The optional output groups (``variables.Variable.feature``) of a sweep of ``blocks``
-    blocks, unequal or not, with an ``ensemble`` of starts, ``events`` kept per run and a
-    ``catalogue`` of that many slip events per run."""
+    blocks, unequal or not, with an ``ensemble`` of starts, ``events`` kept per run, a
+    ``catalogue`` of that many slip events per run and ``linear`` verdicts (a refinement's
+    runs, ``refine.full_runs: false``)."""
     flags = (
         ("nblock", blocks > 1),
         ("heterogeneous", heterogeneous),
         ("ensemble", ensemble > 0),
         ("events", events > 0),
         ("catalogue", catalogue > 0),
+        ("linear_verdicts", linear),
     )
     return tuple(name for name, on in flags if on)
 
@@ -1282,9 +1299,12 @@ def _parse_refine(c, raw, axes, initial, blocks, model, features, output):
             )
     if isinstance(output, str) and output.endswith(".zarr"):
         c.add(f"output {output}: a refined sweep is written as NetCDF; give a path ending in .nc")
+    split_undecided = c.setting(spec.get("split_undecided", d.split_undecided),
+                                "refine.split_undecided", bool, None)  # fmt: skip
+    full_runs = c.setting(spec.get("full_runs", d.full_runs), "refine.full_runs", bool, None)
     if len(c.problems) > problems:
         return d
-    return Refine(levels, max_runs, outputs, rtol)
+    return Refine(levels, max_runs, outputs, rtol, split_undecided, full_runs)
 
 
 def _refine_outputs(c, spec, known, ensemble):

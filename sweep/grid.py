@@ -74,6 +74,8 @@ def settings_array(config):
     s[layout.S_CATALOGUE] = config.catalogue.capacity
     s[layout.S_CATALOGUE_AFTER] = config.catalogue.after
     s[layout.S_CATALOGUE_LNV] = math.log(config.catalogue_slip_v_over_V)
+    refine = config.refine
+    s[layout.S_LINEAR_VERDICTS] = 1.0 if refine is not None and not refine.full_runs else 0.0
     return s
 
 

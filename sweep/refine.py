@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .codes import REGIMES, code
 from .config import range_values
 
 #: Why a refinement stopped (the ``refine_stopped`` file attribute).
@@ -142,14 +143,33 @@ def axis_values(axis, index, level):
 @dataclass(frozen=True)
 class Labels:
     """What refinement compares at each point: per output, ``(name, exact, array (n, k))``:
-    integer outputs and ``regime_fraction`` compared exactly, the others with ``rtol``."""
+    integer outputs and ``regime_fraction`` compared exactly, the others with ``rtol``.
+    With ``refine.split_undecided: false``, ``undecided`` (n,): the points whose runs are
+    all undecided, left out of the comparison except against ``steady`` (n,) ones, those
+    whose runs are all steady (else both None)."""
 
     outputs: tuple
     rtol: float
+    undecided: np.ndarray | None = None
+    steady: np.ndarray | None = None
 
     def take(self, rows):
         """The labels of the points ``rows`` only."""
-        return Labels(tuple((n, e, a[rows]) for n, e, a in self.outputs), self.rtol)
+        outputs = tuple((n, e, a[rows]) for n, e, a in self.outputs)
+        if self.undecided is None:
+            return Labels(outputs, self.rtol)
+        return Labels(outputs, self.rtol, self.undecided[rows], self.steady[rows])
+
+    def join(self, other):
+        """These points' labels followed by ``other``'s."""
+        outputs = tuple(
+            (n, e, np.concatenate([a, b]))
+            for (n, e, a), (_, _, b) in zip(self.outputs, other.outputs, strict=True)
+        )
+        if self.undecided is None:
+            return Labels(outputs, other.rtol)
+        return Labels(outputs, other.rtol, np.concatenate([self.undecided, other.undecided]),
+                      np.concatenate([self.steady, other.steady]))  # fmt: skip
 
 
 def point_labels(config, fields):
@@ -159,7 +179,8 @@ def point_labels(config, fields):
     With an ensemble a per-member output of integer type is compared through its
     distribution over the members (sorted member by member), ``regime_fraction`` as the
     share of each regime; continuous ones member by member (every point starts its
-    member m alike).
+    member m alike). With ``refine.split_undecided: false`` the points whose runs (every
+    member's) are all undecided, and those whose runs are all steady, are marked.
     """
     from .dataset import regime_fractions
     from .variables import BY_NAME
@@ -179,13 +200,31 @@ def point_labels(config, fields):
             elif exact and members > 1:
                 data = np.sort(data, axis=1)
         outputs.append((name, exact, data.reshape(n, -1)))
-    return Labels(tuple(outputs), config.refine.rtol)
+    if config.refine.split_undecided:
+        return Labels(tuple(outputs), config.refine.rtol)
+    regime = np.asarray(fields["regime"]).reshape(n, members)
+    undecided = (regime == code(REGIMES, "undecided")).all(axis=1)
+    steady = (regime == code(REGIMES, "steady")).all(axis=1)
+    return Labels(tuple(outputs), config.refine.rtol, undecided, steady)
 
 
 def differs(labels, corners):
     """For cells with corner rows ``corners`` (n, 2^d): the index in ``labels.outputs`` of
-    the first output in which the corners differ, or -1 where they agree in all."""
+    the first output in which the corners differ, or -1 where they agree in all.
+
+    Corners ``labels.undecided`` take the labels of the cell's first corner that is not
+    (a cell whose corners are all undecided agrees), except where the cell also has a
+    ``labels.steady`` corner: the edge of the steady region is always split (index 0).
+    """
+    edge = np.zeros(len(corners), bool)
+    if labels.undecided is not None:
+        left_out = labels.undecided[corners]
+        edge = left_out.any(axis=1) & labels.steady[corners].any(axis=1)
+        first_kept = np.argmax(~left_out, axis=1)
+        kept = corners[np.arange(len(corners)), first_kept]
+        corners = np.where(left_out, kept[:, None], corners)
     first = np.full(len(corners), -1)
+    first[edge] = 0
     for k, (_, exact, data) in enumerate(labels.outputs):
         v = data[corners]  # (n, 2^d, m)
         if exact:
@@ -244,18 +283,7 @@ class Refinement:
     def add(self, index, labels):
         """Record the runs of ``index`` (the level planned last) and their ``labels``."""
         self.index = np.concatenate([self.index, index])
-        if self.labels is None:
-            self.labels = labels
-        else:
-            self.labels = Labels(
-                tuple(
-                    (n, e, np.concatenate([a, b]))
-                    for (n, e, a), (_, _, b) in zip(
-                        self.labels.outputs, labels.outputs, strict=True
-                    )
-                ),
-                labels.rtol,
-            )
+        self.labels = labels if self.labels is None else self.labels.join(labels)
         self._keys = self.lattice.keys(self.index)
         self._order = np.argsort(self._keys, kind="stable")
 

@@ -6,7 +6,7 @@ variable has a trailing ``block`` dimension; ``min_blocks``: written only for
 sweeps of at least that many blocks; ``models``: written only for these
 models (empty: every model); ``feature``: written only for sweeps with that
 feature (``Config.features``: ``nblock``, ``heterogeneous``, ``ensemble``,
-``events``); ``per_member``: one value per run (with an ensemble, a ``member``
+``events``, ``catalogue``, ``linear_verdicts``); ``per_member``: one value per run (with an ensemble, a ``member``
 dimension), else one per grid point; ``per_regime``: a trailing ``regime_name``
 dimension; ``per_event``: a trailing ``event`` dimension (the last events of each run);
 ``dim``: another trailing dimension, ``slip_event`` (the events of the run's catalogue)
@@ -160,6 +160,13 @@ VARIABLES = (
              per_block=True, feature="heterogeneous", per_member=False),
     Variable("K_W_block", "float64", "um-1", "driving-spring stiffness per normal load K/W per "
              "block", "", per_block=True, feature="heterogeneous", per_member=False),
+    Variable("linear_verdict", "int8", "1", "labelled by the linear growth rate",
+             "1 where a refinement's run (refine_full_runs: false) was labelled by a "
+             "linear-regime verdict: its envelope followed linear_growth_rate within 1 % in "
+             "the linear regime, so it stopped steady (decaying) or undecided (growing, too "
+             "slowly to leave the linear regime by classification_max_t_end), the label of the "
+             "full run; its other outputs are those of that moment, lyapunov_exponent NaN; "
+             "0 otherwise", column="R_LINEAR_VERDICT", feature="linear_verdicts"),
     Variable("regime_fraction", "float64", "1", "fraction of the ensemble in each regime",
              "fraction of the initial-condition ensemble's members that ended in the regime",
              feature="ensemble", per_member=False, per_regime=True),

@@ -85,6 +85,33 @@ def test_twoblock_config_refined_8_levels_finds_kc(k2_w):
     assert_edge_brackets(edge, kc)
 
 
+@pytest.mark.slow
+def test_twoblock_refined_8_levels_in_two_dimensions_finds_kc_at_every_k2():
+    """configs/twoblock.yaml's blocks over K/W ± 0.2 % about Kc/W (which lies on the
+    lattice of level 1) × its k2/W axis, refined 8 levels over both (the default
+    refinement: linear-regime verdicts, undecided corners splitting only against steady
+    ones): one edge of the steady region, from k2 = 0 to 0.2 without a gap, every segment
+    in a finest cell (K step / 256) that holds Kc, and the runs next to it stopped by
+    linear-regime verdicts."""
+    config = with_changes(load_config(TWOBLOCK), {
+        "sweep": {"K_W": {"start": 0.0499, "stop": 0.0501, "num": 2}},
+        "refine": {"levels": 8},
+    })  # fmt: skip
+    ds = runner.compute(config, threads=2, show_progress=False)
+    (edge,) = steady_edges(ds)
+    kc = float(physics.critical_kappa("quasi-static", 0.03, 0.08))
+    assert edge.between == ("steady", "stick_slip")
+    assert (edge.level == 8).all()
+    np.testing.assert_allclose(edge.resolution[:, 0], 0.0002 / 256, rtol=1e-9)
+    assert_edge_brackets(edge, kc)
+    k2 = np.sort(edge.vertices[:, 1])
+    assert k2[0] == 0.0 and k2[-1] == 0.2
+    assert np.diff(k2).max() <= 0.2 / 15 / 256 * (1 + 1e-9)
+    steady = ds.regime.values == REGIMES.index("steady")
+    near = steady & (ds.level.values == 8)
+    assert ds.linear_verdict.values[near].mean() > 0.99
+
+
 def test_one_damped_block_loses_steady_sliding_at_the_linear_theory_kc():
     """One quasi-dynamic block, ηV/W = 0.01, K/W refined 8 levels (2e-5 µm⁻¹, 5e-4 of
     Kc): the edge of steady sliding lies in the finest cell holding

@@ -271,3 +271,85 @@ def test_ensemble_labels_compare_the_members_distribution():
     assert np.array_equal(fraction[0], fraction[1]) and np.array_equal(regime[0], regime[1])
     assert np.array_equal(lnv[0], lnv[1])
     assert differs(labels, np.array([[0, 1]]))[0] == -1
+
+
+# --- refine.split_undecided: false (the default): undecided corners do not split a cell -------
+
+STEADY, UNDECIDED = 0, 3
+
+
+def test_undecided_corners_are_left_out_of_the_comparison_but_against_steady_ones():
+    """Cells whose decided corners agree do not split (an undecided corner against one
+    decided label other than steady, or every corner undecided); decided corners that
+    differ still do, whatever the undecided ones say; continuous outputs alike; and an
+    undecided corner against a steady one always splits (the steady region's edge)."""
+    regime = np.array([2, UNDECIDED, 1, UNDECIDED, 2, STEADY])
+    lnv = np.array([1.0, 9.0, 1.0, np.nan, 1.0, 1.0])
+    labels = Labels((("regime", True, regime[:, None]), ("lnv_max", False, lnv[:, None])), 0.05,
+                    regime == UNDECIDED, regime == STEADY)  # fmt: skip
+    cells = [np.array(c) for c in ([0, 1], [1, 0], [1, 3], [0, 1, 2], [1, 2, 3], [0, 4],
+                                   [1, 3, 4], [0, 2], [1, 5], [5, 3, 3])]  # fmt: skip
+    first = [differs(labels, c[None])[0] for c in cells]
+    assert first == [-1, -1, -1, 0, -1, -1, -1, 0, 0, 0]
+    everything = Labels(labels.outputs, 0.05)  # split_undecided: true
+    assert [differs(everything, c[None])[0] for c in cells] == [0, 0, 1, 0, 0, -1, 0, 0, 0, 0]
+
+
+def test_point_labels_mark_undecided_and_steady_points_by_default():
+    sweep = {"K_W": [0.04, 0.06, 0.05]}
+    fields = {"regime": np.array([STEADY, UNDECIDED, 2], np.int8)}
+    every = refine_config(sweep, outputs=["regime"], split_undecided=True)
+    assert point_labels(every, fields).undecided is None
+    labels = point_labels(refine_config(sweep, outputs=["regime"]), fields)
+    assert labels.undecided.tolist() == [False, True, False]
+    assert labels.steady.tolist() == [True, False, False]
+    assert labels.take([2, 1]).undecided.tolist() == [False, True]
+    assert labels.join(labels).steady.tolist() == [True, False, False] * 2
+    members = make_config(sweep=sweep, initial={"ensemble": 2}, refine={})
+    fields = {"regime": np.array([UNDECIDED, 0, UNDECIDED, UNDECIDED, 0, 0], np.int8)}
+    labels = point_labels(members, fields)
+    assert labels.undecided.tolist() == [False, True, False]
+    assert labels.steady.tolist() == [False, False, True]
+
+
+def band_refinement(split_undecided, levels=5):
+    """A refinement over TWO_AXES of made-up regimes: steady right of a line, runaway left
+    of it, and below B = 0.08 an undecided band between them (twoblock's runs just below
+    Kc, where growth is too slow to reach the cap by max_t_end), 0.0011 µm⁻¹ wide."""
+
+    def band(v):
+        x = v["K_W"] - 0.05 - 0.1 * (v["B"] - 0.08)
+        inside = np.where(v["B"] < 0.08, x > -0.0011, x > -1e-12)
+        return np.where(x > 0, STEADY, np.where(inside, UNDECIDED, 2))
+
+    refinement = Refinement(refine_config(TWO_AXES, levels=levels,
+                                          split_undecided=split_undecided))  # fmt: skip
+    index = refinement.planned[0]
+    while index is not None:
+        codes = np.asarray(band(refinement.lattice.values(index)))
+        marked = () if split_undecided else (codes == UNDECIDED, codes == STEADY)
+        refinement.add(index, Labels((("regime", True, codes[:, None]),), 0.05, *marked))
+        index = refinement.plan()
+    return refinement
+
+
+def test_an_undecided_band_is_not_refined_but_the_steady_edge_is():
+    """With split_undecided false the band's edge against runaway stops being split once
+    the band spans a cell, the steady region's edge is refined to the finest level all
+    along (against runaway above B = 0.08, against the band below), and every point run
+    is one the refinement with split_undecided true runs too."""
+    every, decided = band_refinement(True), band_refinement(False)
+    assert set(decided.lattice.keys(decided.index)) < set(every.lattice.keys(every.index))
+    assert decided.runs < 0.8 * every.runs
+
+    def finest(refinement, label, where):
+        regime = refinement.labels.outputs[0][2][:, 0]
+        b = refinement.lattice.values(refinement.index)["B"]
+        levels = refinement.lattice.point_levels(refinement.index)
+        return levels[(regime == label) & where(b)].max()
+
+    for b_range in (lambda b: b > 0.08, lambda b: b < 0.075):
+        assert finest(decided, STEADY, b_range) == 5
+    # the band's edge against runaway, away from B = 0.08: coarse unless split_undecided
+    assert finest(decided, 2, lambda b: b < 0.075) < 5
+    assert finest(every, 2, lambda b: b < 0.075) == 5

@@ -65,27 +65,58 @@ def two_blocks_file(two_blocks, tmp_path_factory):
 # --- every refined point is the uniform grid's run there ------------------------------------
 
 
-@pytest.mark.slow
-def test_refined_points_are_the_runs_of_the_uniform_grid_of_their_level(tmp_path):
-    """On a map where cycles of one and two events and steady sliding meet, every run of
-    the refinement equals (bit for bit, every output) the run of the uniform grid of the
-    finest level at the same point, whose values it has exactly."""
+@pytest.fixture(scope="module")
+def complex_uniform():
+    """The uniform grid of COMPLEX's finest level (2), as a grid sweep runs it."""
     config = make_config(COMPLEX)
+    fine = {a.name: {"start": a.span[1], "stop": a.span[2], "num": 9} for a in config.axes}
+    return runner.compute(with_changes(config, {"refine": None, "sweep": fine}),
+                          show_progress=False)  # fmt: skip
+
+
+def refined_on_uniform(config, uniform):
+    """The refinement of ``config`` run, on the grid of its level 2 (``to_grid``), and
+    which of its points it ran (``exact``), checked to lie on ``uniform``'s."""
     ds = runner.compute(config, show_progress=False)
     labels = {tuple(x) for x in np.stack([ds.regime, ds.attractor, ds.cycle_events], -1).tolist()}
     assert len(labels) >= 3, labels
     assert (ds.level.values > 0).sum() > 0
-    fine = {a.name: {"start": a.span[1], "stop": a.span[2], "num": 9} for a in config.axes}
-    uniform = runner.compute(with_changes(config, {"refine": None, "sweep": fine}),
-                             show_progress=False)  # fmt: skip
     grid = to_grid(ds, 2)
     exact = grid["exact"].values
     assert exact.sum() == ds.sizes["point"]
     for name in ("K_W", "k2_W"):
         assert grid[name].values.tobytes() == uniform[name].values.tobytes()
-    for name, var in uniform.data_vars.items():
+    return grid, exact
+
+
+@pytest.mark.slow
+def test_refined_points_are_the_runs_of_the_uniform_grid_of_their_level(complex_uniform):
+    """On a map where cycles of one and two events and steady sliding meet, every run of
+    a refinement with ``full_runs: true`` equals (bit for bit, every output) the run of
+    the uniform grid of the finest level at the same point, whose values it has exactly."""
+    config = make_config(COMPLEX, refine={"full_runs": True})
+    grid, exact = refined_on_uniform(config, complex_uniform)
+    assert "linear_verdict" not in grid
+    for name, var in complex_uniform.data_vars.items():
         got, want = grid[name].values[exact], var.values[exact]
         assert got.dtype == want.dtype and got.tobytes() == want.tobytes(), name
+
+
+@pytest.mark.slow
+def test_by_default_refined_runs_have_the_uniform_grids_labels(complex_uniform):
+    """With linear-regime verdicts (the default) every refined run has the label of the
+    uniform grid's run (regime, attractor, cycle_events), and a run that no such verdict
+    stopped is that run bit for bit; one that one did stopped earlier."""
+    grid, exact = refined_on_uniform(make_config(COMPLEX), complex_uniform)
+    linear = grid["linear_verdict"].values[exact] == 1
+    for name, var in complex_uniform.data_vars.items():
+        got, want = grid[name].values[exact], var.values[exact]
+        if name in ("regime", "attractor", "cycle_events"):
+            np.testing.assert_array_equal(got, want, err_msg=name)
+        else:
+            assert got[~linear].tobytes() == want[~linear].tobytes(), name
+    t_final = complex_uniform["t_final"].values[exact]
+    assert (grid["t_final"].values[exact][linear] < t_final[linear]).all()
 
 
 # --- determinism: threads, chunks, stops and resumption --------------------------------------

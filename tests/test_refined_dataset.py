@@ -64,9 +64,22 @@ def assert_grid_equals_uniform(grid, uniform):
 
 
 def test_level_0_is_the_uniform_sweep_of_the_grid(refined):
+    """With ``full_runs: true``, bit for bit; by default (linear-regime verdicts) the
+    labels bit for bit, and a run no such verdict stopped is the grid's, every output."""
     config, ds = refined
     uniform = runner.compute(runner_config(config), show_progress=False)
-    assert_grid_equals_uniform(to_grid(ds, 0), uniform)
+    full = runner.compute(make_config(TWO_BLOCKS, refine={"full_runs": True}),
+                          show_progress=False)  # fmt: skip
+    assert_grid_equals_uniform(to_grid(full, 0), uniform)
+    grid = to_grid(ds, 0)
+    linear = grid["linear_verdict"].values == 1
+    for name, var in uniform.data_vars.items():
+        if name in ("regime", "attractor", "cycle_events"):
+            np.testing.assert_array_equal(grid[name].values, var.values, err_msg=name)
+        else:
+            keep = ~linear.reshape(linear.shape + (1,) * (var.ndim - linear.ndim))
+            keep = np.broadcast_to(keep, var.shape)
+            assert grid[name].values[keep].tobytes() == var.values[keep].tobytes(), name
 
 
 def runner_config(config):
@@ -82,7 +95,7 @@ def test_an_ensemble_refines_on_the_regime_fractions_and_its_grid_is_the_uniform
     config = make_config(
         sweep={"K_W": {"start": 0.0403, "stop": 0.0603, "num": 5}},
         initial={"ensemble": 2, "amplitude": 0.05},
-        refine={"levels": 3},
+        refine={"levels": 3, "full_runs": True},
     )
     assert config.refine.outputs == ("regime_fraction",)
     ds = runner.compute(config, show_progress=False)

@@ -59,6 +59,7 @@ from .layout import (
     S_CONFIRM_CYCLES,
     S_EARLY_EXIT,
     S_EVENTS,
+    S_LINEAR_VERDICTS,
     S_LNV_CAP,
     S_LYAPUNOV,
     S_MAX_STEPS,
@@ -116,8 +117,8 @@ def heap_scratch(n, k_rows, mat_cols):
 def read_settings(settings):
     """The settings array (``S_*``) as typed values: blocks, rtol, atol, step budget,
     ln of the velocity cap, steady amplitude, accuracy, cycles to confirm (≥ 1),
-    early exit (bool), ln of the slip threshold, when λ1 is computed (``LYAP_*``) and
-    the number of events reported."""
+    early exit (bool), ln of the slip threshold, when λ1 is computed (``LYAP_*``), the
+    number of events reported and whether linear-regime verdicts are asked for (bool)."""
     nb = int(settings[S_NBLOCKS])
     rtol = settings[S_RTOL]
     atol = settings[S_ATOL]
@@ -130,9 +131,10 @@ def read_settings(settings):
     slip_lnv = settings[S_SLIP_LNV]
     lyap = int(settings[S_LYAPUNOV])
     n_events = int(settings[S_EVENTS])
+    linear = settings[S_LINEAR_VERDICTS] > 0.5
     return (
         nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit, slip_lnv,
-        lyap, n_events,
+        lyap, n_events, linear,
     )  # fmt: skip
 
 
@@ -230,7 +232,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, catalogue=False, n_f
         n = np.int64(n_fixed) if n_fixed > 0 else y0.shape[1]  # LLVM: a constant; numba: int64
         for s in range(params.shape[0]):  # settings read per system: 3 % faster per step
             (nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit,
-             slip_lnv, lyap, n_events) = read_settings(settings)  # fmt: skip
+             slip_lnv, lyap, n_events, linear) = read_settings(settings)  # fmt: skip
             p = params[s]
             A, B, tau_end, tau_max, max_step, lin_growth = read_params(p, early_exit)
             nb, y, f, ynew, fnew, ytmp, ev, k, mat, perm, dense, delta, work, dk, t_blocks, ly = (
@@ -241,6 +243,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, catalogue=False, n_f
                 y, p, nb, A, B)  # fmt: skip
             needs_tangent, tau_max, t_settle = lyapunov_plan(lyap, tangent, ly, delta,
                                                              tau_end, tau_max)  # fmt: skip
+            horizon = tau_max if linear and early_exit else 0.0  # linear verdicts: stop time
             n_rec = record_start(y, rec_t, rec_y)
             if catalogue:  # compiled only where runs keep a catalogue
                 cat, cat_blocks = catalogue_arrays(results[s], settings, nb, tau_end)
@@ -302,7 +305,7 @@ def grid_kernel(model, law, method, coupling, het, tangent, catalogue=False, n_f
                     f[j] = fnew[j]
                 if new_peak:
                     new_event(t_new_peak, y, p, nb, A, B, win, past, past_cs, hist, limits, section,
-                              cs, accuracy, steady_amp, lin_growth, rtol, atol)  # fmt: skip
+                              cs, accuracy, steady_amp, lin_growth, rtol, atol, horizon)  # fmt: skip
                 if early_exit and t >= t_settle:
                     regime = settled_early(new_peak, cs, n_confirm, y, lin_growth, steady_amp)
                     if regime >= 0:

@@ -105,6 +105,7 @@ S_EVENTS = next(_s)  # events whose ℓ_0 maxima and intervals each run reports 
 S_CATALOGUE = next(_s)  # slip events each run's catalogue keeps (0: no catalogue)
 S_CATALOGUE_AFTER = next(_s)  # events starting before this fraction of tau_end are not catalogued
 S_CATALOGUE_LNV = next(_s)  # a block slips in the catalogue's events while ℓ_i exceeds this
+S_LINEAR_VERDICTS = next(_s)  # 1: linear-regime runs labelled by their envelope's rate (classify/linear.py)
 N_SETTINGS = next(_s)
 
 # --- columns of the per-system statistics array -----------------------------
@@ -131,6 +132,7 @@ R_ATTRACTOR = next(_r)  # FIXED_POINT | PERIODIC | QUASI_PERIODIC | CHAOTIC | UN
 R_CYCLE_EVENTS = next(_r)  # events (maxima of ℓ_0) per cycle of a periodic run, else 0
 R_LYAPUNOV = next(_r)  # largest Lyapunov exponent (V/D0); NaN where the tangent was not carried
 R_LYAPUNOV_ERROR = next(_r)  # its standard error (V/D0)
+R_LINEAR_VERDICT = next(_r)  # 1: labelled by a linear-regime verdict (classify/linear.py), else 0
 N_RESULTS = next(_r)
 # After the R_* columns: the last S_EVENTS events' maxima of ℓ_0, then their intervals
 # from the event before (D0/V), oldest first, NaN before the first.

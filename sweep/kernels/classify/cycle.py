@@ -8,6 +8,7 @@ import numpy as np
 
 from ...accelerate import jit, jit_inline
 from ..layout import STICK_SLIP
+from .linear import linear_verdict
 from .sequences import SEARCH_FACTOR, cycle_verdict, multi_event_verdict
 from .state import (
     C_AMP_PREV,
@@ -15,6 +16,7 @@ from .state import (
     C_EVENTS,
     C_GROWTH,
     C_LAST_ORDER,
+    C_LINEAR,
     C_LAST_PHASE,
     C_N_AGREE,
     C_N_CYCLES,
@@ -58,7 +60,7 @@ def kuramoto_order(t_peak_blocks, t_peak, period, nb):
 @jit
 def close_cycle(
     t_peak, nb, win, past, past_cs, hist, limits, section, cs, accuracy, steady_amp, lin_growth,
-    rtol, atol,
+    rtol, atol, horizon,
 ):  # fmt: skip
     """End the cycle at the maximum of ℓ_0 at ``t_peak`` (D0/V).
 
@@ -66,7 +68,8 @@ def close_cycle(
     ``past_cs``: what a reported window spans; ``section``: the blocks' ℓ at the event)
     and judges it: :func:`cycle_verdict`, then, far from a simple cycle,
     :func:`multi_event_verdict` (``limits``: its scratch, (rows of ``hist``,
-    MAX_CYCLE_EVENTS)).
+    MAX_CYCLE_EVENTS)); then, where neither settles it and ``horizon`` > 0 (the time
+    the run would stop, D0/V), :func:`linear.linear_verdict`.
     """
     period = t_peak - cs[C_T_PEAK]
     cs[C_PERIOD] = period
@@ -106,9 +109,14 @@ def close_cycle(
         else:
             events = 1
             conv = min(conv, conv_n)
+    linear = 0.0
+    if verdict < 0 and horizon > 0.0:
+        verdict = linear_verdict(hist, n_cycles, nb, lin_growth, t_peak, horizon, steady_amp)
+        linear = 1.0 if verdict >= 0 else 0.0
     cs[C_CONV] = conv
     same = verdict >= 0 and verdict == int(cs[C_VERDICT]) and events == int(cs[C_EVENTS])
     cs[C_N_AGREE] = cs[C_N_AGREE] + 1 if same else 1
+    cs[C_LINEAR] = max(cs[C_LINEAR], linear) if same else linear
     cs[C_VERDICT] = verdict
     cs[C_EVENTS] = events
     cs[C_LAST_ORDER] = kuramoto_order(win[W_T_PEAK], t_peak, period, nb)
@@ -120,16 +128,17 @@ def close_cycle(
 
 @jit_inline
 def new_event(t_peak, y, p, nb, A, B, win, past, past_cs, hist, limits, section, cs, accuracy,
-              steady_amp, lin_growth, rtol, atol):  # fmt: skip
+              steady_amp, lin_growth, rtol, atol, horizon):  # fmt: skip
     """An event, the maximum of ℓ_0 at ``t_peak`` (D0/V), the state now ``y``: from the
-    second on, close the cycle it ends (:func:`close_cycle`); start the next one there,
-    its highest ℓ_0 the event's. Inlined into the grid kernel's branch at an event: a
-    thin wrapper (accelerate.py)."""
+    second on, close the cycle it ends (:func:`close_cycle`; ``horizon``: the time the
+    run would stop for its linear verdicts, 0: none); start the next one there, its
+    highest ℓ_0 the event's. Inlined into the grid kernel's branch at an event: a thin
+    wrapper (accelerate.py)."""
     cs[C_N_PEAKS] += 1
     if cs[C_N_PEAKS] >= 2:
         close_cycle(
             t_peak, nb, win, past, past_cs, hist, limits, section, cs, accuracy, steady_amp,
-            lin_growth, rtol, atol,
+            lin_growth, rtol, atol, horizon,
         )  # fmt: skip
     cs[C_T_PEAK] = t_peak
     start_cycle(y, p, nb, A, B, win, cs)

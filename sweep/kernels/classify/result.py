@@ -19,6 +19,7 @@ from ..layout import (
     R_GROWTH,
     R_LNV_MAX,
     R_LNV_MAX_RUN,
+    R_LINEAR_VERDICT,
     R_LNV_MIN,
     R_LYAPUNOV,
     R_LYAPUNOV_ERROR,
@@ -45,6 +46,7 @@ from .state import (
     C_GROWTH,
     C_LAST_ORDER,
     C_LAST_PHASE,
+    C_LINEAR,
     C_LNV_MAX_RUN,
     C_N_CYCLES,
     C_N_PEAKS,
@@ -62,6 +64,7 @@ from .state import (
     X_SLIP_SUM,
     X_SYNC,
     history_value,
+    verdict_held,
 )
 from .verdicts import final_regime
 
@@ -172,6 +175,8 @@ def write_result(
     result[R_CYCLE_EVENTS] = events
     result[R_LYAPUNOV] = lam
     result[R_LYAPUNOV_ERROR] = lam_err
+    by_verdict = verdict_held(cs, 1) and regime == int(cs[C_VERDICT])
+    result[R_LINEAR_VERDICT] = 1.0 if by_verdict and cs[C_LINEAR] > 0.0 else 0.0
     write_events(result, hist, nb, n_cycles, n_events, events)
 
 

@@ -67,6 +67,7 @@ C_SLIPPING = next(_c)  # 1 while some block slips (ℓ_i > S_SLIP_LNV) after the
 C_IN_EVENT = next(_c)  # 1 while a slip event lasts
 C_SLIP_SUM = next(_c)  # Σ fractions of slipping blocks of the events ended in the current cycle
 C_SLIP_EVENTS = next(_c)  # number of those events
+C_LINEAR = next(_c)  # 1 if a verdict of the current run of agreeing ones is a linear-regime one
 N_CYCLE_STATE = next(_c)
 
 
@@ -122,6 +123,7 @@ def new_cycle_state(y, nb):
     cs[C_EVENTS] = 1.0
     cs[C_SLIPPING] = 0.0
     cs[C_IN_EVENT] = 0.0
+    cs[C_LINEAR] = 0.0
     lnv_max_run = -np.inf
     for i in range(nb):
         lnv_max_run = max(lnv_max_run, y[i])
