@@ -29,6 +29,7 @@ extensions = [
     "sweep_mathml",
     "sweep_landing",
     "sweep_scraper",
+    "sweep_codewrap",
 ]
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
