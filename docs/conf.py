@@ -30,6 +30,7 @@ extensions = [
     "sweep_landing",
     "sweep_scraper",
     "sweep_codewrap",
+    "sweep_figures",
 ]
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
