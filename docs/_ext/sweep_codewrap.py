@@ -6,8 +6,9 @@ single ``<pre>`` would restart at the box's left edge, whatever the line's inden
 so the HTML highlighter here writes each line of a block as its own ``<span
 class="line">`` with the column its continuation starts at as ``--hang``, which the
 style sheet makes a hanging indent: under the comment of a line with code and a
-comment beside it (the comment is what wraps), otherwise two characters right of the
-line's indentation. An unwrapped line looks as before, and copying a block still
+comment beside it (the comment is what wraps), under the value of a ``key = value``
+or ``key: value`` line (a BibTeX field, a YAML entry), otherwise two characters right
+of the line's indentation. An unwrapped line looks as before, and copying a block still
 copies its text, line by line.
 """
 
@@ -19,6 +20,10 @@ from pygments.formatters.html import HtmlFormatter
 TAG = re.compile(r"<[^>]*>")
 #: Where Pygments starts a comment (classes ``c``, ``c1``, ``cm``: any language's).
 COMMENT = re.compile(r'<span class="c[1m]?">')
+#: A line ``key = value`` or ``key: value``: the value's column.
+KEY_VALUE = re.compile(r"\s*[\w.-]+\s*[=:]\s+(?=\S)")
+#: A value further right than this does not set the hang (it would leave no room).
+MAX_VALUE_COLUMN = 24
 
 
 def text(line_html):
@@ -28,13 +33,17 @@ def text(line_html):
 
 def hang(line_html):
     """The column where a wrapped line of highlighted HTML continues: its comment's, if
-    code comes before the comment, else its indentation's plus 2 (tabs count as one)."""
+    code comes before the comment; its value's, if it is ``key = value`` or ``key:
+    value``; else its indentation's plus 2 (tabs count as one)."""
     comment = COMMENT.search(line_html)
     if comment:
         before = text(line_html[: comment.start()])
         if before.strip():
             return len(before)
     line = text(line_html)
+    key = KEY_VALUE.match(line)
+    if key and key.end() <= MAX_VALUE_COLUMN:
+        return key.end()
     return len(line) - len(line.lstrip(" \t")) + 2
 
 
