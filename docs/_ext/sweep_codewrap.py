@@ -8,8 +8,10 @@ class="line">`` with the column its continuation starts at as ``--hang``, which 
 style sheet makes a hanging indent: under the comment of a line with code and a
 comment beside it (the comment is what wraps), under the value of a ``key = value``
 or ``key: value`` line (a BibTeX field, a YAML entry), otherwise two characters right
-of the line's indentation. An unwrapped line looks as before, and copying a block still
-copies its text, line by line.
+of the line's indentation. A word with a hyphen (``--resume``, ``rosenbrock-structured``)
+is kept whole in a ``<span class="nobr">``: a browser would break it after the hyphen.
+An unwrapped line looks as before, and copying a block still copies its text, line by
+line.
 """
 
 import html
@@ -24,6 +26,9 @@ COMMENT = re.compile(r'<span class="c[1m]?">')
 KEY_VALUE = re.compile(r"\s*[\w.-]+\s*[=:]\s+(?=\S)")
 #: A value further right than this does not set the hang (it would leave no room).
 MAX_VALUE_COLUMN = 24
+#: The tags of a piece of HTML, and a word (no space) with a hyphen in its text.
+TAGS = re.compile(r"(<[^>]*>)")
+HYPHENATED = re.compile(r"[^\s-]*(?:-+[^\s-]*)+")
 
 
 def text(line_html):
@@ -47,6 +52,17 @@ def hang(line_html):
     return len(line) - len(line.lstrip(" \t")) + 2
 
 
+def keep_hyphenated_words(line_html):
+    """Each word with a hyphen in the text of ``line_html`` wrapped in ``span.nobr``."""
+    pieces = TAGS.split(line_html)
+    for k in range(0, len(pieces), 2):  # the text between the tags
+        pieces[k] = HYPHENATED.sub(
+            lambda m: f'<span class="nobr">{m[0]}</span>' if m[0].strip("-") else m[0],
+            pieces[k],
+        )  # fmt: skip
+    return "".join(pieces)
+
+
 class HangingIndentFormatter(HtmlFormatter):
     """Pygments' HTML formatter with each source line in a ``<span class="line">``."""
 
@@ -57,7 +73,8 @@ class HangingIndentFormatter(HtmlFormatter):
     def _lines(source):
         for is_line, piece in source:
             if is_line:
-                piece = f'<span class="line" style="--hang: {hang(piece)}">{piece}</span>'
+                words = keep_hyphenated_words(piece)
+                piece = f'<span class="line" style="--hang: {hang(piece)}">{words}</span>'
             yield is_line, piece
 
 
