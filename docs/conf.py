@@ -29,6 +29,8 @@ extensions = [
     "sweep_mathml",
     "sweep_landing",
     "sweep_scraper",
+    "sweep_codewrap",
+    "sweep_figures",
 ]
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}

@@ -1,12 +1,12 @@
-"""
+r"""
 One system in time: a stick-slip cycle
 ======================================
 
 A phase diagram labels each grid point; a trace shows one of them in time. Pin every
 sweep axis (here K/W = 0.046 µm⁻¹, K/Kc = 0.94 with radiation damping η/W = 0.01
-s/µm) and integrate that one system: the result is a Dataset with the velocity, ln v,
-ln Φ/Φss and friction of each block against time (s), and the run's regime and
-statistics as attributes.
+s/µm) and integrate that one system: the result is a Dataset with the velocity,
+:math:`\ln(v/V)`, :math:`\ln(\Phi/\Phi_{ss})` and friction of each block against time
+(s), and the run's regime and statistics as attributes.
 """
 
 import sweep

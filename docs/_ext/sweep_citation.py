@@ -5,20 +5,75 @@ and ``{sweep-references}`` every entry of the file's ``references`` (the seed pa
 first), each with what the package uses it for and a label ``cite-<key>`` that other
 pages link to, e.g. ``{ref}`Dieterich (1979) <cite-dieterich1979>```; a BibTeX block
 of all of them follows. The file is the one source: edit it, not the page.
+
+The software's year is that of its ``date-released``; until a version is released,
+the year of the commit the site is built from (APA's rule for software: the year of
+the version used). In the BibTeX records, proper names and acronyms in titles are
+braced (``{Lyapunov}``, ``{Rice}--{Ruina}``, ``{II}``) so that styles that set titles
+in sentence case keep their capitals, and two names joined by a hyphen are joined by
+an en dash, as on the page (Rice–Ruina, Runge–Kutta).
 """
 
 import re
+import subprocess
 import unicodedata
 from pathlib import Path
 
 import yaml
 from sphinx.util.docutils import SphinxDirective
 
-CFF = Path(__file__).resolve().parents[2] / "CITATION.cff"
+ROOT = Path(__file__).resolve().parents[2]
+CFF = ROOT / "CITATION.cff"
+#: Proper names in the references' titles that are not authors of a reference.
+PROPER_NAMES = {"Rice", "Ruina", "Lyapunov", "Hamiltonian", "Runge", "Kutta"}
 
 
 def read_cff():
     return yaml.safe_load(CFF.read_text(encoding="utf-8"))
+
+
+def software_year(cff):
+    """The year of ``date-released``, else of the commit checked out (the version is
+    not released yet), else None."""
+    if "date-released" in cff:
+        return str(cff["date-released"])[:4]
+    try:
+        out = subprocess.run(["git", "log", "-1", "--format=%cs"], cwd=ROOT,
+                             capture_output=True, text=True, check=True, timeout=10)  # fmt: skip
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip()[:4] or None
+
+
+def proper_names(cff):
+    """The names titles keep capitalised: :data:`PROPER_NAMES` and every author's."""
+    refs = [cff, *cff.get("references", [])]
+    family = {a["family-names"] for r in refs for a in r["authors"] if "family-names" in a}
+    return PROPER_NAMES | family
+
+
+#: A word of a title: letters (any script), with the hyphen or dash that may follow.
+WORD = re.compile(r"[^\W\d_]+")
+
+
+def title_text(title, names):
+    """A title for the page: two proper names joined by a hyphen get an en dash."""
+    pair = re.compile(r"\b([^\W\d_]+)-([^\W\d_]+)\b")
+    return pair.sub(
+        lambda m: f"{m[1]}–{m[2]}" if {m[1], m[2]} <= names else m[0], title
+    )  # fmt: skip
+
+
+def bibtex_title(title, names):
+    """A title for BibTeX: proper names and acronyms (``JIT``, ``II``) braced, and two
+    proper names joined by a hyphen joined by ``--``."""
+    title = title_text(title, names).replace("–", "--")
+
+    def protect(match):
+        word = match.group()
+        return f"{{{word}}}" if word in names or word.isupper() else word
+
+    return WORD.sub(protect, title)
 
 
 def ascii_key(text):
@@ -63,11 +118,11 @@ def author_list(authors):
     return ", ".join(names[:-1]) + ", & " + names[-1]
 
 
-def reference_text(ref):
+def reference_text(ref, names=frozenset()):
     """One reference as a Markdown paragraph (APA-like)."""
     parts = [author_list(ref["authors"])]
     parts.append(f"({ref['year']})." if "year" in ref else "(n.d.).")
-    title = ref["title"].rstrip(".")
+    title = title_text(ref["title"].rstrip("."), names)
     if ref.get("type") == "book":
         edition = f" ({ref['edition']} ed.)" if "edition" in ref else ""
         parts.append(f"*{title}*{edition}.")
@@ -108,11 +163,12 @@ def bibtex(entry_type, key_, fields):
     return "\n".join(lines) + "\n}"
 
 
-def reference_bibtex(ref, key_):
+def reference_bibtex(ref, key_, names=frozenset()):
     pages = f"{ref['start']}--{ref['end']}" if "start" in ref and "end" in ref else None
+    title = bibtex_title(ref["title"], names)
     if ref.get("type") == "book":
         return bibtex("book", key_, [
-            ("author", bibtex_authors(ref["authors"])), ("title", ref["title"]),
+            ("author", bibtex_authors(ref["authors"])), ("title", title),
             ("edition", ref.get("edition")), ("series", ref.get("collection-title")),
             ("volume", ref.get("volume")), ("publisher", ref.get("publisher", {}).get("name")),
             ("year", ref.get("year")), ("doi", ref.get("doi")),
@@ -120,7 +176,7 @@ def reference_bibtex(ref, key_):
     kind = "article" if "journal" in ref else "unpublished"
     note = None if "journal" in ref else "AGH University of Science and Technology, Kraków"
     return bibtex(kind, key_, [
-        ("author", bibtex_authors(ref["authors"])), ("title", ref["title"]),
+        ("author", bibtex_authors(ref["authors"])), ("title", title),
         ("journal", ref.get("journal")), ("year", ref.get("year")),
         ("volume", ref.get("volume")), ("number", ref.get("issue")), ("pages", pages),
         ("doi", ref.get("doi")), ("note", note),
@@ -133,10 +189,13 @@ class Citation(SphinxDirective):
     def run(self):
         cff = read_cff()
         self.env.note_dependency(str(CFF))
+        names = proper_names(cff)
         authors = author_list(cff["authors"])
+        year = software_year(cff)
+        title = title_text(cff["title"], names)
         text = [
-            f"> {authors}. *{cff['title']}* (version {cff['version']}) [Computer software]. "
-            f"{cff['license']} licence.",
+            f"> {authors}. ({year or 'n.d.'}). *{title}* (version {cff['version']}) "
+            f"[Computer software]. {cff['license']} licence.",
             "",
             "```bibtex",
             bibtex(
@@ -144,7 +203,8 @@ class Citation(SphinxDirective):
                 "rsf_sweep",
                 [
                     ("author", bibtex_authors(cff["authors"])),
-                    ("title", cff["title"]),
+                    ("title", bibtex_title(cff["title"], names)),
+                    ("year", year),
                     ("version", cff["version"]),
                     ("license", cff["license"]),
                 ],
@@ -158,14 +218,16 @@ class References(SphinxDirective):
     """Every reference of CITATION.cff, labelled ``cite-<key>``, then all as BibTeX."""
 
     def run(self):
-        refs = read_cff()["references"]
+        cff = read_cff()
+        refs = cff["references"]
+        names = proper_names(cff)
         self.env.note_dependency(str(CFF))
         text = []
         for ref, key_ in zip(refs, keys(refs), strict=True):
-            notes = " ".join(ref.get("notes", "").split())
-            entry = reference_text(ref) + (f" — *{notes}*" if notes else "")
+            notes = title_text(" ".join(ref.get("notes", "").split()), names)
+            entry = reference_text(ref, names) + (f" — *{notes}*" if notes else "")
             text += [f"(cite-{key_})=", "", entry, ""]
-        records = [reference_bibtex(r, k) for r, k in zip(refs, keys(refs), strict=True)]
+        records = [reference_bibtex(r, k, names) for r, k in zip(refs, keys(refs), strict=True)]
         text += ["All of them as BibTeX:", "", "```bibtex", "\n\n".join(records), "```"]
         return self.parse_text_to_nodes("\n".join(text))
 

@@ -8,6 +8,7 @@ subcommand or option appears here as soon as the parser has it.
 """
 
 import argparse
+import re
 
 from sphinx.util.docutils import SphinxDirective
 
@@ -34,32 +35,103 @@ def option_name(action):
     return ", ".join(f"{flag} {metavar}" for flag in action.option_strings)
 
 
-def option_text(action):
-    """The help of an argument, with its choices, how often it may be given and its default."""
-    text = (action.help or "").replace("%(default)s", str(action.default))
-    text = text[:1].upper() + text[1:]
+#: Pieces of help text that are code: a command (``python -m sweep run``,
+#: ``rsf-sweep[zarr]``), an option (``--refine``), a file name with placeholders
+#: (``results/<name>_trace_<at>.nc``), a name with an underscore or a dot
+#: (``t_unit``, ``catalogue.capacity``), a file extension or ``./results``, and
+#: ``NAME=VALUE``, and the tolerances ``rtol`` and ``atol``. Written as code spans, they
+#: keep their ``--``, ``<…>`` and ``_``.
+CODE = (
+    r"python -m sweep(?: [a-z]+)?"
+    r"|rsf-sweep(?:\[\w+\]| [a-z]+\b)?"
+    r"|(?P<option>--[a-z][a-z-]*)"
+    r"|[\w./-]*(?:<[a-z][a-z ]*>[\w./-]*)+"
+    r"|\b[a-z]\w*_\w+\b|\b[a-z]{2,}(?:\.[a-z]{2,})+\b"
+    r"|(?<![\w.])\.(?:nc|zarr|png|pdf|svg)\b|\./\w+"
+    r"|\b\w+=[A-Z]+\b|\b[ar]tol\b"
+)
+#: Characters that Markdown or HTML would read as markup.
+SPECIAL = re.compile(r"([\\`*_\[\]{}<>#+!|~$&])")
+
+
+def escape(text):
+    """Markdown (MyST) for plain text: each markup character backslash-escaped."""
+    return SPECIAL.sub(r"\\\1", text)
+
+
+def code(text):
+    """A Markdown code span of ``text`` (its own backticks allowed)."""
+    ticks = "`" * (max((len(m) for m in re.findall(r"`+", text)), default=0) + 1)
+    pad = " " if text.startswith("`") or text.endswith("`") else ""
+    return f"{ticks}{pad}{text}{pad}{ticks}"
+
+
+def output_variables():
+    """The names of the output variables (``sweep.variables``), each an ``{outvar}`` entry."""
+    from sweep.variables import VARIABLES
+
+    return sorted((var.name for var in VARIABLES), key=len, reverse=True)
+
+
+def markdown(text, options=()):
+    """Help text as MyST Markdown that shows exactly that text: commands, options,
+    file names and identifiers as code (an option of ``options``, the flags of the
+    same subcommand, and an output variable as links to their entries), everything
+    else escaped, so ``<name>`` is not an HTML tag and ``--refine`` not a dash."""
+    variables = "|".join(output_variables())
+    pattern = re.compile(rf"(?P<variable>\b(?:{variables})\b)|{CODE}")
+    out, last = [], 0
+    for match in pattern.finditer(text):
+        out.append(escape(text[last : match.start()]))
+        piece = match.group()
+        if match.group("option") and piece in options:
+            out.append("{option}" + code(piece))
+        elif match.group("variable"):
+            out.append("{outvar}" + code(piece))
+        else:
+            out.append(code(piece))
+        last = match.end()
+    out.append(escape(text[last:]))
+    return "".join(out)
+
+
+def sentence(text):
+    """``text`` with a capital first letter and one full stop at the end."""
+    text = text.strip().rstrip(".")
+    return f"{text[:1].upper()}{text[1:]}."
+
+
+def option_text(action, options=()):
+    """The help of an argument, as Markdown, then its choices, how often it may be given,
+    whether it is required and its default when the help does not state it."""
+    help_text = (action.help or "").replace("%(default)s", str(action.default))
+    text = markdown(sentence(help_text), options)
     extra = []
     if action.choices and not isinstance(action, argparse._SubParsersAction):
-        extra.append("one of " + ", ".join(f"`{c}`" for c in action.choices))
+        extra.append("one of " + ", ".join(code(str(c)) for c in action.choices))
     if action.nargs in ("+", "*"):
         extra.append("one or more" if action.nargs == "+" else "any number")
     if isinstance(action, argparse._AppendAction):
         extra.append("may be repeated")
     if action.required and action.option_strings:
         extra.append("required")
-    stated = "default" in text
+    stated = "default" in help_text
     if action.option_strings and action.default not in (None, False, [], "") and not stated:
-        extra.append(f"default `{action.default}`")
-    text = text.rstrip(".")
-    return f"{text} ({'; '.join(extra)})." if extra else f"{text}."
+        extra.append(f"default {code(str(action.default))}")
+    return f"{text} {sentence('; '.join(extra))}" if extra else text
+
+
+def flags(parser):
+    """Every option string of ``parser`` (what ``{option}`` can link to)."""
+    return {flag for action in parser._actions for flag in action.option_strings}
 
 
 def exclusive_note(parser):
     """A sentence naming options that exclude each other, if any."""
     notes = []
     for group in parser._mutually_exclusive_groups:
-        flags = [a.option_strings[0] for a in group._group_actions]
-        notes.append(" and ".join(f"`{f}`" for f in flags) + " exclude each other.")
+        first = [a.option_strings[0] for a in group._group_actions]
+        notes.append(" and ".join("{option}" + code(f) for f in first) + " exclude each other.")
     return " ".join(notes)
 
 
@@ -80,15 +152,17 @@ class CommandLine(SphinxDirective):
         lines = []
         for name, help_text, sub in subcommands(parser):
             sub.prog = f"{PROG} {name}"
-            lines += [f"## `{name}`", "", f"{help_text[:1].upper()}{help_text[1:]}.", ""]
+            options = flags(sub)
+            lines += [f"## `{name}`", "", markdown(sentence(help_text), options), ""]
             if sub.description:
-                lines += [sub.description, ""]
+                lines += [markdown(sub.description, options), ""]
             lines += ["```text", usage(sub), "```", ""]
             lines += ["```{program} " + f"{PROG} {name}", "```", ""]
             for action in sub._actions:
                 if isinstance(action, argparse._HelpAction):
                     continue
-                lines += ["```{option} " + option_name(action), option_text(action), "```", ""]
+                entry = option_text(action, options)
+                lines += ["```{option} " + option_name(action), entry, "```", ""]
             if exclusive_note(sub):
                 lines += [exclusive_note(sub), ""]
         return self.parse_text_to_nodes("\n".join(lines), allow_section_headings=True)

@@ -8,8 +8,28 @@ classification and refine setting (``sweep.config``'s ``Setting``s) and per outp
 """
 
 import dataclasses
+import math
 
 from sphinx.util.docutils import SphinxDirective
+
+
+def _yaml_value(value):
+    """A default as a config would write it: ``1e-8``, ``1.0e+6``, ``3000``, ``.inf``,
+    ``true``, ``D0/V`` (not Python's ``1e-08``, ``3000.0``, ``inf``, ``True``, ``'D0/V'``)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        if math.isinf(value):
+            return ".inf" if value > 0 else "-.inf"
+        if value.is_integer() and abs(value) < 1e6:
+            return str(int(value))
+        mantissa, _, exponent = f"{value:g}".partition("e")
+        if not exponent:
+            return mantissa
+        if exponent.startswith("+") and "." not in mantissa:
+            mantissa += ".0"  # PyYAML reads 1e+6 as text, 1.0e+6 as a number
+        return f"{mantissa}e{exponent[0]}{exponent[1:].lstrip('0')}"
+    return str(value)
 
 
 def _allowed_text(allowed):
@@ -17,7 +37,7 @@ def _allowed_text(allowed):
         return ""
     if isinstance(allowed, str):
         return f"allowed `{allowed}`"
-    return "one of " + ", ".join(f"`{choice}`" for choice in allowed)
+    return "one of " + ", ".join(f"`{_yaml_value(choice)}`" for choice in allowed)
 
 
 def _units_text(units):
@@ -57,7 +77,7 @@ class ConfigKeys(_Generated):
         for section, cls in sections:
             for field in dataclasses.fields(cls):
                 spec = field.metadata["setting"]
-                default = spec.default_text or repr(field.default)
+                default = spec.default_text or f"`{_yaml_value(field.default)}`"
                 parts = [_units_text(spec.units), _allowed_text(spec.allowed), f"default {default}"]
                 text = spec.doc[:1].upper() + spec.doc[1:]
                 out += _entry("confkey", f"{section}.{field.name}", parts, text)

@@ -11,13 +11,18 @@ figure of each example is drawn again (a copy) with its first panel about 4.5 by
 inches and no titles, cropped to that panel and written to ``docs/generated/thumbs/``;
 after the gallery is generated, :func:`replace_thumbnails` puts each into the
 gallery's thumbnail file, centred on white.
+
+Figures are written as plain ``image`` directives, one below the other, with the
+figure's titles as their alternative text (sphinx-gallery's own ``image-sg`` would
+put several side by side, with the file's name as the text, and is a node of its
+own, which ``sweep_figures`` cannot make a link to the full-size image).
 """
 
 import pickle
 from pathlib import Path
 
 from matplotlib.figure import Figure
-from sphinx_gallery.scrapers import figure_rst, matplotlib_scraper
+from sphinx_gallery.scrapers import matplotlib_scraper
 
 DOCS = Path(__file__).resolve().parents[1]
 THUMBS = DOCS / "generated" / "thumbs"
@@ -46,9 +51,23 @@ def save_thumbnail(fig, stem):
     copy.savefig(THUMBS / f"{stem}.png", dpi=THUMB_DPI, bbox_inches=box)
 
 
+def alt_text(fig, stem):
+    """A figure's titles (its suptitle, else its panels' titles), or the example's name."""
+    titles = [fig._suptitle.get_text()] if fig._suptitle is not None else []
+    titles = [t for t in titles if t] or [ax.get_title() for ax in fig.axes if ax.get_title()]
+    text = "; ".join(titles) or stem.removeprefix("plot_").replace("_", " ")
+    return " ".join(text.split())
+
+
+def image_rst(path, alt, src_dir):
+    """An ``image`` directive for a figure written to ``path``, under the source folder."""
+    uri = Path(path).relative_to(src_dir).as_posix()
+    return f"\n.. image:: /{uri}\n   :alt: {alt}\n   :class: sphx-glr-single-img\n\n"
+
+
 def scrape_figures(block, block_vars, gallery_conf, **kwargs):
     """Save the example's new Figures (and any pyplot figures) as PNG; their reST."""
-    paths = []
+    paths, rst = [], ""
     stem = Path(block_vars["src_file"]).stem
     for value in list(block_vars["example_globals"].values()):
         if isinstance(value, Figure) and not getattr(value, "_sweep_scraped", False):
@@ -58,7 +77,7 @@ def scrape_figures(block, block_vars, gallery_conf, **kwargs):
             if len(block_vars["image_path_iterator"]) == 1 and not paths:
                 save_thumbnail(value, stem)
             paths.append(path)
-    rst = figure_rst(paths, gallery_conf["src_dir"]) if paths else ""
+            rst += image_rst(path, alt_text(value, stem), gallery_conf["src_dir"])
     return rst + matplotlib_scraper(block, block_vars, gallery_conf, **kwargs)
 
 
