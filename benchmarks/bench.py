@@ -32,8 +32,8 @@ Prints and writes ``results/bench.json``:
 Timings are not asserted anywhere; ``--quick`` shrinks every size and
 ``--smoke`` makes them tiny (``tests/test_bench.py`` runs every code path so). The
 physics comes from the package: the paper's parameters from ``configs/paper.yaml``
-and Kc from ``sweep.physics``; the SciPy loops' right-hand side (:func:`scipy_rhs`)
-is the tests' reference ``sweep.physics.log_form_rhs`` on scalars, checked equal to it
+and Kc from ``sweep.model.physics``; the SciPy loops' right-hand side (:func:`scipy_rhs`)
+is the tests' reference ``sweep.model.physics.log_form_rhs`` on scalars, checked equal to it
 in ``tests/test_bench.py``. Run it as ``python benchmarks/bench.py`` (``make bench``).
 """
 
@@ -51,14 +51,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from sweep import physics
-from sweep.backends import DaskTasks, LocalThreads, Resources
 from sweep.config import load_config, parse_config, with_changes
-from sweep.dispatch import load_kernel
-from sweep.distributed import connect
-from sweep.grid import build_grid
+from sweep.engine.backends import DaskTasks, LocalThreads, Resources
+from sweep.engine.dispatch import load_kernel
+from sweep.engine.distributed import connect
+from sweep.engine.grid import build_grid
+from sweep.engine.runner import compute, integrate_in_memory, run_sweep
 from sweep.kernels import layout
-from sweep.runner import compute, integrate_in_memory, run_sweep
+from sweep.model import physics
 from sweep.variables import REGIMES
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -115,7 +115,7 @@ def engine_run(config, threads=1, repeats=1, passes=1):
 
 def one_block_slopes(lnv, psi, A, B, kappa):
     """(d ln v/dt, dψ/dt) of the one-block quasi-static aging case of
-    ``sweep.physics.log_form_rhs``, on scalars with ``math``: the peers' right-hand side
+    ``sweep.model.physics.log_form_rhs``, on scalars with ``math``: the peers' right-hand side
     (SciPy's, and CyRK's compiled by numba). The numpy reference costs 32 instead of
     9 µs per call under LSODA (2-element arrays), which would make the SciPy loops
     about 3.5x slower than a user's need be. ``tests/test_bench.py`` checks that the
@@ -769,7 +769,7 @@ def bench_sweep(config_path):
 #: A run of a tiny sweep of CONFIG (with CHANGES) in a fresh process: prints its seconds.
 COMPILE_RUN = (
     "import ast, time, sys; t=time.perf_counter();"
-    "from sweep.config import load_config, with_changes; from sweep.runner import compute;"
+    "from sweep.config import load_config, with_changes; from sweep.engine.runner import compute;"
     "compute(with_changes(load_config(sys.argv[1]), ast.literal_eval(sys.argv[2])),"
     " show_progress=False);"
     "print(time.perf_counter()-t)"

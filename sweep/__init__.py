@@ -14,7 +14,7 @@ configs: :func:`load_config`, :func:`with_changes`, :func:`examples.names`;
 figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
 :func:`plot_orbit_diagram`, :func:`plot_trace` (``sweep/plots.py``), :func:`plot_catalogue`
 (``sweep/catalogue_plots.py``); slip-event statistics: :func:`catalogue_statistics`;
-traces: ``sweep.trace.compute_trace``; refined results: :func:`to_grid`,
+traces: ``sweep.commands.trace.compute_trace``; refined results: :func:`to_grid`,
 :func:`boundaries`.
 """
 
@@ -32,9 +32,9 @@ _LAZY = {
     "plot_trace": "plots",
     "save_figure": "plots",
     "plot_catalogue": "catalogue_plots",
-    "catalogue_statistics": "catalogue",
-    "to_grid": "refined_dataset",
-    "boundaries": "phase_boundaries",
+    "catalogue_statistics": "results.catalogue_statistics",
+    "to_grid": "refine.dataset",
+    "boundaries": "refine.boundaries",
 }
 
 

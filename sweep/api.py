@@ -46,7 +46,7 @@ def run(
         terminal, plain lines in pipes and logs.
     refine : int, Mapping or bool, optional
         Refine the sweep where its labels change (the config's ``refine`` section,
-        ``sweep/refine.py``): a number of levels, a mapping like the section (e.g.
+        ``sweep/refine/lattice.py``): a number of levels, a mapping like the section (e.g.
         ``{"levels": 8, "max_runs": 20000}``, merged into the config's), True for the
         config's section or the defaults, False for the grid only. Default: as the
         config says.
@@ -57,7 +57,7 @@ def run(
         The result, as ``python -m sweep run`` writes it (dimensions named after
         the sweep axes, fixed parameters as scalar coordinates, CF attributes);
         its ``history`` says it was made by ``sweep.run()`` and from which config
-        (``<mapping>`` for a mapping). Save it with :func:`sweep.dataset.write_netcdf`
+        (``<mapping>`` for a mapping). Save it with :func:`sweep.results.dataset.write_netcdf`
         (atomic) or ``ds.to_netcdf``. A refined sweep's runs lie along one dimension,
         ``point`` (:func:`sweep.to_grid` puts them on a grid, :func:`sweep.boundaries`
         gives the boundaries between labels).
@@ -75,7 +75,7 @@ def run(
     """
     from contextlib import nullcontext
 
-    from .runner import compute
+    from .engine.runner import compute
 
     config = with_refine(load_config(config), refine)
     if client is not None and threads is not None:
@@ -84,7 +84,7 @@ def run(
     if client is None:
         backend = nullcontext(None)
     else:
-        from .distributed import connect
+        from .engine.distributed import connect
 
         backend = connect(client)
     with backend as dask_client:
@@ -144,8 +144,8 @@ def compile_kernels(
     InputError
         ``processes`` is not a positive integer.
     """
-    from .dispatch import kernel_jobs, load_kernels
-    from .grid import build_grid
+    from .engine.dispatch import kernel_jobs, load_kernels
+    from .engine.grid import build_grid
 
     configs = [load_config(config) for config in configs]
     positive = (isinstance(processes, (int, np.integer)) and not isinstance(processes, bool)

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .plots import colormap, describe, new_figure, parameter_text
-from .result_check import check_result
+from .results.checks import check_result
 
 if TYPE_CHECKING:
     import xarray

@@ -161,7 +161,7 @@ def build_parser():
 
 
 def add_check_commands(sub):
-    """Subcommands extend and audit (``sweep/extend.py``, ``sweep/audit.py``)."""
+    """Subcommands extend and audit (``sweep/commands/extend.py``, ``sweep/commands/audit.py``)."""
     ext = sub.add_parser(
         "extend",
         help="continue the undecided runs of a result to a later end time",
@@ -244,7 +244,8 @@ def _add_dpi(parser):
 
 
 def add_figure_commands(sub):
-    """Subcommands plot, trace, bifurcation and figures (``sweep/plots.py``, ``sweep/trace.py``)."""
+    """Subcommands plot, trace, bifurcation and figures (``sweep/plots.py``,
+    ``sweep/commands/trace.py``)."""
     plot = sub.add_parser("plot", help="phase diagram, or a map of one variable, of a result")
     plot.add_argument("result", help="result NetCDF file of python -m sweep run")
     plot.add_argument(
@@ -345,11 +346,11 @@ def summary_lines(ds):
 
 
 def cmd_run(args):
-    from .backends import Resources
-    from .chunks import stop_on_signals
     from .config import load_config
+    from .engine.backends import Resources
+    from .engine.chunks import stop_on_signals
+    from .engine.runner import run_sweep
     from .errors import Interrupted
-    from .runner import run_sweep
 
     config = refine_options(load_config(args.config), args.refine, args.max_runs)
     if args.threads and (args.scheduler or args.dask_local):
@@ -402,7 +403,7 @@ def refine_options(config, levels, max_runs):
 
 
 def cmd_extend(args):
-    from .extend import extend_file
+    from .commands.extend import extend_file
 
     ds, n_continued = extend_file(
         args.result, args.t_end, args.out, args.threads, show_progress=not args.quiet
@@ -512,7 +513,7 @@ def _audited(audit):
 
 
 def cmd_audit(args):
-    from .audit import audit_result
+    from .commands.audit import audit_result
 
     audit = audit_result(
         args.result, args.sample, args.near_kc, args.t_end, args.seed, args.threads,
@@ -546,7 +547,7 @@ def cmd_audit(args):
 
 
 def cmd_merge(args):
-    from .runner import merge_parts
+    from .engine.runner import merge_parts
 
     ds = merge_parts(args.parts, args.out)
     for line in summary_lines(ds):
@@ -558,8 +559,8 @@ def cmd_merge(args):
 def _plotted(source, draw, out, dpi):
     """Save the figure ``draw()`` to ``out`` after checking ``out``; a result it cannot
     draw is bad input."""
+    from .io.parts import check_writable
     from .plots import FORMATS, save_figure
-    from .store import check_writable
 
     check_writable(out, source, "--out", tuple(FORMATS))
     try:
@@ -582,8 +583,8 @@ def cmd_plot(args):
     import functools
     from pathlib import Path
 
-    from .dataset import read_result
     from .plots import plot_orbit_diagram, plot_result, plot_variable
+    from .results.dataset import read_result
 
     ds = read_result(args.result)
     if sum((bool(args.var), args.orbit is not None, args.catalogue is not None)) > 1:
@@ -605,8 +606,8 @@ def cmd_plot(args):
 
 
 def cmd_trace(args):
+    from .commands.trace import run_trace
     from .config import load_config
-    from .trace import run_trace
 
     config = load_config(args.config)
     _once(args.config, "--at", args.at)
@@ -622,8 +623,8 @@ def cmd_trace(args):
 def cmd_bifurcation(args):
     from pathlib import Path
 
-    from .dataset import read_result
     from .plots import plot_bifurcation
+    from .results.dataset import read_result
 
     first = Path(args.results[0])
     out = args.out or first.with_name(first.stem + "_bifurcation.png")
@@ -646,7 +647,7 @@ def cmd_compile(args):
 
 
 def cmd_figures(args):
-    from .figures import make_figures
+    from .commands.figures import make_figures
 
     paths = make_figures(
         paper=args.config,

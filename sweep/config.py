@@ -24,9 +24,15 @@ import yaml
 
 from .codes import COUPLINGS, LYAPUNOV_MODES, METHODS
 from .errors import ConfigError
-from .heterogeneity import DISTRIBUTIONS, PER_BLOCK, SPREAD_AXES, SPREAD_PREFIX, spread_pattern
 from .kernels.layout import N_EVENT_FIELDS
-from .physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
+from .model.heterogeneity import (
+    DISTRIBUTIONS,
+    PER_BLOCK,
+    SPREAD_AXES,
+    SPREAD_PREFIX,
+    spread_pattern,
+)
+from .model.physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
 
 #: Default integrator per model where it is not dop853: the inertial model is stiff
 #: in stick phases (decay rate A e^(-ln v/V)/M̂ towards force balance). The explicit
@@ -123,7 +129,7 @@ class Axis:
 
     ``span``: ``(scale, start, stop)`` for values given as a range (``len(values)``
     points from start to stop, evenly spaced in ``scale``, linear or log; see
-    :func:`range_values`), ``()`` for a list. Refinement (``sweep/refine.py``) places
+    :func:`range_values`), ``()`` for a list. Refinement (``sweep/refine/lattice.py``) places
     its points between the values by the same rule.
     """
 
@@ -155,7 +161,7 @@ class Initial:
 
 @dataclass(frozen=True)
 class Spread:
-    """Seeded relative spread of per-block values (``sweep/heterogeneity.py``).
+    """Seeded relative spread of per-block values (``sweep/model/heterogeneity.py``).
 
     ``sizes``: ((name, s), ...) for fixed spread sizes (swept ones are axes
     ``spread_<name>``); ``distribution``: uniform (ξ in (−1, 1)) or normal.
@@ -266,7 +272,8 @@ MAX_CATALOGUE_BYTES = 4 * 2**30
 
 @dataclass(frozen=True)
 class Catalogue:
-    """The catalogue of slip events of each run (``sweep/catalogue.py``). An event lasts
+    """The catalogue of slip events of each run
+    (``sweep/results/catalogue_statistics.py``). An event lasts
     while any block slips (v/V above ``slip_v_over_V``, by default the threshold of
     ``slip_participation``, ``classification.slip_v_over_V``); each run keeps its first
     ``capacity`` events that start after ``after`` × t_end (0: the catalogue is off) and
@@ -293,13 +300,13 @@ class Catalogue:
 REFINE_OUTPUTS = ("regime", "attractor", "cycle_events")
 REFINE_ENSEMBLE_OUTPUTS = ("regime_fraction",)
 #: Most levels of refinement: each halves the cells, so 20 levels cut a grid step into
-#: about 10^6 (lattice indices stay exact in float64; ``sweep/refine.py``).
+#: about 10^6 (lattice indices stay exact in float64; ``sweep/refine/lattice.py``).
 MAX_REFINE_LEVELS = 20
 
 
 @dataclass(frozen=True)
 class Refine:
-    """Refinement by label (``sweep/refine.py``): from the swept grid on, every cell whose
+    """Refinement by label (``sweep/refine/lattice.py``): from the swept grid on, every cell whose
     corner runs differ in ``outputs`` is split in two along every axis with more than one
     value, and only the new points are run, level by level, up to ``levels`` levels or
     ``max_runs`` runs in all. Outputs of integer type and ``regime_fraction`` differ on any

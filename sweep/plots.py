@@ -1,7 +1,7 @@
 """Figures of sweep results and traces: phase diagrams, bifurcation diagrams, time series.
 
-All drawing lives here; the numbers come from result Datasets (``sweep/dataset.py``)
-and trace Datasets (``sweep/trace.py``). Every ``plot_*`` function returns a
+All drawing lives here; the numbers come from result Datasets (``sweep/results/dataset.py``)
+and trace Datasets (``sweep/commands/trace.py``). Every ``plot_*`` function returns a
 matplotlib Figure (drawn in a notebook, saved with :func:`save_figure`); those with
 one panel draw on a given ``ax=`` instead. Figures are made without pyplot, so
 nothing here selects a backend or keeps figures open; matplotlib is imported
@@ -20,9 +20,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .dataset import parameter_values
-from .physics import PARAMETERS
-from .result_check import check_result, check_trace
+from .model.physics import PARAMETERS
+from .results.checks import check_result, check_trace
+from .results.dataset import parameter_values
 from .variables import REGIMES
 
 if TYPE_CHECKING:
@@ -835,7 +835,7 @@ def plot_trace(ds: xarray.Dataset, ax: Axes | None = None) -> Figure:
     Parameters
     ----------
     ds : xarray.Dataset
-        A trace: :func:`sweep.trace.compute_trace`, or a file written by
+        A trace: :func:`sweep.commands.trace.compute_trace`, or a file written by
         ``python -m sweep trace``.
     ax : matplotlib.axes.Axes, optional
         Draw there (default: a new figure).
@@ -885,7 +885,7 @@ def save_figure(fig: Figure, out: str | os.PathLike, dpi: float = DPI) -> Path:
     """
     from pathlib import Path
 
-    from .store import replaced_atomically
+    from .io.parts import replaced_atomically
 
     out = Path(out)
     if out.suffix not in FORMATS:
@@ -1000,24 +1000,24 @@ def plot_nblock(sizes, spread, coupling, caption=""):
     return fig
 
 
-# --- refined results (sweep/refine.py): cells at their level, boundaries on top ---------
+# --- refined results (sweep/refine/lattice.py): cells at their level, boundaries on top ---------
 
 
 def _refined(ds):
-    from .refined_dataset import is_refined
+    from .refine.dataset import is_refined
 
     return "regime" in ds and is_refined(ds)
 
 
 def _as_grid(ds):
     """A refined result on a grid (``refined_dataset.as_grid``); any other as it is."""
-    from .refined_dataset import as_grid
+    from .refine.dataset import as_grid
 
     return as_grid(ds) if _refined(ds) else ds
 
 
 def plot_refined(ds, caption="", ax=None):
-    """A refined result (``sweep/refine.py``); returns the Figure.
+    """A refined result (``sweep/refine/lattice.py``); returns the Figure.
 
     Over two refined axes: left, the cells at their level, each coloured by the regime
     of its runs (a cell whose corners differ, by quarters: each its corner's), with the
@@ -1028,9 +1028,9 @@ def plot_refined(ds, caption="", ax=None):
     More axes: the grid of level 0 (:func:`plot_result`). With ``ax``: only the left
     panel, there. ``caption``: an extra title line.
     """
-    from .phase_boundaries import boundaries
-    from .refine import Lattice
-    from .refined_dataset import along_axis, refined_config, to_grid
+    from .refine.boundaries import boundaries
+    from .refine.dataset import along_axis, refined_config, to_grid
+    from .refine.lattice import Lattice
 
     lattice = Lattice(refined_config(ds))
     split = int(lattice.split.sum())
@@ -1075,8 +1075,8 @@ def _refined_cells(ax, ds, lattice, what):
     from matplotlib.collections import PolyCollection
     from matplotlib.colors import BoundaryNorm, ListedColormap
 
-    from .refine import axis_values, cell_tree
-    from .refined_dataset import lattice_index
+    from .refine.dataset import lattice_index
+    from .refine.lattice import axis_values, cell_tree
 
     x, y = np.flatnonzero(lattice.split)
     index = lattice_index(ds, lattice)
@@ -1171,7 +1171,7 @@ def _boundary_handles():
 
 def _refined_axes(ax, ds, lattice):
     """Limits, scales and labels of a map of a refined result, and the line K/Kc = 1."""
-    from .refined_dataset import to_grid
+    from .refine.dataset import to_grid
 
     x, y = (lattice.axes[i] for i in np.flatnonzero(lattice.split))
     coarse = to_grid(ds[["regime", "K_over_Kc", "critical_K_W"]], min(lattice.levels, 3))

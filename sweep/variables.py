@@ -1,19 +1,19 @@
 """The output schema: every data variable of a result file, declared once.
 
-This table feeds the Dataset constructor (``sweep/dataset.py``) and the tests;
-the README's reference table is checked against it. ``per_block``: the
-variable has a trailing ``block`` dimension; ``min_blocks``: written only for
-sweeps of at least that many blocks; ``models``: written only for these
-models (empty: every model); ``feature``: written only for sweeps with that
-feature (``Config.features``: ``nblock``, ``heterogeneous``, ``ensemble``,
-``events``, ``catalogue``, ``linear_verdicts``); ``per_member``: one value per run (with an ensemble, a ``member``
-dimension), else one per grid point; ``per_regime``: a trailing ``regime_name``
-dimension; ``per_event``: a trailing ``event`` dimension (the last events of each run);
-``dim``: another trailing dimension, ``slip_event`` (the events of the run's catalogue)
-or ``magnitude`` (its magnitude bins; ``sweep/catalogue.py``).
-``column``: the column of the kernels' results it is read from (the name of a
-``kernels.layout`` ``R_*`` index; empty: computed from several), ``scale`` its
-conversion to physical units (:data:`SCALES`).
+This table feeds the Dataset constructor (``sweep/results/dataset.py``) and the tests;
+the README's reference table is checked against it. ``per_block``: the variable has a
+trailing ``block`` dimension; ``min_blocks``: written only for sweeps of at least that
+many blocks; ``models``: written only for these models (empty: every model);
+``feature``: written only for sweeps with that feature (``Config.features``: ``nblock``,
+``heterogeneous``, ``ensemble``, ``events``, ``catalogue``, ``linear_verdicts``);
+``per_member``: one value per run (with an ensemble, a ``member`` dimension), else one
+per grid point; ``per_regime``: a trailing ``regime_name`` dimension; ``per_event``: a
+trailing ``event`` dimension (the last events of each run); ``dim``: another trailing
+dimension, ``slip_event`` (the events of the run's catalogue) or ``magnitude`` (its
+magnitude bins; ``sweep/results/catalogue_statistics.py``). ``column``: the column of
+the kernels' results it is read from (the name of a ``kernels.layout`` ``R_*`` index;
+empty: computed from several), ``scale`` its conversion to physical units
+(:data:`SCALES`).
 """
 
 from dataclasses import dataclass

@@ -84,7 +84,7 @@ def compute(names=NAMES):
     """name → {variable: array} for the cases ``names`` ("trace": the trace of
     :data:`TRACE_CASE`)."""
     import sweep
-    from sweep.trace import compute_trace
+    from sweep.commands.trace import compute_trace
 
     out = {}
     for name in names:

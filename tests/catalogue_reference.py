@@ -2,7 +2,7 @@
 block's slip as a state variable, and the events are cut from its dense output.
 
 Written from the physics brief (log form, ``shared/physics.md``) and the catalogue's
-definition (``sweep/kernels/catalogue.py`` docstring), not from the engine: an event
+definition (``sweep/kernels/slip_events.py`` docstring), not from the engine: an event
 lasts while some block's v/V exceeds the threshold; it begins where the first block
 rises through it and ends where the last one falls through it; a block slipped in it
 if its v exceeded the threshold; the event's slip is the sum of those blocks' slip

@@ -18,12 +18,12 @@ import yaml
 from hypothesis import settings
 from scipy.integrate import solve_ivp
 
-from sweep import grid, runner
 from sweep.config import load_config, parse_config
-from sweep.dataset import write_netcdf
-from sweep.dispatch import integrate_grid
+from sweep.engine import grid, runner
+from sweep.engine.dispatch import integrate_grid
 from sweep.kernels import layout
-from sweep.physics import log_form_rhs
+from sweep.model.physics import log_form_rhs
+from sweep.results.dataset import write_netcdf
 
 # Hypothesis tests have no per-example deadline (its default is 200 ms): an example may
 # be the first call of a numba kernel variant, which compiles it (about 30 s cold), and
@@ -140,7 +140,7 @@ def anti_phase_cycle():
     blocks in a chain, k2/W = 0.001 µm⁻¹, K/Kc = 0.99, the :data:`ANTI` start, t_end =
     max_t_end = 8000 D0/V. SciPy has them settle on a bounded out-of-phase cycle
     (physics brief §4)."""
-    from sweep.dataset import build_dataset
+    from sweep.results.dataset import build_dataset
 
     config = make_config(
         {"blocks": 2, "coupling": "chain", "parameters": {"k2_W": 0.001}},
@@ -254,7 +254,7 @@ import numpy as np
 mode, directory, config_path = sys.argv[1:]
 if mode == "elsewhere":
     socket.gethostname = lambda: "elsewhere.example.org"
-from sweep import store
+from sweep.io import parts as store
 from sweep.config import load_config
 
 def savez(f, **arrays):
@@ -327,7 +327,7 @@ def assert_as_printed(value, printed):
 # fixture kills it after the test, however long the test takes).
 LOCK_HOLDER = """
 import sys, threading
-from sweep import store
+from sweep.io import parts as store
 with store.output_lock(sys.argv[1], shared=sys.argv[2] == "shared"):
     print("locked", flush=True)
     threading.Event().wait()

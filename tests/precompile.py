@@ -32,7 +32,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sweep import codes, dispatch  # noqa: E402
+from sweep import codes  # noqa: E402
+from sweep.engine import dispatch  # noqa: E402
 from sweep.kernels import layout  # noqa: E402
 
 #: Per tier, the list of its variants, one per line: model, state law, method, coupling,

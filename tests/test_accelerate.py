@@ -13,10 +13,10 @@ from conftest import python_stdout
 
 from sweep import accelerate
 from sweep.config import load_config, with_changes
+from sweep.engine.runner import compute
 from sweep.kernels import control, equations, integrate, layout, linalg, record, step, tangent
 from sweep.kernels.classify import cycle, extrema, result, sequences, state, verdicts
 from sweep.kernels.methods import MODULES as METHOD_MODULES
-from sweep.runner import compute
 
 #: The modules of the kernel package that hold jitted functions.
 CLASSIFY = (state, sequences, extrema, cycle, verdicts, result)
@@ -219,12 +219,12 @@ def test_one_cache_decision_in_this_process():
 CACHED_RUN = """
 import json, sweep
 from numba.core import types
-from sweep.dispatch import grid_kernel
-from sweep.grid import build_grid
+from sweep.engine.dispatch import grid_kernel
+from sweep.engine.grid import build_grid
 from sweep.kernels import tangent
 from sweep.kernels.classify import extrema, state
 from sweep.kernels.classify.cycle import close_cycle
-from sweep.kernels.catalogue import catalogue_step
+from sweep.kernels.slip_events import catalogue_step
 from sweep.kernels.methods import dop853, rodas4
 config = sweep.with_changes(sweep.load_config(CONFIG), {"integrator": {"method": "dopri5"}})
 if MODEL:

@@ -14,11 +14,12 @@ import xarray as xr
 from conftest import QUICK, ROOT, SUBPROCESS_TIMEOUT, python_stdout, without_provenance
 
 import sweep
-from sweep import examples, runner
+from sweep import examples
 from sweep.cli import main
 from sweep.config import MAPPING_SOURCE, config_mapping
-from sweep.dataset import write_netcdf
+from sweep.engine import runner
 from sweep.errors import InputError
+from sweep.results.dataset import write_netcdf
 
 
 def without_file_attrs(ds):
@@ -186,7 +187,7 @@ def test_compile_kernels_compiles_only_the_configs_variants():
     tangent, and builds no other variant; with ``lyapunov: never`` only the first."""
     code = (
         "import sys, sweep; from sweep import dispatch; from sweep.kernels import integrate\n"
-        "from sweep.grid import build_grid\n"
+        "from sweep.engine.grid import build_grid\n"
         "config = sweep.with_changes('quick', {'classification': {'lyapunov': sys.argv[1]}})\n"
         "sweep.compile_kernels(config)\n"
         "g = build_grid(config)\n"
@@ -208,8 +209,8 @@ SIDE_BY_SIDE = (
     f"CONFIGS = {SIDE_BY_SIDE_CONFIGS!r}\n"
     + """
 import json, sys, sweep
-from sweep import dispatch
-from sweep.grid import build_grid
+from sweep.engine import dispatch
+from sweep.engine.grid import build_grid
 configs = [sweep.with_changes('quick', c) for c in CONFIGS]
 sweep.compile_kernels(*configs, processes=2)
 stats = [dispatch.grid_kernel(g.params, g.settings).stats for g in map(build_grid, configs)]
@@ -242,8 +243,8 @@ def test_processes_share_variant_groups_each_compiled_once(tmp_path, monkeypatch
     (they call the same helpers specialised on their codes). A process takes a group no
     other has started, its variants one at a time, and when none is left to start,
     helps with the variants left in the others': every variant compiled once."""
-    from sweep import dispatch
-    from sweep.grid import build_grid
+    from sweep.engine import dispatch
+    from sweep.engine.grid import build_grid
 
     grids = [
         build_grid(sweep.with_changes("quick", change))
@@ -274,11 +275,11 @@ def test_processes_share_variant_groups_each_compiled_once(tmp_path, monkeypatch
 ORPHANED_COMPILE = """
 import os, subprocess, sys
 import sweep
-from sweep import dispatch
-from sweep.grid import build_grid
+from sweep.engine import dispatch
+from sweep.engine.grid import build_grid
 g = build_grid(sweep.with_changes("quick", {}))
 spec = dispatch.compile_spec([[(g.params, g.settings, False)]], sys.argv[1])
-code = "import sys; from sweep.dispatch import compile_specs; compile_specs(sys.argv[1])"
+code = "import sys; from sweep.engine.dispatch import compile_specs; compile_specs(sys.argv[1])"
 with open(sys.argv[2], "w") as out:
     child = subprocess.Popen([sys.executable, "-c", code + "; print('done')", spec], stdout=out)
 print(child.pid, flush=True)
@@ -287,7 +288,7 @@ os._exit(0)  # killed, as it were, while its compile process starts
 
 
 def test_a_compile_process_whose_parent_died_takes_no_variant(tmp_path):
-    """A process of :func:`sweep.dispatch.load_kernels` whose parent was killed (a test
+    """A process of :func:`sweep.engine.dispatch.load_kernels` whose parent was killed (a test
     run, a notebook, ``make test``) has no one to compile for: it claims no variant and
     ends, instead of compiling the rest of the list on its own."""
     claims, out = tmp_path / "claims", tmp_path / "child.out"

@@ -17,8 +17,8 @@ import pytest
 import yaml
 from attractor_reference import Blocks, event_maxima, lyapunov_fit, zero_one_test
 
-from sweep import runner
 from sweep.config import parse_config
+from sweep.engine import runner
 from sweep.variables import ATTRACTORS, REGIMES
 
 #: The engine's final state of an inertial run, in the reference's order (ℓ, ψ, z).

@@ -1,4 +1,4 @@
-"""Self-audit (``sweep/audit.py``, ``python -m sweep audit``): long reruns without early
+"""Self-audit (``sweep/commands/audit.py``, ``python -m sweep audit``): long reruns without early
 exit and reruns with tighter tolerances agree with clearly classified points, catch a
 regime that is wrong in the file, and catch a chaotic transient whose runaway the
 default tolerance misses (checked against SciPy)."""
@@ -14,11 +14,12 @@ from conftest import PAPER_A, PAPER_B, SUBPROCESS_TIMEOUT, make_config
 from nblock_reference import Chain, run, start_state
 
 import sweep
-from sweep import cli, runner
-from sweep.audit import audit_config, audit_points, audit_result, tight_config
+from sweep import cli
 from sweep.codes import ATTRACTORS, code
-from sweep.dataset import write_netcdf
+from sweep.commands.audit import audit_config, audit_points, audit_result, tight_config
+from sweep.engine import runner
 from sweep.kernels import layout
+from sweep.results.dataset import write_netcdf
 
 #: Quasi-dynamic, one block, two axes. Kc/W = (B − A − η̂)/D0 = 0.05 (η = 0) and 0.045 µm⁻¹
 #: (η/W = 0.05 s/µm): K/Kc from 0.6 to 1.56, none within 10 % of Kc, so every point is

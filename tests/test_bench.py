@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from conftest import SUBPROCESS_TIMEOUT
 
-from sweep.physics import log_form_rhs
+from sweep.model.physics import log_form_rhs
 
 ROOT = Path(__file__).resolve().parent.parent
 

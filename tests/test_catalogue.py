@@ -12,11 +12,11 @@ from catalogue_reference import ChainModel, catalogue
 from conftest import make_config
 
 import sweep
-from sweep import dispatch, grid, runner
-from sweep.catalogue import MAGNITUDE_EDGES, catalogue_statistics, statistics
 from sweep.config import ConfigError
-from sweep.dataset import build_dataset, write_netcdf
+from sweep.engine import dispatch, grid, runner
 from sweep.kernels import integrate, layout
+from sweep.results.catalogue_statistics import MAGNITUDE_EDGES, catalogue_statistics, statistics
+from sweep.results.dataset import build_dataset, write_netcdf
 
 A, B, V = 0.03, 0.08, 0.1
 N_CHAIN = 16

@@ -54,7 +54,7 @@ from conftest import ANTI, PAPER_A, PAPER_B, make_config, run_grid
 from scipy.integrate import solve_ivp
 
 from sweep.kernels import layout
-from sweep.physics import log_form_rhs
+from sweep.model.physics import log_form_rhs
 
 A, B = PAPER_A, PAPER_B
 KC_QS = B - A
@@ -76,7 +76,7 @@ FEATURE_CALL = {"method": "DOP853", "rtol": 1e-12, "atol": 1e-14}
 
 def one_block_rhs(kappa, eta_hat=0.0, law="aging", mass_hat=0.0):
     """The brief's log form for one block, written with ``math`` (4x faster than the
-    numpy ``sweep.physics.log_form_rhs``, which ``test_one_block_rhs_is_the_brief`` compares
+    numpy ``sweep.model.physics.log_form_rhs``, which ``test_one_block_rhs_is_the_brief`` compares
     it with). Quasi-static / quasi-dynamic state (ℓ, ψ); inertial (ℓ, ψ, σ) with σ the
     spring force in excess of steady friction, m ẍ = W(σ − Aℓ − Bψ) (as
     test_models.physics_rhs)."""
@@ -104,7 +104,7 @@ def one_block_rhs(kappa, eta_hat=0.0, law="aging", mass_hat=0.0):
 
 
 def chain_rhs(nb, kappa1, kappa2, **extra):
-    """``sweep.physics.log_form_rhs`` (numpy, any number of blocks) as ``fun(t, y)``."""
+    """``sweep.model.physics.log_form_rhs`` (numpy, any number of blocks) as ``fun(t, y)``."""
 
     def fun(t, y):
         return log_form_rhs(t, y, A, B, kappa1, kappa2, nb, **extra)

@@ -12,8 +12,9 @@ import pytest
 import xarray as xr
 from conftest import KC_W, SUBPROCESS_TIMEOUT, make_config, write_config
 
-from sweep import cli, runner
-from sweep.physics import PARAMETERS
+from sweep import cli
+from sweep.engine import runner
+from sweep.model.physics import PARAMETERS
 from sweep.variables import REGIMES, variables_for
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -198,8 +199,8 @@ def test_compile_loads_every_configs_kernels(tmp_path, capsys):
     its unsettled runs ask for λ1; a bad config is refused with every problem and exit 2,
     before anything is compiled."""
     from sweep.config import load_config
-    from sweep.dispatch import grid_kernel
-    from sweep.grid import build_grid
+    from sweep.engine.dispatch import grid_kernel
+    from sweep.engine.grid import build_grid
 
     path = write_config(tmp_path / "damped.yaml", {"model": "quasi-dynamic",
                                                     "parameters": {"eta_W": 0.01}})  # fmt: skip

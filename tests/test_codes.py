@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 from conftest import make_config
 
-from sweep import codes, config, physics, variables
-from sweep.dataset import build_dataset
-from sweep.grid import build_grid
+from sweep import codes, config, variables
+from sweep.engine.grid import build_grid
 from sweep.kernels import layout
+from sweep.model import physics
+from sweep.results.dataset import build_dataset
 
 TABLES = {
     "MODELS": codes.MODELS,

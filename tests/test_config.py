@@ -18,7 +18,7 @@ from sweep.config import (
     load_config,
     parse_config,
 )
-from sweep.dataset import settings_attrs
+from sweep.results.dataset import settings_attrs
 
 SENTINEL = b"an earlier result that must survive\n"
 

@@ -9,11 +9,11 @@ import pytest
 import xarray as xr
 from conftest import KC_W, PAPER_A, PAPER_B, make_config, run_grid
 
-from sweep import runner
-from sweep.dataset import stored_config, write_netcdf
+from sweep.engine import runner
 from sweep.errors import ConfigError, InputError
 from sweep.kernels import layout
-from sweep.physics import PARAMETERS
+from sweep.model.physics import PARAMETERS
+from sweep.results.dataset import stored_config, write_netcdf
 from sweep.variables import BY_NAME, REGIMES, VARIABLES, variables_for
 
 A, B = PAPER_A, PAPER_B
@@ -273,7 +273,7 @@ def test_result_and_trace_files_pass_the_cf_checker(result, tmp_path):
     """Every CF-1.11 check of the IOOS compliance checker passes, warnings included
     (criteria strict): no _FillValue on coordinates, 32-bit counts, references. Traces:
     all but :data:`TRACE_CF_EXCEPTIONS`. compliance-checker is a test dependency."""
-    from sweep.trace import compute_trace, pin_config
+    from sweep.commands.trace import compute_trace, pin_config
 
     config, ds = result
     trace = compute_trace(pin_config(config, {a.name: a.values[0] for a in config.axes}, 50.0))
@@ -293,7 +293,7 @@ def test_plain_to_netcdf_of_a_run_passes_the_cf_checker(tmp_path):
     encoding writes no _FillValue on coordinates, so the file passes every CF check
     (and so does a trace's, but for its elapsed-time axis)."""
     import sweep
-    from sweep.trace import compute_trace, pin_config
+    from sweep.commands.trace import compute_trace, pin_config
 
     config = make_config(TWO_BLOCKS)
     ds = sweep.run(config, progress=False)

@@ -9,17 +9,19 @@ import numpy as np
 import pytest
 from conftest import QUICK, SUBPROCESS_TIMEOUT, assert_same_file
 
-from sweep import accelerate, runner, store
-from sweep.backends import Resources
+from sweep import accelerate
 from sweep.cli import main
 from sweep.config import load_config
-from sweep.dispatch import grid_kernel, load_kernel
-from sweep.grid import build_grid
+from sweep.engine import runner
+from sweep.engine.backends import Resources
+from sweep.engine.dispatch import grid_kernel, load_kernel
+from sweep.engine.grid import build_grid
+from sweep.io import parts as store
 
 dask = pytest.importorskip("dask")
 distributed = pytest.importorskip("distributed")
 
-from sweep import distributed as sweep_distributed  # noqa: E402 (needs dask)
+from sweep.engine import distributed as sweep_distributed  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -121,7 +123,7 @@ def test_api_runs_on_a_client_a_cluster_or_not_a_client(quick, quick_reference_f
     """``sweep.run(client=...)`` and ``Resources(scheduler=...)`` take a Client (left
     open) or a Cluster; anything else is the tool's InputError, not a TypeError."""
     import sweep
-    from sweep.dataset import write_netcdf
+    from sweep.results.dataset import write_netcdf
 
     for k, client in enumerate((local_client, local_client.cluster)):
         ds = sweep.run(quick, client=client, progress=False)

@@ -8,9 +8,9 @@ import xarray as xr
 
 import sweep
 from sweep import cli
+from sweep.commands.trace import compute_trace
 from sweep.config import load_config, with_changes
-from sweep.runner import run_sweep
-from sweep.trace import compute_trace
+from sweep.engine.runner import run_sweep
 
 
 @pytest.fixture(scope="module")

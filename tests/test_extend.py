@@ -1,4 +1,4 @@
-"""Continuing undecided runs (``sweep/extend.py``, ``python -m sweep extend``).
+"""Continuing undecided runs (``sweep/commands/extend.py``, ``python -m sweep extend``).
 
 Undecided runs are made with a short end time just below Kc: the oscillation is still
 growing at t_end = 50 D0/V. A continued run must settle them exactly as a run straight
@@ -15,11 +15,12 @@ import xarray as xr
 from conftest import SUBPROCESS_TIMEOUT, make_config
 from test_dataset import failing_to_netcdf
 
-from sweep import cli, runner
+from sweep import cli
+from sweep.commands.extend import extend_file, extend_result
 from sweep.config import STRUCTURED_FROM, parse_config, parse_stored_config
-from sweep.dataset import read_result, stored_config, write_netcdf
-from sweep.extend import extend_file, extend_result
+from sweep.engine import runner
 from sweep.kernels import layout
+from sweep.results.dataset import read_result, stored_config, write_netcdf
 
 #: Quasi-dynamic, η̂ = 0.01: Kc/W = 0.04 µm⁻¹; K/Kc = 0.85 (stick-slip, still growing at
 #: 50 D0/V, settled by 200), 1.1 and 1.5 (steady well before 50).

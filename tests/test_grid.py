@@ -11,9 +11,9 @@ from conftest import KC_W, PAPER_A, PAPER_B, assert_transition_at, make_config
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sweep import backends, grid, runner
-from sweep.backends import LocalThreads
-from sweep.dispatch import integrate_grid
+from sweep.engine import backends, grid, runner
+from sweep.engine.backends import LocalThreads
+from sweep.engine.dispatch import integrate_grid
 from sweep.kernels import layout
 
 A, B = PAPER_A, PAPER_B
@@ -161,7 +161,7 @@ def test_results_do_not_depend_on_chunking_property(mixed_reference, chunk_size,
 
 @pytest.mark.parametrize("threads", [1, 2, 3])
 def test_local_threads_give_the_serial_kernels_numbers(threads):
-    """Batches handed out to threads (sweep.backends.LocalThreads) give every row the
+    """Batches handed out to threads (sweep.engine.backends.LocalThreads) give every row the
     numbers of one serial kernel call over the whole grid, whatever the chunks."""
     g = grid.build_grid(make_config(MIXED))
     n = g.params.shape[0]
@@ -182,7 +182,7 @@ HOLD_TIMEOUT = 60.0
 
 
 class RecordingKernel:
-    """Stands in for ``integrate_grid`` in ``sweep.backends``: writes each row's index
+    """Stands in for ``integrate_grid`` in ``sweep.engine.backends``: writes each row's index
     into its results and logs ``("start" | "end", first row)`` of every batch in the
     order they happen. ``hold(first)`` is called at the start of each batch (it may
     wait); ``fail`` raises on the batch that starts at that row."""

@@ -1,14 +1,15 @@
 """Per-block parameters and the N-block config keys: coupling, lists, seeded spreads,
-spread axes and initial-condition ensembles (sweep/heterogeneity.py, sweep/config.py,
-sweep/grid.py)."""
+spread axes and initial-condition ensembles (sweep/model/heterogeneity.py, sweep/config.py,
+sweep/engine/grid.py)."""
 
 import numpy as np
 import pytest
 from conftest import ROOT, make_config
 
-from sweep import grid, heterogeneity
 from sweep.config import ConfigError, config_mapping, parse_config
+from sweep.engine import grid
 from sweep.kernels import layout
+from sweep.model import heterogeneity
 
 NB = {"blocks": 3, "parameters": {"k2_W": 0.02}}
 
@@ -150,7 +151,7 @@ def test_every_multi_block_config_has_the_nblock_outputs():
 
 def test_parts_of_other_couplings_or_blocks_are_not_reused():
     """The part files' config hash sees the coupling, per-block values and spreads."""
-    from sweep import store
+    from sweep.io import parts as store
 
     base = nblock_config(coupling="ring", spread={"A": 0.1, "seed": 1})
     variants = [

@@ -15,13 +15,13 @@ from conftest import (
 )
 from scipy.integrate import solve_ivp
 
-from sweep import physics
 from sweep.kernels import equations, layout
 from sweep.kernels import step as interpolant
 from sweep.kernels.classify import extrema, sequences, state
 from sweep.kernels.control import next_step_size
 from sweep.kernels.methods import bs23, dop853, dopri5
-from sweep.physics import log_form_rhs
+from sweep.model import physics
+from sweep.model.physics import log_form_rhs
 
 A, B = PAPER_A, PAPER_B
 #: model, state law, coupling codes and unequal blocks of one quasi-static aging block

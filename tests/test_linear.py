@@ -1,4 +1,4 @@
-"""Linear theory of unequal blocks (sweep/linear.py) against the analytic normal modes
+"""Linear theory of unequal blocks (sweep/model/linear.py) against the analytic normal modes
 of identical blocks, closed forms for uncoupled blocks, and finite differences of
 the kernels' right-hand side; the kernels' analytic Jacobian with every coupling
 and per-block parameters against finite differences."""
@@ -6,8 +6,8 @@ and per-block parameters against finite differences."""
 import numpy as np
 import pytest
 
-from sweep import linear, physics
 from sweep.kernels import equations, layout
+from sweep.model import linear, physics
 
 A, B = 0.03, 0.08
 MODEL_CODES = {

@@ -173,7 +173,7 @@ def test_linear_verdicts_end_the_runs_near_kc_early(both_ways):
 def test_a_grid_sweep_has_no_linear_verdicts():
     config = make_config(TWO_BLOCKS, sweep={"K_W": [KC_W * (1 + 1e-4)], "k2_W": [0.1]},
                          integrator={"t_end": 300.0})  # fmt: skip
-    from sweep.grid import build_grid
+    from sweep.engine.grid import build_grid
 
     assert build_grid(config).settings[layout.S_LINEAR_VERDICTS] == 0.0
     refined = make_config(TWO_BLOCKS, sweep={"K_W": [0.04, 0.06], "k2_W": [0.1]},

@@ -30,10 +30,10 @@ from conftest import (
 )
 from scipy.integrate import solve_ivp
 
-from sweep import physics
+from sweep.engine.runner import compute
 from sweep.kernels import equations, layout
 from sweep.kernels.methods import rodas4
-from sweep.runner import compute
+from sweep.model import physics
 
 A, B = PAPER_A, PAPER_B
 V, D0 = 0.1, 1.0  # µm/s, µm

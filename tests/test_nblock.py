@@ -109,8 +109,8 @@ def test_ensemble_does_not_depend_on_chunks_or_threads():
                  initial={"ensemble": 5, "seed": 3, "amplitude": 0.3},
                  integrator={"t_end": 400.0})  # fmt: skip
     config = sweep.load_config(cfg)
-    a = sweep.runner.compute(config, threads=1, chunk_size=1, show_progress=False)
-    b = sweep.runner.compute(config, threads=2, chunk_size=7, show_progress=False)
+    a = sweep.engine.runner.compute(config, threads=1, chunk_size=1, show_progress=False)
+    b = sweep.engine.runner.compute(config, threads=2, chunk_size=7, show_progress=False)
     for var in a.data_vars:
         np.testing.assert_array_equal(a[var].values, b[var].values, err_msg=var)
     assert a.regime.dims == ("K_W", "member")
@@ -125,7 +125,7 @@ def test_linear_theory_is_computed_once_per_parameter_set():
     """Repeated rows (an ensemble, a swept K) share one critical-stiffness search."""
     cfg = sweep.load_config(nblock(3, "chain", parameters={"D0": [1.0, 1.3, 0.8]},
                                    sweep={"K_W": [0.04, 0.05, 0.06]}))  # fmt: skip
-    kc = sweep.grid.build_grid(cfg).linear["kappa_c"]
+    kc = sweep.engine.grid.build_grid(cfg).linear["kappa_c"]
     assert np.unique(kc).size == 1
 
 
@@ -163,7 +163,7 @@ def test_identical_starts_stay_in_phase():
 
 def test_extending_an_ensemble_updates_its_regime_fractions(tmp_path):
     """``extend`` continues undecided members and recounts regime_fraction."""
-    from sweep import extend
+    from sweep.commands import extend
 
     cfg = nblock(3, "ring", parameters={"D0": [1.0, 1.3, 0.8]}, sweep={"K_W": [0.046, 0.049]},
                  initial={"ensemble": 3, "seed": 0}, integrator={"t_end": 50.0},
@@ -171,7 +171,7 @@ def test_extending_an_ensemble_updates_its_regime_fractions(tmp_path):
     ds = sweep.run(cfg, progress=False)
     assert (ds.regime == REGIMES.index("undecided")).all()
     path = tmp_path / "e.nc"
-    sweep.dataset.write_netcdf(ds, path)
+    sweep.results.dataset.write_netcdf(ds, path)
     out, n = extend.extend_file(path, t_end=3000.0)
     assert n == 6 and not (out.regime == REGIMES.index("undecided")).all()
     counts = [(out.regime == k).mean("member") for k in range(len(REGIMES))]

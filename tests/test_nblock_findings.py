@@ -25,7 +25,7 @@ from nblock_reference import FAST_CALL, Chain, cycle_features, run, start_state
 from test_classification import K2_C, two_block_cycle
 
 import sweep
-from sweep.grid import ensemble_offsets
+from sweep.engine.grid import ensemble_offsets
 from sweep.variables import REGIMES
 
 A, B = PAPER_A, PAPER_B

@@ -16,7 +16,7 @@ from conftest import PAPER_A, PAPER_B
 from nblock_reference import COUPLINGS, FAST_CALL, Chain, fd_jacobian, laplacian, run, start_state
 from nblock_reference import window_amplitudes as amplitudes
 
-from sweep.physics import log_form_rhs
+from sweep.model.physics import log_form_rhs
 
 A, B = PAPER_A, PAPER_B
 C = B - A
@@ -44,7 +44,7 @@ def test_jacobian_by_hand_is_the_finite_difference_one(coupling):
 
 def test_identical_chain_is_the_package_log_form():
     """Identical blocks on an open chain: the same right-hand side as
-    ``sweep.physics.log_form_rhs`` (the package's plain-numpy statement, written
+    ``sweep.model.physics.log_form_rhs`` (the package's plain-numpy statement, written
     separately) at random states."""
     rng = np.random.default_rng(5)
     chain = Chain(A, B, 1.0, 0.045, k2_W=0.03, n_blocks=4)

@@ -1,4 +1,4 @@
-"""Boundaries of refined results (sweep/phase_boundaries.py), and where theory puts them.
+"""Boundaries of refined results (sweep/refine/boundaries.py), and where theory puts them.
 
 The physics brief's closed forms: steady sliding of two quasi-static blocks is lost at
 Kc/W = (B − A)/D0 for every coupling k2 (section 3), of one radiation-damped block at
@@ -14,10 +14,11 @@ import xarray as xr
 from conftest import KC_W, ROOT, kc_w, make_config
 from test_refine import TWO_AXES, circle, made_up, refine_config
 
-from sweep import physics, runner
 from sweep.config import load_config, with_changes
-from sweep.phase_boundaries import boundaries
-from sweep.refine import Refinement
+from sweep.engine import runner
+from sweep.model import physics
+from sweep.refine.boundaries import boundaries
+from sweep.refine.lattice import Refinement
 from sweep.variables import ATTRACTORS, REGIMES
 
 
@@ -134,7 +135,7 @@ def test_one_damped_block_loses_steady_sliding_at_the_linear_theory_kc():
 def made_up_dataset(refinement):
     """A refined result of made-up labels: regime 0/1/2 as the labels, attractor the
     regime's, one event; what boundaries() reads, as a refinement writes it."""
-    from sweep.refined_dataset import index_name
+    from sweep.refine.dataset import index_name
 
     config = refinement.config
     codes = refinement.labels.outputs[0][2][:, 0].astype(np.int8)

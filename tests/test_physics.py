@@ -1,4 +1,4 @@
-"""The model's linear theory (sweep/physics.py) against the physics brief's closed forms,
+"""The model's linear theory (sweep/model/physics.py) against the physics brief's closed forms,
 and the kernels' right-hand side against that theory (fixed point, Jacobian)."""
 
 import numpy as np
@@ -6,8 +6,8 @@ import pytest
 from conftest import PAPER_A, PAPER_B
 from scipy.optimize import brentq
 
-from sweep import physics
 from sweep.kernels import equations, layout
+from sweep.model import physics
 
 A, B = PAPER_A, PAPER_B
 MODEL_CODES = {

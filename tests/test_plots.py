@@ -1,4 +1,5 @@
-"""Figures (sweep/plots.py, sweep/figures.py): phase diagrams, bifurcation, paper figures."""
+"""Figures (sweep/plots.py, sweep/commands/figures.py): phase diagrams, bifurcation, paper
+figures."""
 
 from pathlib import Path
 
@@ -8,7 +9,7 @@ from conftest import python_stdout
 
 from sweep.cli import main
 from sweep.config import config_mapping, load_config, parse_config, with_changes
-from sweep.dataset import write_netcdf
+from sweep.engine.runner import compute
 from sweep.plots import (
     REGIME_COLOURS,
     axis_label,
@@ -21,7 +22,7 @@ from sweep.plots import (
     stiffness_ratio,
     unit_text,
 )
-from sweep.runner import compute
+from sweep.results.dataset import write_netcdf
 from sweep.variables import REGIMES
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -260,7 +261,7 @@ def test_quasi_dynamic_cycle_near_onset_matches_the_physics_brief():
 
 @pytest.mark.slow
 def test_make_figures_on_small_configs(tmp_path):
-    from sweep.figures import make_figures
+    from sweep.commands.figures import make_figures
 
     paper = small(CONFIGS / "paper.yaml", "paper_small", integrator={"t_end": 400.0})
     twoblock = small(
@@ -362,7 +363,7 @@ def test_plots_are_figures_drawn_without_pyplot(one_d, tmp_path):
     code = f"""
 import sys, matplotlib
 matplotlib.use = lambda *args, **kwargs: sys.exit("matplotlib.use was called")
-from sweep.dataset import read_result
+from sweep.results.dataset import read_result
 from sweep.plots import plot_result, plot_variable, save_figure
 ds = read_result({str(result)!r})
 fig = plot_result(ds)
@@ -406,7 +407,7 @@ def test_plot_command_maps_any_variable_in_any_format(one_d, tmp_path, capsys):
 
 def test_reading_and_plotting_results_loads_no_numba():
     """Plots and result files need no kernels: importing them loads no numba (1.25 s)."""
-    code = "import sys, sweep.plots, sweep.dataset; print('numba' in sys.modules)"
+    code = "import sys, sweep.plots, sweep.results.dataset; print('numba' in sys.modules)"
     assert python_stdout(code).strip() == "False"
 
 
@@ -464,8 +465,8 @@ def test_a_refined_map_draws_its_cells_at_their_level_and_its_boundaries(refined
     the boundary on top; right: each cell's level. The cells tile the map."""
     from matplotlib.collections import PolyCollection
 
-    from sweep.refine import Lattice, cell_tree
-    from sweep.refined_dataset import lattice_index, refined_config
+    from sweep.refine.dataset import lattice_index, refined_config
+    from sweep.refine.lattice import Lattice, cell_tree
 
     fig = plot_result(refined_two_d, "a caption")
     assert_png(saved(fig, tmp_path / "refined.png"))

@@ -8,9 +8,9 @@ from pathlib import Path
 import precompile
 import pytest
 
-from sweep import dispatch
 from sweep.config import load_config
-from sweep.grid import build_grid
+from sweep.engine import dispatch
+from sweep.engine.grid import build_grid
 
 CONFIGS = sorted((Path(__file__).resolve().parents[1] / "configs").glob("*.yaml"))
 

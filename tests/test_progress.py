@@ -21,8 +21,8 @@ from conftest import SUBPROCESS_TIMEOUT
 from nbclient import NotebookClient
 
 from sweep import progress as progress_module
-from sweep import runner
-from sweep.backends import Resources
+from sweep.engine import runner
+from sweep.engine.backends import Resources
 from sweep.progress import Progress
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -36,7 +36,9 @@ from nblock_reference import Chain, start_state, window_amplitudes
 from nblock_reference import run as scipy_run
 from scipy.integrate import solve_ivp
 
-from sweep import figures, run
+from sweep import run
+from sweep.commands import figures
+from sweep.commands.trace import compute_trace, pin_config
 from sweep.config import (
     Catalogue,
     Classification,
@@ -45,9 +47,8 @@ from sweep.config import (
     load_config,
     parse_config,
 )
-from sweep.physics import log_form_rhs
-from sweep.runner import compute
-from sweep.trace import compute_trace, pin_config
+from sweep.engine.runner import compute
+from sweep.model.physics import log_form_rhs
 from sweep.variables import REGIMES
 
 PAPER = load_config(ROOT / "configs" / "paper.yaml")
@@ -480,7 +481,7 @@ def test_readme_names_each_models_default_method():
     ``NAME``)."""
     from sweep.config import METHODS
     from sweep.kernels.methods import MODULES
-    from sweep.physics import MODELS
+    from sweep.model.physics import MODELS
 
     readme = " ".join((ROOT / "README.md").read_text().split())
     sentence = (r"by default `(\w+)`[^;]*; `(\w+)` \((\w+),[^)]*\) for the stiff inertial "

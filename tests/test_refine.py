@@ -1,4 +1,4 @@
-"""The refinement plan (sweep/refine.py) on labels made up here, without a run.
+"""The refinement plan (sweep/refine/lattice.py) on labels made up here, without a run.
 
 A refinement must split exactly the cells whose corners differ, place its points where
 a finer uniform grid has them (bit for bit), keep its budget, and be read back from its
@@ -15,7 +15,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from sweep.config import range_values
-from sweep.refine import Labels, Lattice, Refinement, cell_tree, differs, point_labels
+from sweep.refine.lattice import Labels, Lattice, Refinement, cell_tree, differs, point_labels
 
 
 def refine_config(sweep, levels=4, **refine):

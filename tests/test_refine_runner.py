@@ -1,4 +1,4 @@
-"""Refined sweeps (sweep/refine_runner.py) keep the guarantees of the uniform sweep.
+"""Refined sweeps (sweep/engine/refined.py) keep the guarantees of the uniform sweep.
 
 The plan of each level is a function of the runs of the levels before, and every run
 is integrated independently, so the refined file must be *identical* (bit for bit, all
@@ -19,12 +19,13 @@ import xarray as xr
 from conftest import SUBPROCESS_TIMEOUT, assert_same_file, make_config, read_line, reference_file
 from test_runner import HELD_SWEEP, StopAfterFirstCheck
 
-from sweep import runner, store
-from sweep.backends import Resources
 from sweep.cli import main
 from sweep.config import load_config, with_changes
+from sweep.engine import runner
+from sweep.engine.backends import Resources
 from sweep.errors import InputError, Interrupted, RunError
-from sweep.refined_dataset import to_grid
+from sweep.io import parts as store
+from sweep.refine.dataset import to_grid
 
 #: Two quasi-static blocks over K/W × k2/W around Kc/W = 0.05 µm⁻¹ (between grid points),
 #: 3 levels: 15 cells, about 60 runs, none closer to Kc than 1 % (runs of a few 1000 D0/V).

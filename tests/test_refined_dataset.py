@@ -1,4 +1,4 @@
-"""The refined result (sweep/refined_dataset.py): one CF point file, and to_grid.
+"""The refined result (sweep/refine/dataset.py): one CF point file, and to_grid.
 
 to_grid(ds, 0) must be the uniform sweep of the config's grid (bit for bit), and at a
 finer level every grid point must hold its own run where it has one and else the
@@ -11,17 +11,17 @@ import xarray as xr
 from conftest import make_config
 from test_dataset import cf_report
 
-from sweep import runner
-from sweep.dataset import write_netcdf
+from sweep.engine import runner
 from sweep.errors import InputError
-from sweep.refine import Lattice, cell_tree
-from sweep.refined_dataset import (
+from sweep.refine.dataset import (
     is_refined,
     lattice_index,
     nearest_runs,
     refined_config,
     to_grid,
 )
+from sweep.refine.lattice import Lattice, cell_tree
+from sweep.results.dataset import write_netcdf
 
 #: Two quasi-static blocks about Kc/W = 0.05 µm⁻¹ (between points of every level), 4 levels.
 TWO_BLOCKS = {
@@ -171,7 +171,7 @@ def test_to_grid_refuses_what_it_cannot_do(refined, quick, monkeypatch):
     _, ds = refined
     with pytest.raises(ValueError, match=r"level must be an integer in \[0, 4\], got 5"):
         to_grid(ds, 5)
-    monkeypatch.setattr("sweep.refined_dataset.MAX_GRID_POINTS", 100)
+    monkeypatch.setattr("sweep.refine.dataset.MAX_GRID_POINTS", 100)
     with pytest.raises(ValueError, match="the grid of level 4 has 2.67e\\+03 points"):
         to_grid(ds, 4)
     with pytest.raises(InputError, match="not a refined result"):

@@ -31,12 +31,13 @@ from conftest import (
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sweep import backends, chunks, runner, store
-from sweep.backends import LocalThreads, Resources
 from sweep.cli import main
 from sweep.config import load_config, parse_config
-from sweep.dispatch import ready_kernel
-from sweep.grid import build_grid
+from sweep.engine import backends, chunks, runner
+from sweep.engine.backends import LocalThreads, Resources
+from sweep.engine.dispatch import ready_kernel
+from sweep.engine.grid import build_grid
+from sweep.io import parts as store
 
 #: 8 slow runs, for a kernel call long enough to signal during it: fixed-step RK4 with
 #: 1e6 steps per run (about 0.2 s each on one thread), runs kept going to t_end
@@ -79,7 +80,9 @@ def sweep_cli(*args, cwd, **popen):
 #: test signals or kills it at a known point, whatever the kernel's speed.
 HELD_SWEEP = r"""
 import sys
-from sweep import chunks, cli, runner
+from sweep import cli
+from sweep.engine import chunks
+from sweep.engine import runner
 
 def held(save):
     def save_then_wait(self, a, b):

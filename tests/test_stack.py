@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from conftest import make_config
 
-from sweep import codes, dispatch, grid
+from sweep import codes
+from sweep.engine import dispatch, grid
 from sweep.kernels import integrate, layout
 
 NO_JIT = pytest.mark.skipif(numba.config.DISABLE_JIT, reason="NUMBA_DISABLE_JIT=1: no stack")

@@ -18,8 +18,9 @@ from conftest import (
     without_provenance,
 )
 
-from sweep import runner, store
 from sweep.config import parse_config
+from sweep.engine import runner
+from sweep.io import parts as store
 
 
 @pytest.fixture(scope="module")

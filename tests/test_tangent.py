@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from conftest import KC_W, PAPER_A, PAPER_B, kc_w, make_config, run_grid
 
-from sweep import dispatch
 from sweep.codes import METHODS as CODE_TABLE
 from sweep.codes import code
-from sweep.grid import build_grid
+from sweep.engine import dispatch
+from sweep.engine.grid import build_grid
+from sweep.engine.runner import compute
 from sweep.kernels import equations, layout, tangent
 from sweep.kernels.methods import MODULES
-from sweep.runner import compute
 from sweep.variables import ATTRACTORS
 
 

@@ -1,4 +1,4 @@
-"""Single-system traces (sweep/trace.py) and ``python -m sweep trace``."""
+"""Single-system traces (sweep/commands/trace.py) and ``python -m sweep trace``."""
 
 from pathlib import Path
 
@@ -8,17 +8,17 @@ import xarray as xr
 from scipy.integrate import solve_ivp
 
 from sweep.cli import main
-from sweep.config import ConfigError, config_mapping, load_config, parse_config, with_changes
-from sweep.dispatch import integrate_grid
-from sweep.errors import InputError
-from sweep.grid import build_grid
-from sweep.kernels import layout
-from sweep.runner import compute
-from sweep.trace import (
+from sweep.commands.trace import (
     compute_trace,
     decimate,
     pin_config,
 )
+from sweep.config import ConfigError, config_mapping, load_config, parse_config, with_changes
+from sweep.engine.dispatch import integrate_grid
+from sweep.engine.grid import build_grid
+from sweep.engine.runner import compute
+from sweep.errors import InputError
+from sweep.kernels import layout
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
 QUICK = CONFIGS / "quick.yaml"

@@ -19,12 +19,13 @@ from hypothesis import strategies as st
 from test_nblock import nblock
 from test_runner import SLOW, held_sweep, sweep_cli
 
-from sweep import runner, zarr_store
-from sweep.backends import Resources
 from sweep.cli import main
 from sweep.config import load_config
-from sweep.dataset import read_result
+from sweep.engine import runner
+from sweep.engine.backends import Resources
 from sweep.errors import InputError
+from sweep.io import zarr as zarr_store
+from sweep.results.dataset import read_result
 from sweep.variables import variables_for
 
 #: File attributes only a Zarr store has: how to resume it and how to read it mid-run.

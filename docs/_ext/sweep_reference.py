@@ -63,8 +63,8 @@ class ConfigKeys(_Generated):
     and refine setting."""
 
     def lines(self):
-        from sweep import physics
         from sweep.config import Catalogue, Classification, Integrator, Refine
+        from sweep.model import physics
 
         out = []
         for name, info in physics.PARAMETERS.items():

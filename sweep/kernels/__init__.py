@@ -19,7 +19,7 @@
 
 (``tests/test_docstrings.py`` checks that this list names every module and method.)
 
-Only jitted loops live here; the equations are documented in ``sweep/physics.py``.
+Only jitted loops live here; the equations are documented in ``sweep/model/physics.py``.
 Everything a kernel needs is passed as an argument: numba's cache freezes globals,
 so module-level names are true constants.
 """

@@ -1,6 +1,6 @@
 """Right-hand side of the log-form equations and its analytic Jacobian.
 
-The equations are documented in ``sweep/physics.py`` (plain numpy); these are their
+The equations are documented in ``sweep/model/physics.py`` (plain numpy); these are their
 jitted forms on one system's state ``y`` (``layout`` docstring) and parameter row ``p``.
 """
 

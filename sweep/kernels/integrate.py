@@ -25,7 +25,6 @@ import math
 import numpy as np
 
 from ..accelerate import jit, jit_inline, jit_variant
-from .catalogue import K_CAPACITY, catalogue_arrays, catalogue_reads, catalogue_step
 from .classify.cycle import new_event
 from .classify.extrema import (
     cap_crossing,
@@ -71,6 +70,7 @@ from .layout import (
 )
 from .methods import MODULES
 from .record import record_end, record_start, record_step
+from .slip_events import K_CAPACITY, catalogue_arrays, catalogue_reads, catalogue_step
 from .stack import stack_matrix, stack_vector
 from .step import DENSE_ROWS, Step
 from .tangent import (
@@ -304,8 +304,9 @@ def grid_kernel(model, law, method, coupling, het, tangent, catalogue=False, n_f
                     y[j] = ynew[j]
                     f[j] = fnew[j]
                 if new_peak:
-                    new_event(t_new_peak, y, p, nb, A, B, win, past, past_cs, hist, limits, section,
-                              cs, accuracy, steady_amp, lin_growth, rtol, atol, horizon)  # fmt: skip
+                    new_event(t_new_peak, y, p, nb, A, B, win, past, past_cs, hist, limits,
+                              section, cs, accuracy, steady_amp, lin_growth, rtol, atol,
+                              horizon)  # fmt: skip
                 if early_exit and t >= t_settle:
                     regime = settled_early(new_peak, cs, n_confirm, y, lin_growth, steady_amp)
                     if regime >= 0:

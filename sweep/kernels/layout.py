@@ -105,7 +105,7 @@ S_EVENTS = next(_s)  # events whose ℓ_0 maxima and intervals each run reports 
 S_CATALOGUE = next(_s)  # slip events each run's catalogue keeps (0: no catalogue)
 S_CATALOGUE_AFTER = next(_s)  # events starting before this fraction of tau_end are not catalogued
 S_CATALOGUE_LNV = next(_s)  # a block slips in the catalogue's events while ℓ_i exceeds this
-S_LINEAR_VERDICTS = next(_s)  # 1: linear-regime runs labelled by their envelope's rate (classify/linear.py)
+S_LINEAR_VERDICTS = next(_s)  # 1: linear-regime verdicts on (classify/linear.py)
 N_SETTINGS = next(_s)
 
 # --- columns of the per-system statistics array -----------------------------
@@ -140,7 +140,7 @@ N_RESULTS = next(_r)
 
 # Then, with a catalogue (S_CATALOGUE > 0): the number of slip events the run had (all,
 # kept or not), then S_CATALOGUE events of N_EVENT_FIELDS columns each (E_*), NaN where
-# none (kernels/catalogue.py).
+# none (kernels/slip_events.py).
 _e = itertools.count()
 E_T_START = next(_e)  # time the first block's v rose through the threshold (D0/V)
 E_T_END = next(_e)  # time the last block's v fell through it (D0/V)

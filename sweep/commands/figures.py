@@ -2,7 +2,7 @@
 
 Every system is derived from ``configs/paper.yaml`` (the paper's one-block
 system, read with D0 = 1 µm: erratum 1) and integrated as a trace
-(``sweep/trace.py``); the phase diagram and bifurcation diagram come from
+(``sweep/commands/trace.py``); the phase diagram and bifurcation diagram come from
 ordinary sweeps (``configs/twoblock.yaml``, ``configs/bifurcation_*.yaml``), the orbit
 diagram of two unequal inertial blocks from ``configs/route_to_chaos.yaml``, and the
 refined map of two unequal radiation-damped blocks from ``configs/unequal_qd.yaml``
@@ -21,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import load_config, with_changes
-from .dataset import parameter_values
-from .errors import InputError
-from .plots import (
+from ..config import load_config, with_changes
+from ..errors import InputError
+from ..io.parts import check_writable
+from ..plots import (
     BLOCK_STYLES,
     DPI,
     draw_trace,
@@ -34,7 +34,7 @@ from .plots import (
     power_text,
     save_figure,
 )
-from .store import check_writable
+from ..results.dataset import parameter_values
 from .trace import compute_trace, pin_config
 
 #: Radiation damping per normal load of the quasi-dynamic comparison (s/µm): η̂ = η V/W = 0.001.
@@ -216,7 +216,8 @@ def critical_ratios(
     Returns a DataArray (coupling, blocks, seed)."""
     import xarray as xr
 
-    from . import grid, heterogeneity
+    from ..engine import grid
+    from ..model import heterogeneity
 
     # None removes a key: one K/W, identical starts at steady sliding, a D0 spread only
     changes = {
@@ -254,8 +255,8 @@ def figure_nblock(nblock="nblock", heterogeneous="heterogeneous", threads=None):
     """Many contact points: the critical stiffness against N and coupling, and the
     ensemble regime maps of ``heterogeneous`` (K/W × spread of D0) and ``nblock``
     (K/W × k2/W); returns the Figure."""
-    from .plots import plot_nblock
-    from .runner import compute
+    from ..engine.runner import compute
+    from ..plots import plot_nblock
 
     spread_config, coupling_config = load_config(heterogeneous), load_config(nblock)
     sizes = critical_ratios(spread_config)
@@ -272,8 +273,8 @@ def figure_refined(ds):
     """The refined map ``ds`` (a refined result): its cells at their level and the
     boundaries between its labels (``plots.plot_refined``), with the runs it took beside
     those of the uniform grid of its finest cells; returns the Figure."""
-    from .plots import plot_result
-    from .refined_dataset import refined_config
+    from ..plots import plot_result
+    from ..refine.dataset import refined_config
 
     config = refined_config(ds)
     levels = config.refine.levels
@@ -297,8 +298,8 @@ def figure_long_chain(ds, point=None):
     the sweep (``plots.plot_variable``), above one run's events in space and time and
     its size–frequency plot (``catalogue_plots.plot_catalogue`` at ``point``; default:
     the run with the most events); returns the Figure."""
-    from .catalogue_plots import plot_catalogue
-    from .plots import new_figure, plot_variable
+    from ..catalogue_plots import plot_catalogue
+    from ..plots import new_figure, plot_variable
 
     if point is None:
         busiest = ds["slip_event_count"].argmax(...)
@@ -332,10 +333,10 @@ def make_figures(
     the sweep with a catalogue whose statistics and busiest run are drawn.
     ``suffix``: ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
     """
-    from .dispatch import load_kernels
-    from .grid import build_grid
-    from .plots import plot_bifurcation, plot_orbit_diagram, plot_result
-    from .runner import compute
+    from ..engine.dispatch import load_kernels
+    from ..engine.grid import build_grid
+    from ..engine.runner import compute
+    from ..plots import plot_bifurcation, plot_orbit_diagram, plot_result
 
     out_dir = Path(out_dir)
     # every input and the output folder are checked before any work

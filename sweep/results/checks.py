@@ -1,13 +1,13 @@
 """What makes a Dataset a complete sweep result, or a trace: the variables and
 attributes a run writes, checked before a file is read on
-(:func:`sweep.dataset.read_result`) and before a plot or a catalogue statistic uses a
+(:func:`sweep.results.dataset.read_result`) and before a plot or a catalogue statistic uses a
 Dataset it was given."""
 
 import xarray as xr
 
-from .config import parse_config
-from .errors import ConfigError
-from .variables import REGIMES, variables_for
+from ..config import parse_config
+from ..errors import ConfigError
+from ..variables import REGIMES, variables_for
 
 #: Variables by which a file is recognised as a sweep result at all.
 RESULT_VARIABLES = ("regime", "K_over_Kc", "lnv_amplitude")
@@ -48,13 +48,13 @@ def missing_parts(ds):
 
 def check_trace(ds, argument="ds"):
     """Raise TypeError unless ``ds`` is an xarray Dataset, ValueError (naming what is
-    missing) unless it is a trace (:func:`sweep.trace.compute_trace`) with what its
+    missing) unless it is a trace (:func:`sweep.commands.trace.compute_trace`) with what its
     figure reads: the velocities, the run's regime and its statistics."""
     if not isinstance(ds, xr.Dataset):
         raise TypeError(f"{argument} must be a trace Dataset, got {type(ds).__name__}")
     if "velocity" not in ds:
         raise ValueError(
-            f"{argument} must be a trace Dataset (sweep.trace or python -m sweep trace)"
+            f"{argument} must be a trace Dataset (sweep.commands.trace or python -m sweep trace)"
         )
     regime = ds.attrs.get("regime")
     if regime not in REGIMES:

@@ -6,15 +6,15 @@ the chunk size, the number of threads or workers, sharding or resumption.
 
 A sweep of ``n`` systems (rows of the C-ordered grid) is cut into chunks of
 ``chunk_size`` rows. Chunks run on threads of this process (batches of a
-chunk's systems) or as Dask tasks (``sweep/backends.py``). Each
-finished chunk is saved at once as a part file (``sweep/store.py``); with
+chunk's systems) or as Dask tasks (``sweep/engine/backends.py``). Each
+finished chunk is saved at once as a part file (``sweep/io/parts.py``); with
 ``resume=True`` the rows already saved are read back instead of recomputed.
 The NetCDF is written once every row is known, and the parts are removed only
 after that. ``shard=(i, n_shards)`` computes only the chunks ``k`` with
 ``k % n_shards == i`` and leaves them as parts, for job arrays. An output
-ending in ``.zarr`` is a Zarr store instead (``sweep/zarr_store.py``): created
+ending in ``.zarr`` is a Zarr store instead (``sweep/io/zarr.py``): created
 full size up front, each chunk written into it as it finishes, no parts.
-The chunks, parts and atomic write it shares with refinements are ``sweep/chunks.py``.
+The chunks, parts and atomic write it shares with refinements are ``sweep/engine/chunks.py``.
 """
 
 from __future__ import annotations
@@ -27,7 +27,19 @@ from pathlib import Path
 
 import numpy as np
 
-from . import store, zarr_store
+from ..config import Config, parse_config
+from ..errors import (
+    ConfigError,
+    InputError,
+    Interrupted,  # noqa: F401 (what run_sweep raises when it is stopped)
+    PartError,
+    RunError,
+)
+from ..io import parts as store
+from ..io import zarr as zarr_store
+from ..kernels.layout import result_width
+from ..progress import Progress
+from ..results.dataset import build_dataset
 from .backends import DaskTasks, LocalThreads, Resources, open_backend
 from .chunks import (
     PartStore,
@@ -48,18 +60,7 @@ from .chunks import (
     run_saving,
     write_result,
 )
-from .config import Config, parse_config
-from .dataset import build_dataset
-from .errors import (
-    ConfigError,
-    InputError,
-    Interrupted,  # noqa: F401 (what run_sweep raises when it is stopped)
-    PartError,
-    RunError,
-)
 from .grid import build_grid, settings_array, state_size
-from .kernels.layout import result_width
-from .progress import Progress
 
 log = logging.getLogger(__name__)
 
@@ -72,7 +73,7 @@ def compute(config, threads=None, chunk_size=None, show_progress=True, client=No
     ``command``: what is running it, for the file's ``history`` (``dataset.provenance``).
     """
     if config.refine is not None:
-        from .refine_runner import compute_refined
+        from .refined import compute_refined
 
         return compute_refined(config, threads, chunk_size, show_progress, client, command)
     grid = build_grid(config)
@@ -106,7 +107,7 @@ def run_sweep(
     What ``python -m sweep run`` does: chunks run on threads or Dask, each kept as
     a part file as it finishes, so an interrupted sweep resumes where it stopped.
     A config with a ``refine`` section runs level by level
-    (``sweep/refine_runner.py``), its runs along one dimension, ``point``.
+    (``sweep/engine/refined.py``), its runs along one dimension, ``point``.
 
     Parameters
     ----------
@@ -116,7 +117,7 @@ def run_sweep(
         NetCDF output (default: the config's ``output``); parts go to
         ``<out without .nc>.parts/``. A ``.zarr`` path is a Zarr store filled
         chunk by chunk (its chunks are the runner's; ``shard`` is refused).
-    resources : sweep.backends.Resources, optional
+    resources : sweep.engine.backends.Resources, optional
         Where the chunks run: ``threads`` on this machine (default: all cores), or Dask (a
         ``scheduler`` address or ``dask_local`` worker processes).
     chunk_size : int, optional
@@ -153,7 +154,7 @@ def run_sweep(
         result file is left as it was, and the parts written so far are kept.
     """
     if config.refine is not None:
-        from .refine_runner import run_refined
+        from .refined import run_refined
 
         return run_refined(config, out, resources=resources, chunk_size=chunk_size,
                            resume=resume, shard=shard, show_progress=show_progress,
@@ -289,7 +290,7 @@ def _merge_locked(paths, out):
         raise InputError("merge", [f"no part files in {', '.join(map(str, paths))}"])
     refined = next((c for c in map(_part_config, groups.values()) if c and c.refine), None)
     if refined is not None:  # the parts of a refinement's levels: replayed level by level
-        from .refine_runner import merge_refined
+        from .refined import merge_refined
 
         return merge_refined(refined, groups, paths, out)
     problems = []

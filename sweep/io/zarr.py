@@ -34,10 +34,10 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from .dataset import data_variables, derived_fields, parameter_coords, provenance
-from .errors import InputError
-from .kernels.layout import result_width
-from .store import config_hash, require_zarr
+from ..errors import InputError
+from ..kernels.layout import result_width
+from ..results.dataset import data_variables, derived_fields, parameter_coords, provenance
+from .parts import config_hash, require_zarr
 
 log = logging.getLogger(__name__)
 

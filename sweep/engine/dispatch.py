@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .kernels import layout
+from ..kernels import layout
 
 log = logging.getLogger(__name__)
 
@@ -37,7 +37,7 @@ def grid_kernel(params, settings, tangent=None):
     whether blocks differ from the width of ``params``, and whether it carries the
     tangent for λ1 (``tangent``; default: where every run asks for λ1 from its start,
     ``lyapunov: always``)."""
-    from .kernels.integrate import grid_kernel as build  # numba: on first use
+    from ..kernels.integrate import grid_kernel as build  # numba: on first use
 
     with _BUILD:  # one dispatcher per variant, also when threads ask at once
         return build(*variant(params, settings, tangent))
@@ -175,7 +175,7 @@ def load_kernels(jobs, processes=None, here=True):
     off (``SWEEP_NUMBA_CACHE=0``), one variant to build or one process, they are
     compiled here one after another; if a process failed, what it left is compiled
     here (with a warning)."""
-    from .accelerate import CACHE, thread_count
+    from ..accelerate import CACHE, thread_count
 
     wanted = {}
     for params, settings, tangent in jobs:
@@ -217,7 +217,7 @@ def _compile_elsewhere(groups, claims):
     env = dict(os.environ)
     package_root = str(Path(__file__).resolve().parents[1])  # this copy of sweep
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [package_root, env.get("PYTHONPATH")]))
-    code = "import sys; from sweep.dispatch import compile_specs; compile_specs(sys.argv[1])"
+    code = "import sys; from sweep.engine.dispatch import compile_specs; compile_specs(sys.argv[1])"
     proc = subprocess.run([sys.executable, "-c", code, spec], env=env, capture_output=True,
                           text=True)  # fmt: skip
     return None if proc.returncode == 0 else proc.stderr.strip()[-500:]

@@ -48,8 +48,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._version import __version__
-from .errors import InputError, OutputBusy, PartError
+from .._version import __version__
+from ..errors import InputError, OutputBusy, PartError
 
 #: Bumped when the layout of a part file changes.
 PART_FORMAT = 1
@@ -69,7 +69,7 @@ NUMERIC_MODULES = (
 )
 PART_NAME = re.compile(r"^(?P<hash>[0-9a-f]{16})_(?P<start>\d+)-(?P<stop>\d+)_of_(?P<n>\d+)\.npz$")
 TEMP_PREFIX = ".part-"
-#: The suffix of a Zarr directory store (``sweep/zarr_store.py``).
+#: The suffix of a Zarr directory store (``sweep/io/zarr.py``).
 ZARR_SUFFIX = ".zarr"
 #: A temporary part file: ``.part-<host>-<pid>-<random>.tmp`` (see ``replaced_atomically``).
 TEMP_NAME = re.compile(r"^\.part-(?P<host>.+)-(?P<pid>\d+)-[0-9a-f]+\.tmp$")
@@ -104,7 +104,7 @@ def config_hash(config):
     here = Path(__file__).parent
     for name in NUMERIC_MODULES:
         if name == "kernels":
-            from .accelerate import source_digest  # numba: only where parts are keyed
+            from ..accelerate import source_digest  # numba: only where parts are keyed
 
             digest.update(source_digest().encode())
         else:

@@ -22,22 +22,22 @@ from collections.abc import Mapping
 import numpy as np
 import xarray as xr
 
-from . import physics
-from .config import Config, ConfigError, with_changes
-from .dataset import (
+from ..config import Config, ConfigError, with_changes
+from ..engine.dispatch import integrate_grid
+from ..engine.grid import build_grid
+from ..errors import InputError
+from ..kernels import layout
+from ..model import physics
+from ..model.heterogeneity import SPREAD_AXES, SPREAD_PREFIX
+from ..model.physics import PARAMETERS
+from ..results.dataset import (
     derived_fields,
     parameter_attrs,
     parameter_coords,
     provenance,
     without_coordinate_fill,
 )
-from .dispatch import integrate_grid
-from .errors import InputError
-from .grid import build_grid
-from .heterogeneity import SPREAD_AXES, SPREAD_PREFIX
-from .kernels import layout
-from .physics import PARAMETERS
-from .variables import REGIMES, variables_for
+from ..variables import REGIMES, variables_for
 
 #: Fine samples recorded per output point before decimation.
 OVERSAMPLE = 50
@@ -241,9 +241,9 @@ def run_trace(config, at, out=None, png=None, t_end=None, points=4000, dpi=None)
     """
     from pathlib import Path
 
-    from .dataset import write_netcdf
-    from .plots import DPI, FORMATS, plot_trace, save_figure
-    from .store import check_writable
+    from ..io.parts import check_writable
+    from ..plots import DPI, FORMATS, plot_trace, save_figure
+    from ..results.dataset import write_netcdf
 
     pinned = pin_config(config, at, t_end)
     stem = "_".join(f"{name}={value:g}" for name, value in at.items())

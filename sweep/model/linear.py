@@ -11,7 +11,7 @@ laws give ψ_i' = −r_i (ℓ_i + ψ_i))::
                               z_i' = −κ1_i ℓ_i − κ2 Σ_j L_ij ℓ_j + B_i r_i (ℓ_i + ψ_i) − A_i z_i/M̂
 
 with L the coupling graph's Laplacian. Identical blocks keep the analytic normal
-modes of ``sweep/physics.py``; for unequal ones the eigenvalues of this Jacobian
+modes of ``sweep/model/physics.py``; for unequal ones the eigenvalues of this Jacobian
 give the growth rate, and the critical stiffness is where the largest real part
 crosses zero as the common K_W varies with the per-block ratios K_i/K fixed.
 """
@@ -202,7 +202,7 @@ def theory(config, phys, dl, values):
 
     Returns a dict of arrays: ``growth_rate`` (max Re λ), ``kappa_c`` (critical
     common κ = Kc D0/W) and ``omega`` (|Im λ| at onset). Systems whose blocks are
-    identical use the analytic modes of ``sweep/physics.py``; the others the
+    identical use the analytic modes of ``sweep/model/physics.py``; the others the
     eigenvalues of :func:`steady_jacobian`.
     """
     args = (config.model, dl["A"], dl["B"], dl["eta_hat"], dl["mass_hat"])

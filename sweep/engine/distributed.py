@@ -18,7 +18,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from .errors import InputError, RunError
+from ..errors import InputError, RunError
 
 log = logging.getLogger(__name__)
 
@@ -34,8 +34,8 @@ def chunk_task(params, y0, settings):
     writable so the kernel's compiled signature (and cache entry) is reused.
     Returns ``(results, y_final)``.
     """
+    from ..kernels.layout import result_width
     from .dispatch import integrate_grid
-    from .kernels.layout import result_width
 
     params, y0, settings = (np.require(a, np.float64, ["C", "W"]) for a in (params, y0, settings))
     results = np.empty((params.shape[0], result_width(settings)))
@@ -126,7 +126,7 @@ def submit_chunks(client, params, y0, settings, ranges, stop=None):
     Yields ``(start, stop, results, y_final)`` per range, in completion order.
     At most a few tasks per worker thread are in flight, so the client's memory
     does not hold a second copy of the whole grid. ``stop`` (a
-    :class:`~sweep.chunks.StopRequest`) is checked every ``POLL`` seconds;
+    :class:`~sweep.engine.chunks.StopRequest`) is checked every ``POLL`` seconds;
     when set, unfinished tasks are cancelled and the generator returns.
     """
     from distributed import wait

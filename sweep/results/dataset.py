@@ -17,25 +17,25 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from . import heterogeneity
-from ._version import __version__
-from .catalogue import MAGNITUDE_EDGES, catalogue_fields
-from .config import parse_stored_config
-from .errors import ConfigError, InputError
-from .physics import PARAMETERS
-from .result_check import RESULT_VARIABLES, missing_parts
-from .store import ZARR_SUFFIX, replaced_atomically, require_zarr
-from .variables import ATTRACTORS, REGIMES, SCALES, VARIABLES, variables_for
+from .._version import __version__
+from ..config import parse_stored_config
+from ..errors import ConfigError, InputError
+from ..io.parts import ZARR_SUFFIX, replaced_atomically, require_zarr
+from ..model import heterogeneity
+from ..model.physics import PARAMETERS
+from ..variables import ATTRACTORS, REGIMES, SCALES, VARIABLES, variables_for
+from .catalogue_statistics import MAGNITUDE_EDGES, catalogue_fields
+from .checks import RESULT_VARIABLES, missing_parts
 
 
 def derived_fields(grid, results, y_final):
     """Every output variable as a flat array (per system, or per system × block).
 
-    ``grid``: the :class:`~sweep.grid.Grid` the kernels ran (its physical and
+    ``grid``: the :class:`~sweep.engine.grid.Grid` the kernels ran (its physical and
     dimensionless parameters); ``results``, ``y_final``: their outputs, one row per
     system of the grid.
     """
-    from .kernels import layout
+    from ..kernels import layout
 
     config, phys, time_unit = grid.config, grid.physical, grid.time_unit
     r = results
@@ -331,7 +331,7 @@ def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
     Parameters
     ----------
     ds : xarray.Dataset
-        A result (:func:`sweep.run`) or a trace (:func:`sweep.trace.compute_trace`).
+        A result (:func:`sweep.run`) or a trace (:func:`sweep.commands.trace.compute_trace`).
     path : str or pathlib.Path
         The file; missing folders are created.
 

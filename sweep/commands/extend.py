@@ -25,8 +25,14 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from .config import with_changes
-from .dataset import (
+from ..config import with_changes
+from ..engine.grid import build_grid
+from ..engine.runner import integrate_in_memory
+from ..errors import InputError, RunError
+from ..io.parts import ZARR_SUFFIX, check_writable, output_lock
+from ..kernels import layout
+from ..progress import Progress
+from ..results.dataset import (
     derived_fields,
     read_result,
     regime_fractions,
@@ -34,13 +40,7 @@ from .dataset import (
     utc_now,
     write_netcdf,
 )
-from .errors import InputError, RunError
-from .grid import build_grid
-from .kernels import layout
-from .progress import Progress
-from .runner import integrate_in_memory
-from .store import ZARR_SUFFIX, check_writable, output_lock
-from .variables import variables_for
+from ..variables import variables_for
 
 #: Variables from linear theory, not from the run: never recomputed.
 LINEAR_THEORY = ("linear_growth_rate", "critical_K_W", "K_over_Kc", "onset_period")

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .codes import REGIMES, code
-from .config import range_values
+from ..codes import REGIMES, code
+from ..config import range_values
 
 #: Why a refinement stopped (the ``refine_stopped`` file attribute).
 STOPPED = {
@@ -182,8 +182,8 @@ def point_labels(config, fields):
     member m alike). With ``refine.split_undecided: false`` the points whose runs (every
     member's) are all undecided, and those whose runs are all steady, are marked.
     """
-    from .dataset import regime_fractions
-    from .variables import BY_NAME
+    from ..results.dataset import regime_fractions
+    from ..variables import BY_NAME
 
     members = config.members
     n = len(fields["regime"]) // members

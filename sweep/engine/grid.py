@@ -9,7 +9,7 @@ perturbation one row of initial state. A Grid is built once per run
 (:func:`build_grid`) and handed on to the kernels and the Dataset.
 
 Per-block parameters are made dimensionless with one reference D0 (the common
-value, ``sweep/heterogeneity.py``): κ1_i = K_i D0/W, and block i's state evolves
+value, ``sweep/model/heterogeneity.py``): κ1_i = K_i D0/W, and block i's state evolves
 at the rate factor D0/D0_i (ψ_i' = (D0/D0_i)(e^(−ψ_i) − e^ℓ_i)).
 """
 
@@ -18,8 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import codes, heterogeneity, linear, physics
-from .kernels import layout
+from .. import codes
+from ..kernels import layout
+from ..model import heterogeneity, linear, physics
 
 
 def physical_parameters(config, points=None):
@@ -30,7 +31,7 @@ def physical_parameters(config, points=None):
     Swept spread sizes appear as ``spread_<name>``; per-block lists by their common
     value (the mean). With an ensemble every grid point is repeated per member.
     ``points``: axis name → 1-D array of values, the points to take instead of the
-    grid (e.g. those of a refinement, ``sweep/refine.py``), in order.
+    grid (e.g. those of a refinement, ``sweep/refine/lattice.py``), in order.
     """
     if points is None:
         mesh = np.meshgrid(*(np.asarray(a.values) for a in config.axes), indexing="ij")

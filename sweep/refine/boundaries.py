@@ -1,6 +1,6 @@
 """Phase boundaries of a refined result, as polylines in parameter space.
 
-A refinement (``sweep/refine.py``) leaves unsplit cells whose corners differ in label
+A refinement (``sweep/refine/lattice.py``) leaves unsplit cells whose corners differ in label
 only where it stopped: at its finest level, or where ``max_runs`` cut it. The boundary
 between two labels crosses each such cell; how far it is known is the cell's size.
 Over two axes each cell is cut as in marching squares: a crossing at the middle of
@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from .refine import Lattice, axis_values, cell_tree, point_labels
-from .refined_dataset import lattice_index, refined_config
+from .dataset import lattice_index, refined_config
+from .lattice import Lattice, axis_values, cell_tree, point_labels
 
 #: Attractors that a regime implies (not repeated in a label).
 IMPLIED = {"steady": "fixed_point", "runaway": "unbounded", "undecided": "unresolved"}
@@ -119,7 +119,7 @@ def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Bou
     -------
     list of Boundary
         One record per polyline (``between``, ``axes``, ``vertices``, ``resolution``,
-        ``level``; see :class:`~sweep.phase_boundaries.Boundary`), sorted by the labels
+        ``level``; see :class:`~sweep.refine.boundaries.Boundary`), sorted by the labels
         they separate, then by their first vertex.
 
     Raises

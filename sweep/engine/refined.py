@@ -1,9 +1,9 @@
 """Orchestration of a refinement: level after level, each run as any sweep's chunks are.
 
-The plan of a level (``sweep/refine.py``) needs every run of the level before, so levels
+The plan of a level (``sweep/refine/lattice.py``) needs every run of the level before, so levels
 run one after another; within a level the points are a sweep of their own: cut into
-chunks, integrated on threads or as Dask tasks (``sweep/backends.py``), each finished
-chunk saved at once as a part (``sweep/store.py``). A level's parts are named by its
+chunks, integrated on threads or as Dask tasks (``sweep/engine/backends.py``), each finished
+chunk saved at once as a part (``sweep/io/parts.py``). A level's parts are named by its
 *level key*, a hash of the config's hash (``store.config_hash``: everything that
 changes the numbers), the level and the kernels' arrays of its points, so they are only
 ever used for those very runs. The plan is a function of the runs, which do not depend
@@ -26,7 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
-from . import store
+from ..errors import Interrupted, RunError
+from ..io import parts as store
+from ..kernels.layout import result_width
+from ..progress import Progress
+from ..refine.dataset import build_point_dataset
+from ..refine.lattice import Refinement, point_labels
+from ..results.dataset import derived_fields
 from .backends import DaskTasks, LocalThreads, open_backend
 from .chunks import (
     PartStore,
@@ -46,13 +52,7 @@ from .chunks import (
     run_saving,
     write_result,
 )
-from .dataset import derived_fields
-from .errors import Interrupted, RunError
 from .grid import build_grid
-from .kernels.layout import result_width
-from .progress import Progress
-from .refine import Refinement, point_labels
-from .refined_dataset import build_point_dataset
 
 log = logging.getLogger(__name__)
 
@@ -72,7 +72,7 @@ def level_key(chash, level, grid):
 def refine_levels(config, run_level, timings=None):
     """Run the refinement of ``config``: level by level, ``run_level(level, index, grid)``
     returns ``(results, y_final)`` of the level's points ``index`` (their
-    :class:`~sweep.grid.Grid`: ``grid``). Returns ``(refinement, grid, results,
+    :class:`~sweep.engine.grid.Grid`: ``grid``). Returns ``(refinement, grid, results,
     y_final)`` over all points, in order. ``timings`` (a dict) gets the seconds spent
     planning and labelling (``planning``) and running (``integration``)."""
     timings = {} if timings is None else timings
@@ -103,7 +103,7 @@ def _desc(config, level):
 def compute_refined(config, threads=None, chunk_size=None, show_progress=True, client=None,
                     command="run"):  # fmt: skip
     """Run the refinement of ``config`` in memory and return its Dataset (nothing written);
-    arguments as for :func:`sweep.runner.compute`. Progress is shown per level."""
+    arguments as for :func:`sweep.engine.runner.compute`. Progress is shown per level."""
     backend = LocalThreads(threads) if client is None else DaskTasks(client)
     first = build_grid(config)
     backend.compile(first.params, first.settings)
@@ -124,7 +124,7 @@ def run_refined(config, out=None, *, resources=None, chunk_size=None, resume=Fal
                 show_progress=True, stop=None):  # fmt: skip
     """Run the refinement of ``config`` level by level, saving each chunk as a part, and
     write the NetCDF result; arguments, errors and result as for
-    :func:`sweep.runner.run_sweep` (whose refined configs come here). A ``.zarr`` output
+    :func:`sweep.engine.runner.run_sweep` (whose refined configs come here). A ``.zarr`` output
     is refused: the points of a refinement are not known before it runs.
     ``SweepResult.timings``: seconds spent running, planning and writing."""
     start_time = time.perf_counter()

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .codes import MODELS, STATE_LAWS  # noqa: F401 (the models and laws, named here)
+from ..codes import MODELS, STATE_LAWS  # noqa: F401 (the models and laws, named here)
 
 
 @dataclass(frozen=True)

@@ -20,15 +20,15 @@ import os
 import numpy as np
 import xarray as xr
 
-from .dataset import stored_config
-from .errors import InputError
+from ..engine.grid import build_grid, initial_state
+from ..engine.runner import integrate_in_memory
+from ..errors import InputError
+from ..kernels import layout
+from ..model.physics import PARAMETERS
+from ..progress import Progress
+from ..results.dataset import stored_config
+from ..variables import ATTRACTORS, REGIMES
 from .extend import final_state, load_result
-from .grid import build_grid, initial_state
-from .kernels import layout
-from .physics import PARAMETERS
-from .progress import Progress
-from .runner import integrate_in_memory
-from .variables import ATTRACTORS, REGIMES
 
 
 def audit_points(ds, sample=20, near_kc=0.01, seed=0):

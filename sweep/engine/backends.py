@@ -13,7 +13,7 @@ one it has:
 Both call the same serial grid kernel, and threads have one owner
 (``sweep/accelerate.py``): :class:`LocalThreads` runs it on its own Python threads
 (the kernel releases the GIL); :class:`DaskTasks` submits it as tasks
-(``sweep/distributed.py``) and Dask owns the threads.
+(``sweep/engine/distributed.py``) and Dask owns the threads.
 """
 
 import logging
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import accelerate
+from .. import accelerate
 from .dispatch import integrate_grid, load_kernel
 
 log = logging.getLogger(__name__)
@@ -161,7 +161,7 @@ def _batches(ranges, threads):
 
 def _outputs(n, n_vars, settings):
     """Empty ``(results, y_final)`` for ``n`` systems of ``n_vars`` state variables."""
-    from .kernels.layout import result_width
+    from ..kernels.layout import result_width
 
     return np.empty((n, result_width(settings))), np.empty((n, n_vars))
 
@@ -199,7 +199,7 @@ def open_backend(resources=None, client=None):
     """The backend for ``resources`` (default: threads on all cores), open for the block.
 
     ``client``: an open Dask client to use instead (left open). A Dask backend
-    connects first (:func:`sweep.distributed.connect`) and closes what it opened.
+    connects first (:func:`sweep.engine.distributed.connect`) and closes what it opened.
     """
     resources = resources or Resources()
     if client is not None:

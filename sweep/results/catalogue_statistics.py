@@ -1,6 +1,6 @@
 """The slip-event catalogue of each run and its statistics, in physical units.
 
-The kernels write each run's catalogue as it goes (``kernels/catalogue.py``: what an
+The kernels write each run's catalogue as it goes (``kernels/slip_events.py``: what an
 event is, how its slip is integrated); here it becomes output variables along a
 ``slip_event`` dimension and the statistics of each run:
 
@@ -28,8 +28,8 @@ import math
 import numpy as np
 import xarray as xr
 
-from .kernels import layout
-from .result_check import check_result
+from ..kernels import layout
+from .checks import check_result
 
 #: Edges of the magnitude bins of ``magnitude_count``: −4 to 4 in steps of 0.2
 #: (events beyond them count in the end bins).
@@ -64,7 +64,7 @@ def event_table(results, settings):
 def catalogue_fields(grid, results):
     """The catalogue's output variables as flat arrays (per run, or per run × event),
     in physical units: times in s from the run's start, slip in um, velocities in um/s
-    (``grid``: the :class:`~sweep.grid.Grid` the kernels ran)."""
+    (``grid``: the :class:`~sweep.engine.grid.Grid` the kernels ran)."""
     count, ev = event_table(results, grid.settings)
     time_unit = grid.time_unit[:, None]
     d0 = grid.physical["D0"] * np.ones(len(results))

@@ -1,6 +1,6 @@
 """The Dataset of a refined sweep: the runs of every level along one ``point`` dimension.
 
-A refinement (``sweep/refine.py``) runs points on lattices of different levels, so its
+A refinement (``sweep/refine/lattice.py``) runs points on lattices of different levels, so its
 result is not a grid: every run is a *point* with the swept parameters as coordinates
 on it (``K_W(point)``, ...), its ``level`` (0: the config's grid) and its integer
 index on the finest lattice (``K_W_index(point)``, ...). Data variables are those of a
@@ -17,16 +17,16 @@ import dataclasses
 import numpy as np
 import xarray as xr
 
-from .config import parse_stored_config
-from .dataset import (
+from ..config import parse_stored_config
+from ..errors import ConfigError, InputError
+from ..results.dataset import (
     data_variables,
     derived_fields,
     parameter_attrs,
     parameter_coords,
     provenance,
 )
-from .errors import ConfigError, InputError
-from .refine import STOPPED, Lattice, axis_values
+from .lattice import STOPPED, Lattice, axis_values
 
 #: The dimension of the runs of a refinement.
 POINT = "point"
@@ -43,8 +43,8 @@ def index_name(axis):
 def build_point_dataset(config, refinement, grid, results, y_final, command="run"):
     """The result Dataset of a refinement from the kernels' outputs of all its points.
 
-    ``refinement``: the finished :class:`~sweep.refine.Refinement`; ``grid``, ``results``,
-    ``y_final``: the :class:`~sweep.grid.Grid` of its points in order (level by level,
+    ``refinement``: the finished :class:`~sweep.refine.lattice.Refinement`; ``grid``, ``results``,
+    ``y_final``: the :class:`~sweep.engine.grid.Grid` of its points in order (level by level,
     each in C order) and their runs. ``command`` as for ``dataset.provenance``.
     """
     index = refinement.index

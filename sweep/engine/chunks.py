@@ -1,8 +1,8 @@
 """Chunks: a grid's rows run chunk by chunk, the finished chunks kept as parts on disk,
 the result file written atomically.
 
-The machinery that uniform sweeps (``sweep/runner.py``) and refinements
-(``sweep/refine_runner.py``) share.
+The machinery that uniform sweeps (``sweep/engine/runner.py``) and refinements
+(``sweep/engine/refined.py``) share.
 """
 
 from __future__ import annotations
@@ -16,12 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import store
+from ..errors import Interrupted, RunError
+from ..io import parts as store
+from ..kernels.layout import result_width
+from ..results.dataset import write_netcdf
 from .backends import DaskTasks, LocalThreads
-from .dataset import write_netcdf
-from .errors import Interrupted, RunError
 from .grid import settings_array
-from .kernels.layout import result_width
 
 log = logging.getLogger(__name__)
 
@@ -71,7 +71,7 @@ class SweepResult:
     ``dataset``: the result (``None`` for a shard); ``path``: the NetCDF file
     written, or for a shard its parts folder; ``elapsed``: wall time (s);
     ``computed`` / ``reused``: runs integrated now / read back from parts;
-    ``timings``: for a refinement, wall time (s) by activity (``sweep/refine_runner.py``).
+    ``timings``: for a refinement, wall time (s) by activity (``sweep/engine/refined.py``).
     """
 
     dataset: object
@@ -194,7 +194,7 @@ def integrate_in_memory(params, y0, settings, threads=None, chunk_size=None, pro
                         backend=None):  # fmt: skip
     """Integrate every system (row) of the kernels' arrays, chunk by chunk, in memory.
 
-    On ``backend`` (default: :class:`~sweep.backends.LocalThreads` with ``threads``).
+    On ``backend`` (default: :class:`~sweep.engine.backends.LocalThreads` with ``threads``).
     Returns ``(results, y_final)``.
     """
     backend = backend or LocalThreads(threads)

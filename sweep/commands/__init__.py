@@ -1,0 +1,3 @@
+"""What the CLI's commands do besides running a sweep: audit, extend, trace and the paper's
+figures.
+"""

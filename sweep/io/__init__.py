@@ -1,0 +1,3 @@
+"""Files: atomic writes and locks, part files of unfinished sweeps, NetCDF and Zarr
+results.
+"""

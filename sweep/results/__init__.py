@@ -1,0 +1,3 @@
+"""Result datasets in memory: the Dataset built from the kernels' arrays, its checks, and
+statistics of slip-event catalogues.
+"""
