@@ -16,7 +16,7 @@ from pathlib import Path
 import xarray as xr
 
 import sweep
-from sweep.results.dataset import write_netcdf
+from sweep import write_netcdf
 
 
 def main(out_dir="gallery", quick=False):

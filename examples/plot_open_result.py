@@ -13,7 +13,7 @@ from pathlib import Path
 import xarray as xr
 
 import sweep
-from sweep.results.dataset import write_netcdf
+from sweep import write_netcdf
 
 config = sweep.with_changes(
     "oneblock",

@@ -14,8 +14,10 @@ configs: :func:`load_config`, :func:`with_changes`, :func:`examples.names`;
 figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
 :func:`plot_orbit_diagram`, :func:`plot_trace` (``sweep/plots.py``), :func:`plot_catalogue`
 (``sweep/catalogue_plots.py``); slip-event statistics: :func:`catalogue_statistics`;
-traces: ``sweep.commands.trace.compute_trace``; refined results: :func:`to_grid`,
-:func:`boundaries`.
+traces: :func:`compute_trace`; refined results: :func:`to_grid`, :func:`boundaries`;
+files: :func:`read_result`, :func:`write_netcdf`; runs with parts, shards and Dask:
+:func:`run_sweep`, :func:`merge_parts`, :class:`Resources`; extending and auditing a
+result: :func:`extend_result`, :func:`extend_file`, :func:`audit_result`.
 """
 
 from . import examples
@@ -35,6 +37,16 @@ _LAZY = {
     "catalogue_statistics": "results.catalogue_statistics",
     "to_grid": "refine.dataset",
     "boundaries": "refine.boundaries",
+    "read_result": "io.netcdf",
+    "write_netcdf": "io.netcdf",
+    "run_sweep": "engine.runner",
+    "merge_parts": "engine.runner",
+    "Resources": "engine.backends",
+    "compute_trace": "commands.trace",
+    "pin_config": "commands.trace",
+    "extend_result": "commands.extend",
+    "extend_file": "commands.extend",
+    "audit_result": "commands.audit",
 }
 
 
@@ -48,7 +60,17 @@ def __getattr__(name):
 
 
 __all__ = [
+    "audit_result",
     "compile_kernels",
+    "compute_trace",
+    "extend_file",
+    "extend_result",
+    "merge_parts",
+    "pin_config",
+    "read_result",
+    "Resources",
+    "run_sweep",
+    "write_netcdf",
     "Config",
     "catalogue_statistics",
     "ConfigError",

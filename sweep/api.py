@@ -57,7 +57,7 @@ def run(
         The result, as ``python -m sweep run`` writes it (dimensions named after
         the sweep axes, fixed parameters as scalar coordinates, CF attributes);
         its ``history`` says it was made by ``sweep.run()`` and from which config
-        (``<mapping>`` for a mapping). Save it with :func:`sweep.results.dataset.write_netcdf`
+        (``<mapping>`` for a mapping). Save it with :func:`sweep.write_netcdf`
         (atomic) or ``ds.to_netcdf``. A refined sweep's runs lie along one dimension,
         ``point`` (:func:`sweep.to_grid` puts them on a grid, :func:`sweep.boundaries`
         gives the boundaries between labels).

@@ -348,7 +348,7 @@ def summary_lines(ds):
 def cmd_run(args):
     from .config import load_config
     from .engine.backends import Resources
-    from .engine.chunks import stop_on_signals
+    from .engine.run_control import stop_on_signals
     from .engine.runner import run_sweep
     from .errors import Interrupted
 
@@ -559,7 +559,7 @@ def cmd_merge(args):
 def _plotted(source, draw, out, dpi):
     """Save the figure ``draw()`` to ``out`` after checking ``out``; a result it cannot
     draw is bad input."""
-    from .io.parts import check_writable
+    from .io.files import check_writable
     from .plots import FORMATS, save_figure
 
     check_writable(out, source, "--out", tuple(FORMATS))
@@ -583,8 +583,8 @@ def cmd_plot(args):
     import functools
     from pathlib import Path
 
+    from .io.netcdf import read_result
     from .plots import plot_orbit_diagram, plot_result, plot_variable
-    from .results.dataset import read_result
 
     ds = read_result(args.result)
     if sum((bool(args.var), args.orbit is not None, args.catalogue is not None)) > 1:
@@ -623,8 +623,8 @@ def cmd_trace(args):
 def cmd_bifurcation(args):
     from pathlib import Path
 
+    from .io.netcdf import read_result
     from .plots import plot_bifurcation
-    from .results.dataset import read_result
 
     first = Path(args.results[0])
     out = args.out or first.with_name(first.stem + "_bifurcation.png")

@@ -885,7 +885,7 @@ def save_figure(fig: Figure, out: str | os.PathLike, dpi: float = DPI) -> Path:
     """
     from pathlib import Path
 
-    from .io.parts import replaced_atomically
+    from .io.files import replaced_atomically
 
     out = Path(out)
     if out.suffix not in FORMATS:

@@ -19,11 +19,11 @@ from hypothesis import settings
 from scipy.integrate import solve_ivp
 
 from sweep.config import load_config, parse_config
-from sweep.engine import grid, runner
+from sweep.engine import chunks, grid, runner
 from sweep.engine.dispatch import integrate_grid
+from sweep.io.netcdf import write_netcdf
 from sweep.kernels import layout
 from sweep.model.physics import log_form_rhs
-from sweep.results.dataset import write_netcdf
 
 # Hypothesis tests have no per-example deadline (its default is 200 ms): an example may
 # be the first call of a numba kernel variant, which compiles it (about 30 s cold), and
@@ -107,7 +107,7 @@ def write_config(path, overrides=None, **sections):
 def run_grid(config):
     """Integrate every system of ``config`` → ``(results, y_final)`` (kernel units, D0/V)."""
     g = grid.build_grid(config)
-    return runner.integrate_in_memory(g.params, g.y0, g.settings)
+    return chunks.integrate_in_memory(g.params, g.y0, g.settings)
 
 
 def run_recorded(config, rec_dt, index=0):
@@ -148,7 +148,7 @@ def anti_phase_cycle():
         classification={"max_t_end": 8000.0},
     )  # fmt: skip
     g = grid.build_grid(config)
-    results, y_final = runner.integrate_in_memory(g.params, g.y0, g.settings)
+    results, y_final = chunks.integrate_in_memory(g.params, g.y0, g.settings)
     return results[0], build_dataset(g, results, y_final).isel(K_W=0)
 
 
@@ -327,8 +327,8 @@ def assert_as_printed(value, printed):
 # fixture kills it after the test, however long the test takes).
 LOCK_HOLDER = """
 import sys, threading
-from sweep.io import parts as store
-with store.output_lock(sys.argv[1], shared=sys.argv[2] == "shared"):
+from sweep.io import files
+with files.output_lock(sys.argv[1], shared=sys.argv[2] == "shared"):
     print("locked", flush=True)
     threading.Event().wait()
 """

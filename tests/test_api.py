@@ -19,7 +19,7 @@ from sweep.cli import main
 from sweep.config import MAPPING_SOURCE, config_mapping
 from sweep.engine import runner
 from sweep.errors import InputError
-from sweep.results.dataset import write_netcdf
+from sweep.io.netcdf import write_netcdf
 
 
 def without_file_attrs(ds):
@@ -186,7 +186,8 @@ def test_compile_kernels_compiles_only_the_configs_variants():
     runs unsettled at t_end ask for λ1 (the default), the same variant with the
     tangent, and builds no other variant; with ``lyapunov: never`` only the first."""
     code = (
-        "import sys, sweep; from sweep import dispatch; from sweep.kernels import integrate\n"
+        "import sys, sweep\nfrom sweep.engine import dispatch\n"
+        "from sweep.kernels import integrate\n"
         "from sweep.engine.grid import build_grid\n"
         "config = sweep.with_changes('quick', {'classification': {'lyapunov': sys.argv[1]}})\n"
         "sweep.compile_kernels(config)\n"

@@ -18,8 +18,8 @@ from sweep import cli
 from sweep.codes import ATTRACTORS, code
 from sweep.commands.audit import audit_config, audit_points, audit_result, tight_config
 from sweep.engine import runner
+from sweep.io.netcdf import write_netcdf
 from sweep.kernels import layout
-from sweep.results.dataset import write_netcdf
 
 #: Quasi-dynamic, one block, two axes. Kc/W = (B − A − η̂)/D0 = 0.05 (η = 0) and 0.045 µm⁻¹
 #: (η/W = 0.05 s/µm): K/Kc from 0.6 to 1.56, none within 10 % of Kc, so every point is

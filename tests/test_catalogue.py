@@ -13,10 +13,11 @@ from conftest import make_config
 
 import sweep
 from sweep.config import ConfigError
-from sweep.engine import dispatch, grid, runner
+from sweep.engine import chunks, dispatch, grid, runner
+from sweep.io.netcdf import write_netcdf
 from sweep.kernels import integrate, layout
 from sweep.results.catalogue_statistics import MAGNITUDE_EDGES, catalogue_statistics, statistics
-from sweep.results.dataset import build_dataset, write_netcdf
+from sweep.results.dataset import build_dataset
 
 A, B, V = 0.03, 0.08, 0.1
 N_CHAIN = 16
@@ -225,7 +226,7 @@ def test_catalogue_does_not_depend_on_the_split(tmp_path):
                           sweep={"K_W": [0.02, 0.03], "k2_W": [0.02, 0.05]})  # fmt: skip
     whole = sweep.run(config, threads=1, progress=False)
     g = grid.build_grid(config)
-    results, y_final = runner.integrate_in_memory(g.params, g.y0, g.settings, threads=2,
+    results, y_final = chunks.integrate_in_memory(g.params, g.y0, g.settings, threads=2,
                                                   chunk_size=1)  # fmt: skip
     split = build_dataset(g, results, y_final)
     for name in ("slip_event_start", "slip_event_slip", "slip_event_blocks", "b_value"):

@@ -12,7 +12,7 @@ from conftest import QUICK, SUBPROCESS_TIMEOUT, assert_same_file
 from sweep import accelerate
 from sweep.cli import main
 from sweep.config import load_config
-from sweep.engine import runner
+from sweep.engine import chunks, runner
 from sweep.engine.backends import Resources
 from sweep.engine.dispatch import grid_kernel, load_kernel
 from sweep.engine.grid import build_grid
@@ -39,7 +39,7 @@ def test_serial_task_kernel_matches_threads_on_read_only_input(quick):
     for a in (params, y0, settings):
         a.flags.writeable = False
     results, y_final = sweep_distributed.chunk_task(params, y0, settings)
-    threaded, y_threaded = runner.integrate_in_memory(params.copy(), y0.copy(), settings.copy())
+    threaded, y_threaded = chunks.integrate_in_memory(params.copy(), y0.copy(), settings.copy())
     np.testing.assert_array_equal(results, threaded)
     np.testing.assert_array_equal(y_final, y_threaded)
 
@@ -123,7 +123,7 @@ def test_api_runs_on_a_client_a_cluster_or_not_a_client(quick, quick_reference_f
     """``sweep.run(client=...)`` and ``Resources(scheduler=...)`` take a Client (left
     open) or a Cluster; anything else is the tool's InputError, not a TypeError."""
     import sweep
-    from sweep.results.dataset import write_netcdf
+    from sweep.io.netcdf import write_netcdf
 
     for k, client in enumerate((local_client, local_client.cluster)):
         ds = sweep.run(quick, client=client, progress=False)

@@ -19,8 +19,9 @@ from sweep import cli
 from sweep.commands.extend import extend_file, extend_result
 from sweep.config import STRUCTURED_FROM, parse_config, parse_stored_config
 from sweep.engine import runner
+from sweep.io.netcdf import read_result, write_netcdf
 from sweep.kernels import layout
-from sweep.results.dataset import read_result, stored_config, write_netcdf
+from sweep.results.dataset import stored_config
 
 #: Quasi-dynamic, η̂ = 0.01: Kc/W = 0.04 µm⁻¹; K/Kc = 0.85 (stick-slip, still growing at
 #: 50 D0/V, settled by 200), 1.1 and 1.5 (steady well before 50).

@@ -171,7 +171,7 @@ def test_extending_an_ensemble_updates_its_regime_fractions(tmp_path):
     ds = sweep.run(cfg, progress=False)
     assert (ds.regime == REGIMES.index("undecided")).all()
     path = tmp_path / "e.nc"
-    sweep.results.dataset.write_netcdf(ds, path)
+    sweep.write_netcdf(ds, path)
     out, n = extend.extend_file(path, t_end=3000.0)
     assert n == 6 and not (out.regime == REGIMES.index("undecided")).all()
     counts = [(out.regime == k).mean("member") for k in range(len(REGIMES))]

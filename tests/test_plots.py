@@ -10,6 +10,7 @@ from conftest import python_stdout
 from sweep.cli import main
 from sweep.config import config_mapping, load_config, parse_config, with_changes
 from sweep.engine.runner import compute
+from sweep.io.netcdf import write_netcdf
 from sweep.plots import (
     REGIME_COLOURS,
     axis_label,
@@ -22,7 +23,6 @@ from sweep.plots import (
     stiffness_ratio,
     unit_text,
 )
-from sweep.results.dataset import write_netcdf
 from sweep.variables import REGIMES
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -363,7 +363,7 @@ def test_plots_are_figures_drawn_without_pyplot(one_d, tmp_path):
     code = f"""
 import sys, matplotlib
 matplotlib.use = lambda *args, **kwargs: sys.exit("matplotlib.use was called")
-from sweep.results.dataset import read_result
+from sweep.io.netcdf import read_result
 from sweep.plots import plot_result, plot_variable, save_figure
 ds = read_result({str(result)!r})
 fig = plot_result(ds)

@@ -13,6 +13,7 @@ from test_dataset import cf_report
 
 from sweep.engine import runner
 from sweep.errors import InputError
+from sweep.io.netcdf import write_netcdf
 from sweep.refine.dataset import (
     is_refined,
     lattice_index,
@@ -21,7 +22,6 @@ from sweep.refine.dataset import (
     to_grid,
 )
 from sweep.refine.lattice import Lattice, cell_tree
-from sweep.results.dataset import write_netcdf
 
 #: Two quasi-static blocks about Kc/W = 0.05 µm⁻¹ (between points of every level), 4 levels.
 TWO_BLOCKS = {

@@ -33,10 +33,11 @@ from hypothesis import strategies as st
 
 from sweep.cli import main
 from sweep.config import load_config, parse_config
-from sweep.engine import backends, chunks, runner
+from sweep.engine import backends, chunks, run_control, runner
 from sweep.engine.backends import LocalThreads, Resources
 from sweep.engine.dispatch import ready_kernel
 from sweep.engine.grid import build_grid
+from sweep.errors import Interrupted, RunError
 from sweep.io import parts as store
 
 #: 8 slow runs, for a kernel call long enough to signal during it: fixed-step RK4 with
@@ -81,8 +82,7 @@ def sweep_cli(*args, cwd, **popen):
 HELD_SWEEP = r"""
 import sys
 from sweep import cli
-from sweep.engine import chunks
-from sweep.engine import runner
+from sweep.io import parts
 
 def held(save):
     def save_then_wait(self, a, b):
@@ -91,8 +91,8 @@ def held(save):
         sys.stdin.readline()
     return save_then_wait
 
-chunks.PartStore.save = held(chunks.PartStore.save)
-runner._ZarrStore.save = held(runner._ZarrStore.save)
+parts.PartStore.save = held(parts.PartStore.save)
+parts.ZarrSink.save = held(parts.ZarrSink.save)
 sys.exit(cli.main(sys.argv[1:]))
 """
 
@@ -120,7 +120,7 @@ def test_shards_partition_the_grid(n, chunk, n_shards):
     """Every row belongs to exactly one chunk of exactly one shard."""
     owner = np.zeros(n, int)
     for i in range(n_shards):
-        for a, b in runner.chunk_ranges(n, chunk, (i, n_shards)):
+        for a, b in chunks.chunk_ranges(n, chunk, (i, n_shards)):
             assert 0 < b - a <= chunk and a % chunk == 0
             owner[a:b] += 1
     assert (owner == 1).all()
@@ -130,12 +130,12 @@ def test_shards_partition_the_grid(n, chunk, n_shards):
 def test_missing_ranges_are_exactly_the_missing_rows(have, chunk):
     """The ranges left to compute cover the rows not yet had, each within one chunk."""
     have = np.array(have)
-    chunks = runner.chunk_ranges(len(have), chunk)
-    todo = runner.missing_ranges(chunks, have)
+    ranges = chunks.chunk_ranges(len(have), chunk)
+    todo = chunks.missing_ranges(ranges, have)
     covered = np.zeros(len(have), int)
     for a, b in todo:
         covered[a:b] += 1
-        assert any(c <= a and b <= d for c, d in chunks)
+        assert any(c <= a and b <= d for c, d in ranges)
     assert (covered == ~have).all()
 
 
@@ -194,7 +194,7 @@ def test_default_shard_chunks_do_not_depend_on_the_thread_count(tmp_path):
 # --- interruption -------------------------------------------------------------------
 
 
-class StopAfterFirstCheck(runner.StopRequest):
+class StopAfterFirstCheck(run_control.StopRequest):
     """A stop request that a SIGTERM seems to have set before the first check."""
 
     def __bool__(self):
@@ -206,7 +206,7 @@ def test_stop_request_keeps_finished_chunks_and_resume_completes(
     quick, quick_reference_file, tmp_path
 ):
     out = tmp_path / "r.nc"
-    with pytest.raises(runner.Interrupted, match=r"SIGTERM: 2 of 9 runs .* --resume") as info:
+    with pytest.raises(Interrupted, match=r"SIGTERM: 2 of 9 runs .* --resume") as info:
         runner.run_sweep(
             quick, out=out, chunk_size=2, show_progress=False, stop=StopAfterFirstCheck()
         )
@@ -232,7 +232,7 @@ def test_ctrl_c_after_the_last_chunk_writes_the_result_and_says_so(
 
     monkeypatch.setattr(store, "write_part", last_write_interrupted)
     out = tmp_path / "r.nc"
-    with chunks.stop_on_signals() as stop, caplog.at_level("WARNING"):
+    with run_control.stop_on_signals() as stop, caplog.at_level("WARNING"):
         runner.run_sweep(quick, out=out, chunk_size=2, resources=Resources(threads=1),
                          show_progress=False, stop=stop)  # fmt: skip
     assert stop.signum == signal.SIGINT
@@ -255,8 +255,8 @@ def test_a_second_ctrl_c_stops_at_once(quick, tmp_path, monkeypatch, signals, sa
     monkeypatch.setattr(store, "write_part", interrupted_write)
     out = tmp_path / "r.nc"
     with (
-        chunks.stop_on_signals() as stop,
-        pytest.raises(runner.Interrupted, match=f"SIGINT: {saved} of 9 runs are saved") as info,
+        run_control.stop_on_signals() as stop,
+        pytest.raises(Interrupted, match=f"SIGINT: {saved} of 9 runs are saved") as info,
     ):
         runner.run_sweep(quick, out=out, chunk_size=2, resources=Resources(threads=1),
                          show_progress=False, stop=stop)  # fmt: skip
@@ -444,7 +444,7 @@ def test_disk_full_while_saving_a_later_chunk_keeps_the_earlier_parts(
         return write_part(*args, **kwargs)
 
     monkeypatch.setattr(store, "write_part", fill_up_at_the_third)
-    with pytest.raises(runner.RunError, match="cannot write a part .* No space left on device"):
+    with pytest.raises(RunError, match="cannot write a part .* No space left on device"):
         runner.run_sweep(quick, out=out, chunk_size=2, resources=Resources(threads=1),
                          show_progress=False)  # fmt: skip
     assert calls == [(0, 2), (2, 4), (4, 6)]  # the sweep stopped at the failing write
@@ -463,7 +463,7 @@ def test_disk_full_while_writing_the_result_keeps_the_parts(
     out = tmp_path / "r.nc"
     out.write_bytes(b"earlier result")
     monkeypatch.setattr(chunks, "write_netcdf", disk_full)
-    with pytest.raises(runner.RunError, match=r"cannot write .*r\.nc: No space left on device"):
+    with pytest.raises(RunError, match=r"cannot write .*r\.nc: No space left on device"):
         runner.run_sweep(quick, out=out, chunk_size=4, show_progress=False)
     assert out.read_bytes() == b"earlier result"
     assert len(list(store.parts_dir_for(out).glob("*.npz"))) == 3

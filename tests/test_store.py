@@ -20,6 +20,7 @@ from conftest import (
 
 from sweep.config import parse_config
 from sweep.engine import runner
+from sweep.errors import RunError
 from sweep.io import parts as store
 
 
@@ -166,7 +167,7 @@ def test_merge_never_uses_a_corrupt_part(quick, tmp_path):
     victim = sorted(store.parts_dir_for(out).glob("*.npz"))[2]  # rows 8:9
     victim.write_bytes(victim.read_bytes()[:100])
     merged = tmp_path / "merged.nc"
-    with pytest.raises(runner.RunError, match=r"corrupt part.*rows 8:9 missing") as info:
+    with pytest.raises(RunError, match=r"corrupt part.*rows 8:9 missing") as info:
         runner.merge_parts([store.parts_dir_for(out)], merged)
     assert victim.name in str(info.value)
     assert not merged.exists()
@@ -227,9 +228,9 @@ def test_concurrent_runs_on_one_output_refuse_naming_the_other(quick, tmp_path, 
     out.write_bytes(b"earlier result")
     holder = lock_holder(out)
     busy = rf"r.nc is in use by another run \(the lock was last taken by pid {holder.pid} on "
-    with pytest.raises(runner.RunError, match=busy):
+    with pytest.raises(RunError, match=busy):
         runner.run_sweep(quick, out=out, show_progress=False)
-    with pytest.raises(runner.RunError, match=f"pid {holder.pid}"):
+    with pytest.raises(RunError, match=f"pid {holder.pid}"):
         runner.run_sweep(quick, out=out, show_progress=False, shard=(0, 2))
     assert main(["run", str(QUICK), "--out", str(out), "--quiet"]) == 1
     assert out.read_bytes() == b"earlier result"
@@ -239,7 +240,7 @@ def test_concurrent_runs_on_one_output_refuse_naming_the_other(quick, tmp_path, 
     other = lock_holder(shared, "shared")
     result = runner.run_sweep(quick, out=shared, show_progress=False, shard=(0, 2))
     assert result.dataset is None and result.computed > 0  # two shards side by side
-    with pytest.raises(runner.RunError, match="s.nc is in use by another run"):
+    with pytest.raises(RunError, match="s.nc is in use by another run"):
         runner.run_sweep(quick, out=shared, show_progress=False)
     other.kill()
     other.wait(timeout=SUBPROCESS_TIMEOUT)
@@ -255,9 +256,9 @@ def test_merge_refuses_parts_their_owner_is_still_writing(quick, tmp_path, lock_
     runner.run_sweep(quick, out=out, chunk_size=4, shard=(0, 1), show_progress=False)
     parts = sorted(store.parts_dir_for(out).glob("*.npz"))
     holder = lock_holder(out, mode)
-    with pytest.raises(runner.RunError, match=rf"x.nc is in use .* pid {holder.pid} "):
+    with pytest.raises(RunError, match=rf"x.nc is in use .* pid {holder.pid} "):
         runner.merge_parts([store.parts_dir_for(out)], tmp_path / "y.nc")
-    with pytest.raises(runner.RunError, match=f"pid {holder.pid}"):
+    with pytest.raises(RunError, match=f"pid {holder.pid}"):
         runner.merge_parts(parts[:1], tmp_path / "y.nc")
     assert sorted(store.parts_dir_for(out).glob("*.npz")) == parts
     assert not (tmp_path / "y.nc").exists()
@@ -283,24 +284,47 @@ def test_sharded_ensemble_merges_to_the_full_run(tmp_path):
 
 
 def test_part_hash_covers_every_module_that_decides_the_numbers():
-    """``store.NUMERIC_MODULES`` holds grid.py, dispatch.py and every package module
-    they import, directly or not (imports read from the source; a subpackage such as
-    ``kernels`` as a whole), so a change to any of them invalidates old parts."""
+    """Every module of the package that ``engine/grid.py`` and ``engine/dispatch.py``
+    import, directly or not (imports read from the source), is hashed into the parts'
+    key: it lies on the ground floor or under ``store.NUMERIC_FOLDERS``."""
     import ast
 
-    folder = ROOT / "sweep"
-    todo, seen = ["grid.py", "dispatch.py"], set()
+    package = ROOT / "sweep"
+    todo, seen = [package / "engine" / "grid.py", package / "engine" / "dispatch.py"], set()
     while todo:
-        name = todo.pop()
-        if name in seen:
+        path = todo.pop()
+        if path in seen:
             continue
-        seen.add(name)
-        for node in ast.walk(ast.parse((folder / name).read_text())):
-            if isinstance(node, ast.ImportFrom) and node.level == 1:
-                modules = [node.module] if node.module else [a.name for a in node.names]
-                todo.extend(f"{m}.py" for m in modules if (folder / f"{m}.py").exists())
-                seen.update(m for m in modules if (folder / m).is_dir())  # a package: all of it
-    assert seen <= set(store.NUMERIC_MODULES), seen - set(store.NUMERIC_MODULES)
+        seen.add(path)
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level:
+                base = path.parents[node.level - 1]
+                for name in [node.module] if node.module else [a.name for a in node.names]:
+                    target = base.joinpath(*name.split("."))
+                    if target.is_dir():
+                        todo.extend(target.rglob("*.py"))
+                    elif target.with_suffix(".py").exists():
+                        todo.append(target.with_suffix(".py"))
+    hashed = {*package.glob("*.py")}
+    for folder in store.NUMERIC_FOLDERS:
+        hashed.update((package / folder).rglob("*.py"))
+    assert seen <= hashed, sorted(str(p.relative_to(package)) for p in seen - hashed)
+
+
+@pytest.mark.parametrize("where", ["model/new_law.py", "engine/new_module.py",
+                                   "kernels/methods/new_method.py", "new_table.py"])  # fmt: skip
+def test_a_new_numeric_module_changes_the_parts_key(tmp_path, where):
+    """A module added under a numeric folder (or on the ground floor) changes the key of
+    the parts without being named anywhere; one added to the commands does not."""
+    import shutil
+
+    copy = tmp_path / "sweep"
+    shutil.copytree(ROOT / "sweep", copy, ignore=shutil.ignore_patterns("__pycache__"))
+    before = store.numeric_source_digest(copy)
+    (copy / "commands" / "new_command.py").write_text("X = 1\n")
+    assert store.numeric_source_digest(copy) == before
+    (copy / where).write_text("X = 1\n")
+    assert store.numeric_source_digest(copy) != before
 
 
 def test_a_writer_killed_before_its_rename_leaves_nothing_for_long(quick, tmp_path):
@@ -310,8 +334,8 @@ def test_a_writer_killed_before_its_rename_leaves_nothing_for_long(quick, tmp_pa
     out = tmp_path / "r.nc"
     out.write_bytes(b"earlier result")
     killed = (
-        "import os, signal, sys\nfrom sweep import store\n"
-        "with store.replaced_atomically(sys.argv[1]) as tmp:\n"
+        "import os, signal, sys\nfrom sweep.io import files\n"
+        "with files.replaced_atomically(sys.argv[1]) as tmp:\n"
         "    open(tmp, 'wb').write(b'half a file')\n"
         "    os.kill(os.getpid(), signal.SIGKILL)\n"
     )
@@ -337,5 +361,5 @@ def test_a_part_named_for_rows_outside_the_sweep_is_named_so(quick, tmp_path):
     stray = last.with_name(last.name.replace("_8-9_", "_9-10_"))
     assert stray != last
     last.rename(stray)
-    with pytest.raises(runner.RunError, match=r"rows 9:10 are not rows of the sweep's 0:9"):
+    with pytest.raises(RunError, match=r"rows 9:10 are not rows of the sweep's 0:9"):
         runner.merge_parts([store.parts_dir_for(out)], tmp_path / "merged.nc")

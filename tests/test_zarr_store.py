@@ -21,11 +21,11 @@ from test_runner import SLOW, held_sweep, sweep_cli
 
 from sweep.cli import main
 from sweep.config import load_config
-from sweep.engine import runner
+from sweep.engine import run_control, runner
 from sweep.engine.backends import Resources
-from sweep.errors import InputError
+from sweep.errors import InputError, Interrupted, RunError
 from sweep.io import zarr as zarr_store
-from sweep.results.dataset import read_result
+from sweep.io.netcdf import read_result
 from sweep.variables import variables_for
 
 #: File attributes only a Zarr store has: how to resume it and how to read it mid-run.
@@ -186,7 +186,7 @@ def test_readable_mid_run_and_resume_completes_it(
     second chunk keeps them, and --resume computes only the other rows."""
     out = tmp_path / "r.zarr"
     reference = xr.load_dataset(quick_reference_file)
-    stop = runner.StopRequest()
+    stop = run_control.StopRequest()
     save, seen = zarr_store.ZarrResult.save, []
 
     def save_then_read(self, a, b, results, y_final):
@@ -200,7 +200,7 @@ def test_readable_mid_run_and_resume_completes_it(
             stop.signum = 15
 
     monkeypatch.setattr(zarr_store.ZarrResult, "save", save_then_read)
-    with pytest.raises(runner.Interrupted, match=r"6 of 9 runs are saved in .*r\.zarr"):
+    with pytest.raises(Interrupted, match=r"6 of 9 runs are saved in .*r\.zarr"):
         runner.run_sweep(quick, out=out, chunk_size=3, resources=Resources(1),
                          show_progress=False, stop=stop)  # fmt: skip
     assert seen == [3, 6]
@@ -245,7 +245,7 @@ def test_disk_full_inside_a_chunk_leaves_it_pending(
         save(*args)
 
     monkeypatch.setattr(zarr_store.ZarrResult, "save", save_filling_up)
-    with pytest.raises(runner.RunError, match=r"cannot write to .*r\.zarr: No space left"):
+    with pytest.raises(RunError, match=r"cannot write to .*r\.zarr: No space left"):
         runner.run_sweep(quick, out=out, chunk_size=3, resources=Resources(1),
                          show_progress=False)  # fmt: skip
     monkeypatch.undo()

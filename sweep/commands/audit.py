@@ -20,8 +20,8 @@ import os
 import numpy as np
 import xarray as xr
 
+from ..engine.chunks import integrate_in_memory
 from ..engine.grid import build_grid, initial_state
-from ..engine.runner import integrate_in_memory
 from ..errors import InputError
 from ..kernels import layout
 from ..model.physics import PARAMETERS

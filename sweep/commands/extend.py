@@ -26,20 +26,14 @@ import numpy as np
 import xarray as xr
 
 from ..config import with_changes
+from ..engine.chunks import integrate_in_memory
 from ..engine.grid import build_grid
-from ..engine.runner import integrate_in_memory
 from ..errors import InputError, RunError
-from ..io.parts import ZARR_SUFFIX, check_writable, output_lock
+from ..io.files import ZARR_SUFFIX, check_writable, output_lock
+from ..io.netcdf import read_result, write_netcdf
 from ..kernels import layout
 from ..progress import Progress
-from ..results.dataset import (
-    derived_fields,
-    read_result,
-    regime_fractions,
-    stored_config,
-    utc_now,
-    write_netcdf,
-)
+from ..results.dataset import derived_fields, regime_fractions, stored_config, utc_now
 from ..variables import variables_for
 
 #: Variables from linear theory, not from the run: never recomputed.

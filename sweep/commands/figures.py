@@ -23,7 +23,7 @@ import numpy as np
 
 from ..config import load_config, with_changes
 from ..errors import InputError
-from ..io.parts import check_writable
+from ..io.files import check_writable
 from ..plots import (
     BLOCK_STYLES,
     DPI,

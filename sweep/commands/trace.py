@@ -241,9 +241,9 @@ def run_trace(config, at, out=None, png=None, t_end=None, points=4000, dpi=None)
     """
     from pathlib import Path
 
-    from ..io.parts import check_writable
+    from ..io.files import check_writable
+    from ..io.netcdf import write_netcdf
     from ..plots import DPI, FORMATS, plot_trace, save_figure
-    from ..results.dataset import write_netcdf
 
     pinned = pin_config(config, at, t_end)
     stem = "_".join(f"{name}={value:g}" for name, value in at.items())

@@ -1,7 +1,7 @@
-"""Chunks: a grid's rows run chunk by chunk, the finished chunks kept as parts on disk,
-the result file written atomically.
+"""Chunks: a grid's rows run chunk by chunk on a backend, each finished chunk handed to
+a sink (``sweep.io.parts.PartStore``) as it comes.
 
-The machinery that uniform sweeps (``sweep/engine/runner.py``) and refinements
+The machinery that uniform sweeps (``sweep/engine/uniform.py``) and refinements
 (``sweep/engine/refined.py``) share.
 """
 
@@ -10,76 +10,15 @@ from __future__ import annotations
 import logging
 import math
 import signal
-from contextlib import closing, contextmanager
-from dataclasses import dataclass
-from pathlib import Path
+from contextlib import closing
 
 import numpy as np
 
-from ..errors import Interrupted, RunError
-from ..io import parts as store
+from ..errors import Interrupted
 from ..kernels.layout import result_width
-from ..results.dataset import write_netcdf
 from .backends import DaskTasks, LocalThreads
-from .grid import settings_array
 
 log = logging.getLogger(__name__)
-
-
-class StopRequest:
-    """Set by a signal handler; the runner stops after the chunk that is running.
-
-    ``signum`` is the signal received (``None`` until then); a second signal
-    raises ``KeyboardInterrupt`` at once.
-    """
-
-    def __init__(self):
-        self.signum = None
-
-    def __bool__(self):
-        return self.signum is not None
-
-    def __call__(self, signum, frame):
-        if self:
-            raise KeyboardInterrupt
-        self.signum = signum
-        log.warning(
-            "received %s: stopping after the chunks in progress (again to stop at once)",
-            signal.Signals(signum).name,
-        )
-
-
-@contextmanager
-def stop_on_signals(signums=(signal.SIGINT, signal.SIGTERM)):
-    """Within the block, SIGINT/SIGTERM set the yielded :class:`StopRequest`.
-
-    For command-line use: nothing is installed on import.
-    """
-    stop = StopRequest()
-    old = {s: signal.signal(s, stop) for s in signums}
-    try:
-        yield stop
-    finally:
-        for s, handler in old.items():
-            signal.signal(s, handler)
-
-
-@dataclass
-class SweepResult:
-    """A finished sweep or shard.
-
-    ``dataset``: the result (``None`` for a shard); ``path``: the NetCDF file
-    written, or for a shard its parts folder; ``elapsed``: wall time (s);
-    ``computed`` / ``reused``: runs integrated now / read back from parts;
-    ``timings``: for a refinement, wall time (s) by activity (``sweep/engine/refined.py``).
-    """
-
-    dataset: object
-    path: object
-    elapsed: float
-    computed: int = 0
-    reused: int = 0
-    timings: dict = None
 
 
 def default_chunk_size(n_systems, n_threads=1, dask_threads=0):
@@ -137,9 +76,10 @@ def run_chunks(backend, params, y0, settings, ranges, results, y_final, progress
 
 
 def run_saving(backend, grid, ranges, run, progress, stop):
-    """:func:`run_chunks` of ``grid``'s rows ``ranges`` into ``run`` (a :class:`PartStore`
-    or alike), each finished chunk saved by ``run.save``; ``progress`` is closed after,
-    and a ``KeyboardInterrupt`` stops the run like a first SIGINT (``stop``)."""
+    """:func:`run_chunks` of ``grid``'s rows ``ranges`` into ``run`` (a
+    :class:`~sweep.io.parts.PartStore` or alike), each finished chunk saved by
+    ``run.save``; ``progress`` is closed after, and a ``KeyboardInterrupt`` stops the run
+    like a first SIGINT (``stop``)."""
     try:
         run_chunks(backend, grid.params, grid.y0, grid.settings, ranges, run.results,
                    run.y_final, progress, run.save, stop)  # fmt: skip
@@ -174,17 +114,6 @@ def ranges_mask(n, ranges):
     return mask
 
 
-def fill_from_parts(entries, run, have, wanted):
-    """Rows ``wanted`` and not yet ``have`` read from the parts ``entries`` (one hash,
-    ``store.scan``) into ``run``'s arrays; ``have`` is updated. Unusable parts are
-    reported and removed, so their runs are computed again. Returns the parts read."""
-    used, bad = store.fill_from_parts(entries, run.results, run.y_final, have, wanted)
-    for path, reason in bad:
-        log.warning("unusable part, its runs will be recomputed: %s", reason)
-        path.unlink(missing_ok=True)
-    return used
-
-
 def rows_missing(gaps):
     """Row ranges (from :func:`missing_ranges`) as said in an error: the first five."""
     return ", ".join(f"{a}:{b}" for a, b in gaps[:5]) + (" ..." if len(gaps) > 5 else "")
@@ -208,32 +137,6 @@ def integrate_in_memory(params, y0, settings, threads=None, chunk_size=None, pro
     return results, y_final
 
 
-class PartStore:
-    """The result arrays of a run and the parts folder each finished chunk is saved to;
-    parts are named by ``chash`` (default: the config's hash)."""
-
-    def __init__(self, folder, config, n, n_vars, chash=None):
-        self.folder = folder
-        self.config = config
-        self.chash = chash or store.config_hash(config)
-        self.n = n
-        self.results = np.empty((n, result_width(settings_array(config))))
-        self.y_final = np.empty((n, n_vars))
-        self.saved = 0
-
-    def save(self, a, b):
-        """Write rows ``a:b`` as a part; a failure is a :class:`RunError` saying what is kept."""
-        try:
-            store.write_part(self.folder, self.config, self.chash, a, b, self.n,
-                             self.results[a:b], self.y_final[a:b])  # fmt: skip
-        except OSError as exc:
-            raise RunError(
-                f"cannot write a part to {self.folder}: {exc.strerror or exc}; the parts "
-                "written so far are kept, rerun with --resume once this is fixed"
-            ) from None
-        self.saved += b - a
-
-
 def count_rows(ranges):
     return sum(b - a for a, b in ranges)
 
@@ -245,35 +148,3 @@ def chunk_size_for(n, backend, shard):
     if isinstance(backend, DaskTasks):
         return default_chunk_size(n, dask_threads=max(1, backend.threads))
     return default_chunk_size(n, backend.threads)
-
-
-def make_parts_folder(parts_dir):
-    try:
-        parts_dir.mkdir(exist_ok=True)
-    except OSError as exc:
-        raise RunError(
-            f"cannot create the parts folder {parts_dir}: {exc.strerror or exc}"
-        ) from None
-
-
-def write_result(ds, path, kept):
-    """Write the NetCDF atomically; on failure say what is kept (``kept``) and how to go on."""
-    try:
-        write_netcdf(ds, path)
-    except (OSError, RuntimeError) as exc:
-        raise RunError(
-            f"cannot write {path}: {getattr(exc, 'strerror', None) or exc}; the finished "
-            f"chunks stay in {kept}, rerun once this is fixed"
-        ) from None
-
-
-def remove_merged(used, paths):
-    """After a merge: remove the parts ``used``, then in the folders of ``paths`` the
-    temporary files of killed writers, then those folders if empty."""
-    for f in used:
-        f.unlink()
-    for folder in {Path(p) for p in paths if Path(p).is_dir()}:
-        for f in store.stale_temp_files(folder):
-            f.unlink(missing_ok=True)
-        if not any(folder.iterdir()):
-            folder.rmdir()

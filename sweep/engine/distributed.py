@@ -126,7 +126,7 @@ def submit_chunks(client, params, y0, settings, ranges, stop=None):
     Yields ``(start, stop, results, y_final)`` per range, in completion order.
     At most a few tasks per worker thread are in flight, so the client's memory
     does not hold a second copy of the whole grid. ``stop`` (a
-    :class:`~sweep.engine.chunks.StopRequest`) is checked every ``POLL`` seconds;
+    :class:`~sweep.engine.run_control.StopRequest`) is checked every ``POLL`` seconds;
     when set, unfinished tasks are cancelled and the generator returns.
     """
     from distributed import wait

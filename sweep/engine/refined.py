@@ -4,7 +4,7 @@ The plan of a level (``sweep/refine/lattice.py``) needs every run of the level b
 run one after another; within a level the points are a sweep of their own: cut into
 chunks, integrated on threads or as Dask tasks (``sweep/engine/backends.py``), each finished
 chunk saved at once as a part (``sweep/io/parts.py``). A level's parts are named by its
-*level key*, a hash of the config's hash (``store.config_hash``: everything that
+*level key*, a hash of the config's hash (``sweep.io.parts.config_hash``: everything that
 changes the numbers), the level and the kernels' arrays of its points, so they are only
 ever used for those very runs. The plan is a function of the runs, which do not depend
 on how they were run, so a resumed, sharded or Dask run plans the same points as any
@@ -14,7 +14,7 @@ other and writes the same file.
 * ``shard=(i, n)``: shard i runs its chunks of each level (those of a sweep of the
   level's points), then waits for the other shards' parts of the level in the shared
   parts folder, plans the next level as they all do, and so on; at the end the parts
-  stay for ``merge`` (:func:`merge_refined`, through ``runner.merge_parts``). All shards
+  stay for ``merge`` (:func:`merge`, through ``runner.merge_parts``). All shards
   must run at the same time (they meet between levels).
 """
 
@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import Interrupted, RunError
-from ..io import parts as store
+from ..io import files, parts
+from ..io.netcdf import write_result
 from ..kernels.layout import result_width
 from ..progress import Progress
 from ..refine.dataset import build_point_dataset
@@ -35,24 +36,18 @@ from ..refine.lattice import Refinement, point_labels
 from ..results.dataset import derived_fields
 from .backends import DaskTasks, LocalThreads, open_backend
 from .chunks import (
-    PartStore,
-    StopRequest,
-    SweepResult,
     check_saved,
     chunk_ranges,
     chunk_size_for,
     count_rows,
-    fill_from_parts,
     integrate_in_memory,
-    make_parts_folder,
     missing_ranges,
     ranges_mask,
-    remove_merged,
     rows_missing,
     run_saving,
-    write_result,
 )
 from .grid import build_grid
+from .run_control import StopRequest, SweepResult
 
 log = logging.getLogger(__name__)
 
@@ -100,8 +95,8 @@ def _desc(config, level):
     return f"{config.name} level {level}/{config.refine.levels}"
 
 
-def compute_refined(config, threads=None, chunk_size=None, show_progress=True, client=None,
-                    command="run"):  # fmt: skip
+def compute(config, threads=None, chunk_size=None, show_progress=True, client=None,
+            command="run"):  # fmt: skip
     """Run the refinement of ``config`` in memory and return its Dataset (nothing written);
     arguments as for :func:`sweep.engine.runner.compute`. Progress is shown per level."""
     backend = LocalThreads(threads) if client is None else DaskTasks(client)
@@ -120,8 +115,8 @@ def compute_refined(config, threads=None, chunk_size=None, show_progress=True, c
     return build_point_dataset(config, refinement, grid, results, y_final, command)
 
 
-def run_refined(config, out=None, *, resources=None, chunk_size=None, resume=False, shard=None,
-                show_progress=True, stop=None):  # fmt: skip
+def run(config, out=None, *, resources=None, chunk_size=None, resume=False, shard=None,
+        show_progress=True, stop=None):  # fmt: skip
     """Run the refinement of ``config`` level by level, saving each chunk as a part, and
     write the NetCDF result; arguments, errors and result as for
     :func:`sweep.engine.runner.run_sweep` (whose refined configs come here). A ``.zarr`` output
@@ -130,14 +125,13 @@ def run_refined(config, out=None, *, resources=None, chunk_size=None, resume=Fal
     start_time = time.perf_counter()
     path = Path(out or config.output)
     key = "output" if out is None else "--out"
-    store.check_writable(path, config.source, key, ".nc")
+    files.check_writable(path, config.source, key, ".nc")
     timings = {}
     counts = {"computed": 0, "reused": 0}
-    with store.output_lock(path, shared=bool(shard)):
+    with files.output_lock(path, shared=bool(shard)):
         stop = stop if stop is not None else StopRequest()
-        folder = store.parts_dir_for(path)
-        make_parts_folder(folder)
-        chash = store.config_hash(config)
+        folder = parts.parts_dir_for(path)
+        chash = parts.config_hash(config)
         with open_backend(resources) as backend:
             first = build_grid(config)
             backend.compile(first.params, first.settings)
@@ -154,7 +148,7 @@ def run_refined(config, out=None, *, resources=None, chunk_size=None, resume=Fal
         clock = time.perf_counter()
         ds = build_point_dataset(config, refinement, grid, results, y_final)
         write_result(ds, path, f"{folder} (use --resume)")
-        store.remove_parts(folder)
+        parts.remove_parts(folder)
         timings["file"] = time.perf_counter() - clock
         log.info(
             "%s: %.1f s running, %.2f s planning and labelling, %.2f s writing the file",
@@ -171,12 +165,14 @@ def _run_level(config, level, grid, folder, key, backend, chunk_size, resume, sh
     if level and stop:  # (within a level, run_chunks checks after each chunk)
         raise Interrupted(stop.signum, f"interrupted by {signal.Signals(stop.signum).name} "
                           f"before level {level}; rerun with --resume to continue")  # fmt: skip
-    run = PartStore(folder, config, grid.n, grid.y0.shape[1], key)
+    shape = (grid.n, result_width(grid.settings), grid.y0.shape[1])
+    run = parts.PartStore(folder, config, shape, key)
+    run.make_folder()
     size = chunk_size or chunk_size_for(grid.n, backend, shard)
     owned = chunk_ranges(grid.n, size, shard or (0, 1))
     have = np.zeros(grid.n, bool)
     if resume:
-        fill_from_parts(store.scan(folder).get(key, []), run, have, ranges_mask(grid.n, owned))
+        run.fill(have, ranges_mask(grid.n, owned))
         log.info("%s: level %d: reusing %d runs from parts", config.name, level, int(have.sum()))
     todo = missing_ranges(owned, have)
     total, left = count_rows(owned), count_rows(todo)
@@ -198,7 +194,7 @@ def _await_shards(config, level, folder, key, run, have, shard, stop):
     log.info("%s: shard %d/%d: level %d: waiting for the other shards' runs (%d of %d here)",
              config.name, i, n, level, int(have.sum()), have.size)  # fmt: skip
     while True:
-        fill_from_parts(store.scan(folder).get(key, []), run, have, ~have)
+        run.fill(have, ~have)
         if have.all():
             return
         if stop:
@@ -211,20 +207,20 @@ def _await_shards(config, level, folder, key, run, have, shard, stop):
         time.sleep(POLL)
 
 
-def merge_refined(config, groups, paths, out):
+def merge(config, groups, paths, out):
     """Assemble the result of the refinement of ``config`` from its parts (``groups``:
-    part entries by hash, ``store.group``), level by level, write it to ``out`` and
-    remove the parts used (``chunks.remove_merged``). Raises ``RunError`` naming the
+    part entries by hash, ``sweep.io.parts.group``), level by level, write it to ``out``
+    and remove the parts used (``sweep.io.parts.remove_merged``). Raises ``RunError`` naming the
     level and rows that no part holds. Returns the Dataset."""
-    chash = store.config_hash(config)
+    chash = parts.config_hash(config)
     used_parts = []
 
     def run_level(level, index, grid):
-        results = np.empty((grid.n, result_width(grid.settings)))
-        y_final = np.empty_like(grid.y0)
+        key = level_key(chash, level, grid)
+        shape = (grid.n, result_width(grid.settings), grid.y0.shape[1])
+        run = parts.PartStore(parts.parts_dir_for(out), config, shape, key)
         have = np.zeros(grid.n, bool)
-        entries = groups.get(level_key(chash, level, grid), [])
-        used, bad = store.fill_from_parts(entries, results, y_final, have, np.ones(grid.n, bool))
+        used, bad = run.fill(have, np.ones(grid.n, bool), groups.get(key, []), merging=True)
         for _, reason in bad:
             log.warning("corrupt part, not merged: %s", reason)
         gaps = missing_ranges([(0, grid.n)], have)
@@ -235,10 +231,10 @@ def merge_refined(config, groups, paths, out):
                 f"({grid.n - int(have.sum())} of {grid.n} runs); rerun the shards with --resume"
             )
         used_parts.extend(used)
-        return results, y_final
+        return run.results, run.y_final
 
     refinement, grid, results, y_final = refine_levels(config, run_level)
     ds = build_point_dataset(config, refinement, grid, results, y_final, "merge")
     write_result(ds, out, "the parts")
-    remove_merged(used_parts, paths)
+    parts.remove_merged(used_parts, paths)
     return ds

@@ -1,10 +1,5 @@
-"""Files on disk: the chunk store of a sweep, its output lock and atomic writes.
-
-Every file rsf-sweep writes goes through :func:`replaced_atomically` (written
-beside the target, synced, renamed), and every output path is probed first
-(:func:`check_writable`).
-
-Finished chunks of a sweep are kept as small, self-checking files.
+"""Part files: the finished chunks of a sweep, kept as small, self-checking files until
+its result is written.
 
 A sweep's systems (rows of the C-ordered grid) are computed in chunks; each
 finished chunk is written at once to a *part* file in a working directory
@@ -29,48 +24,39 @@ config fields (not its whitespace, name, description or output path) and the
 source of the code that turns them into numbers. A changed config therefore
 never mixes with old parts. Parts store their row range, so parts written with
 another chunk size (or by other shards) can still be used row by row.
+
+Parts are written and read back through :class:`PartStore` alone (:class:`ZarrSink` is
+its like for ``.zarr`` outputs, which keep no parts), by uniform sweeps and
+refinements alike.
 """
 
-import contextlib
-import fcntl
-import glob
 import hashlib
 import json
+import logging
 import os
 import re
-import secrets
 import socket
-import sys
-import tempfile
-from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .._version import __version__
-from ..errors import InputError, OutputBusy, PartError
+from ..errors import ConfigError, PartError, RunError
+from .files import replaced_atomically
+
+log = logging.getLogger(__name__)
 
 #: Bumped when the layout of a part file changes.
 PART_FORMAT = 1
-#: Modules whose code decides the numbers stored in a part (accelerate.py: fastmath,
-#: error model; dispatch.py: which compiled variant integrates a run): grid.py and
-#: dispatch.py and everything in the package they import; ``kernels`` is the kernel
-#: package and the numba policy (``accelerate.source_digest``).
-NUMERIC_MODULES = (
-    "kernels",
-    "grid.py",
-    "physics.py",
-    "linear.py",
-    "heterogeneity.py",
-    "codes.py",
-    "accelerate.py",
-    "dispatch.py",
-)
+#: The folders of the package whose code decides the numbers stored in a part, besides
+#: every module on its ground floor (``sweep/*.py``: the numba policy, the code tables):
+#: the kernels, the model (the grid's parameters and linear theory) and the engine (the
+#: grid, which compiled variant runs it). Every file under them is hashed, so a module
+#: added there changes the key without being named anywhere.
+NUMERIC_FOLDERS = ("kernels", "model", "engine")
 PART_NAME = re.compile(r"^(?P<hash>[0-9a-f]{16})_(?P<start>\d+)-(?P<stop>\d+)_of_(?P<n>\d+)\.npz$")
 TEMP_PREFIX = ".part-"
-#: The suffix of a Zarr directory store (``sweep/io/zarr.py``).
-ZARR_SUFFIX = ".zarr"
 #: A temporary part file: ``.part-<host>-<pid>-<random>.tmp`` (see ``replaced_atomically``).
 TEMP_NAME = re.compile(r"^\.part-(?P<host>.+)-(?P<pid>\d+)-[0-9a-f]+\.tmp$")
 
@@ -81,8 +67,9 @@ def config_hash(config):
     Built from the validated fields that change results (blocks, coupling, model,
     law, fixed and per-block parameters, spread, axes in order, initial state, integrator,
     classification and, where there is one, catalogue settings), the package version and
-    the source of the numeric modules. Fixed parameters are sorted, since their order in the
-    file does not matter; axis order does (it orders the grid).
+    the source of the numeric code (:func:`numeric_source_digest`). Fixed parameters are
+    sorted, since their order in the file does not matter; axis order does (it orders the
+    grid).
     """
     fields = {
         "blocks": config.blocks,
@@ -101,82 +88,23 @@ def config_hash(config):
         fields["catalogue"] = asdict(config.catalogue)
     digest = hashlib.sha256(json.dumps(fields, sort_keys=True).encode())
     digest.update(f"rsf-sweep {__version__} parts {PART_FORMAT}".encode())
-    here = Path(__file__).parent
-    for name in NUMERIC_MODULES:
-        if name == "kernels":
-            from ..accelerate import source_digest  # numba: only where parts are keyed
-
-            digest.update(source_digest().encode())
-        else:
-            digest.update((here / name).read_bytes())
+    digest.update(numeric_source_digest().encode())
     return digest.hexdigest()[:16]
 
 
-@contextmanager
-def output_lock(output, shared=False):
-    """Hold the lock of ``output`` (a hidden ``.<name>.lock`` file beside it) while a
-    run or merge works on it and its parts.
-
-    Full runs and merges take it exclusively; shards (``shared=True``) share it, so
-    several shards fill one parts folder side by side while nothing assembles or
-    removes it. Taken without waiting: if another process holds it, raise
-    :class:`OutputBusy` naming the process that last took it (pid, host, command,
-    start time, as each holder writes into the lock file). The operating system releases the
-    lock when the holder exits, even after ``kill -9``; an exclusive holder removes the
-    file when it is done, and on taking it the temporary files of ``output`` that a
-    writer killed before its rename left behind (:func:`replaced_atomically`): nobody
-    else can be writing them.
-    """
-    output = Path(output)
-    lock_path = output.with_name(f".{output.name}.lock")
-    handle = _locked_file(lock_path, shared, output)
-    try:
-        if not shared:
-            for stale in output.parent.glob(f".{glob.escape(output.name)}.*.tmp"):
-                with contextlib.suppress(OSError):
-                    stale.unlink()
-        handle.seek(0)
-        handle.truncate()  # the newest holder names itself (with shards: one of them)
-        handle.write(
-            f"pid {os.getpid()} on {socket.gethostname()} "
-            f"({' '.join(sys.argv) or 'python'}, started {_now()})\n"
-        )
-        handle.flush()
-        yield
-    finally:
-        if not shared:  # removed while still held: nobody else can hold it now
-            lock_path.unlink(missing_ok=True)
-        handle.close()
-
-
-def _locked_file(lock_path, shared, output):
-    """The lock file, opened and locked; retried if an exclusive holder removed it
-    between our open and our lock (we would hold a lock on a file nobody sees)."""
-    while True:
-        handle = open(lock_path, "a+")
-        try:
-            fcntl.flock(handle, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
-        except BlockingIOError:
-            handle.seek(0)
-            holder = handle.read().strip() or "an unknown process"
-            handle.close()
-            raise OutputBusy(
-                f"{output} is in use by another run (the lock was last taken by {holder}); "
-                "wait for it to finish, or write to another --out"
-            ) from None
-        try:
-            same = os.stat(lock_path).st_ino == os.fstat(handle.fileno()).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:
-            return handle
-        handle.close()
-
-
-def _now():
-    import datetime
-
-    return datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+def numeric_source_digest(package=None):
+    """SHA-256 (hex) of every ``.py`` file on the package's ground floor and under its
+    :data:`NUMERIC_FOLDERS`, each path with its bytes, in path order. ``package``: the
+    package's folder (default: this one's)."""
+    package = Path(package or Path(__file__).resolve().parents[1])
+    paths = [*package.glob("*.py")]
+    for folder in NUMERIC_FOLDERS:
+        paths.extend((package / folder).rglob("*.py"))
+    digest = hashlib.sha256()
+    for path in sorted(paths):
+        digest.update(path.relative_to(package).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
 
 
 def parts_dir_for(output):
@@ -359,7 +287,7 @@ def remove_parts(directory):
     return len(doomed)
 
 
-def fill_from_parts(entries, results, y_final, have, wanted):
+def _fill(entries, results, y_final, have, wanted):
     """Copy rows from valid parts into ``results``/``y_final``.
 
     ``entries`` as from :func:`scan` (one config hash); only rows that are
@@ -395,92 +323,128 @@ def fill_from_parts(entries, results, y_final, have, wanted):
     return used, bad
 
 
-def check_writable(path, source="<config>", key="output", suffix=".nc"):
-    """Raise :class:`~sweep.errors.InputError` unless a file can be created at ``path``.
+class PartStore:
+    """The kernels' arrays of a sweep's runs (or of one level of a refinement) and the
+    parts folder where each finished chunk is saved: the one way parts are written and
+    read back.
 
-    ``suffix``: the file type, or a tuple of those allowed (e.g. ``(".png",
-    ".pdf", ".svg")``); a ``.zarr`` path is a directory store, which may exist.
-    Creates missing parent directories and a probe file (removed at once), so the
-    answer is the file system's, not a guess from permission bits (which root ignores).
+    ``shape``: (runs, result columns, state size); parts are named by ``chash`` (default:
+    the config's hash, :func:`config_hash`).
     """
-    path = Path(path)
-    suffixes = (suffix,) if isinstance(suffix, str) else tuple(suffix)
-    allowed = " or ".join(suffixes)
-    if path.suffix not in suffixes:
-        raise InputError(source, [f"{key} {path} must be a file name ending in {allowed}"])
-    if path.suffix == ZARR_SUFFIX:  # a directory store: a folder is what it should be
-        if path.exists() and not path.is_dir():
-            raise InputError(
-                source, [f"{key} {path} is a file; a Zarr store ({ZARR_SUFFIX}) is a directory"]
-            )
-    elif path.is_dir():
-        raise InputError(
-            source, [f"{key} {path} is a directory; give a file path ending in {allowed}"]
-        )
-    blocking = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
-    if blocking is not None:
-        raise InputError(
-            source, [f"{key} {path} cannot be written: {blocking} is a file, not a directory"]
-        )
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.probe-"):
-            pass
-    except OSError as exc:
-        reason = exc.strerror or str(exc)
-        raise InputError(source, [f"{key} {path} cannot be written: {reason}"]) from None
-    if path.exists() and not os.access(path, os.W_OK):
-        raise InputError(source, [f"{key} {path} exists and is not writable"])
+
+    def __init__(self, folder, config, shape, chash=None):
+        n, width, n_vars = shape
+        self.folder = Path(folder)
+        self.config = config
+        self.chash = chash or config_hash(config)
+        self.n = n
+        self.results = np.empty((n, width))
+        self.y_final = np.empty((n, n_vars))
+        self.saved = 0
+
+    def make_folder(self):
+        """Create the parts folder (a failure is a :class:`RunError`)."""
+        try:
+            self.folder.mkdir(exist_ok=True)
+        except OSError as exc:
+            raise RunError(
+                f"cannot create the parts folder {self.folder}: {exc.strerror or exc}"
+            ) from None
+
+    def save(self, a, b):
+        """Write rows ``a:b`` as a part; a failure is a :class:`RunError` saying what is kept."""
+        try:
+            write_part(self.folder, self.config, self.chash, a, b, self.n,
+                       self.results[a:b], self.y_final[a:b])  # fmt: skip
+        except OSError as exc:
+            raise RunError(
+                f"cannot write a part to {self.folder}: {exc.strerror or exc}; the parts "
+                "written so far are kept, rerun with --resume once this is fixed"
+            ) from None
+        self.saved += b - a
+
+    def fill(self, have, wanted, entries=None, merging=False):
+        """Rows ``wanted`` and not yet ``have`` (boolean masks over the runs) read from the
+        parts ``entries`` (default: this store's in its folder, :func:`scan`); ``have`` is
+        updated. Returns ``(used, bad)``: the parts read, and ``(path, reason)`` for those
+        unusable. While running (not ``merging``) an unusable part is reported and
+        removed, so its runs are computed again; a merge reports them itself."""
+        if entries is None:
+            entries = scan(self.folder).get(self.chash, [])
+        used, bad = _fill(entries, self.results, self.y_final, have, wanted)
+        if not merging:
+            for path, reason in bad:
+                log.warning("unusable part, its runs will be recomputed: %s", reason)
+                path.unlink(missing_ok=True)
+        return used, bad
+
+    def reuse(self, owned, resume):
+        """Fill the rows ``owned`` (a mask) from the valid parts of this store (if
+        ``resume``); return the mask of rows filled. Parts of other configs in the folder
+        are named and left alone."""
+        have = np.zeros(self.n, bool)
+        groups = scan(self.folder)
+        others = sum(len(v) for h, v in groups.items() if h != self.chash)
+        if others:
+            log.info("ignoring %d parts of another config in %s", others, self.folder)
+        mine = groups.get(self.chash, [])
+        if not resume:
+            if mine:
+                log.info("not reusing %d parts of this sweep in %s (--resume reuses them)",
+                         len(mine), self.folder)  # fmt: skip
+            return have
+        used, _ = self.fill(have, owned, mine)
+        log.info("resuming from %s: reusing %d runs from %d parts", self.folder,
+                 int(have.sum()), len(used))  # fmt: skip
+        return have
 
 
-def require_zarr(source, key="--out"):
-    """The ``zarr`` module (for ``.zarr`` outputs), or an :class:`InputError` saying
-    how to install it."""
-    try:
-        import zarr
-    except ImportError:
-        raise InputError(
-            source,
-            [
-                f"{key}: reading or writing a Zarr store (.zarr) needs the zarr package: "
-                "pip install 'rsf-sweep[zarr]'"
-            ],
-        ) from None
-    return zarr
+class ZarrSink:
+    """The kernels' arrays of a sweep's runs and the Zarr store (``sweep.io.zarr.ZarrResult``)
+    each finished chunk is written into: a :class:`PartStore` for ``.zarr`` outputs, which
+    keep no parts."""
+
+    def __init__(self, zarr_result, shape):
+        n, width, n_vars = shape
+        self.store = zarr_result
+        self.folder = zarr_result.path
+        self.results = np.empty((n, width))
+        self.y_final = np.empty((n, n_vars))
+
+    @property
+    def saved(self):
+        return self.store.saved
+
+    def save(self, a, b):
+        """Write rows ``a:b`` into the store; a failure is a :class:`RunError`."""
+        try:
+            self.store.save(a, b, self.results[a:b], self.y_final[a:b])
+        except OSError as exc:
+            raise RunError(
+                f"cannot write to {self.folder}: {exc.strerror or exc}; the chunks written so "
+                "far are kept, rerun with --resume once this is fixed"
+            ) from None
 
 
-@contextmanager
-def replaced_atomically(path, prefix=None):
-    """Yield a fresh temporary path in ``path``'s folder; on success rename it to ``path``.
-
-    The temporary file is created with mode 0666 less the umask, like any file the
-    user makes, and named ``<prefix><pid>-<random>.tmp`` (default prefix
-    ``.<name>.``). If the block raises, Ctrl-C included, it is removed and
-    ``path`` is left as it was: a failed write never damages an earlier file.
-    The data and then the rename are synced to disk, so a crash right after
-    cannot leave a truncated file under the final name.
-    """
-    path = Path(path)
-    prefix = f".{path.name}." if prefix is None else prefix
-    tmp = path.with_name(f"{prefix}{os.getpid()}-{secrets.token_hex(4)}.tmp")
-    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
-    try:
-        yield tmp
-        _sync(tmp)
-        os.replace(tmp, path)
-        _sync(path.parent)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+def stored_config(entries, parse):
+    """The config stored in the first readable part of ``entries``, parsed by ``parse``
+    (``parse(text, source)``), or None."""
+    for *_, path in entries:
+        try:
+            part = read_part(path)
+            return parse(part.config_text, part.config_source)
+        except (PartError, ConfigError):
+            continue
+    return None
 
 
-def _sync(path):
-    """fsync a file or folder (folders: where the file system allows it)."""
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    except OSError:
-        if not os.path.isdir(path):
-            raise
-    finally:
-        os.close(fd)
+def remove_merged(used, paths):
+    """After a merge: remove the parts ``used``, then in the folders of ``paths`` the
+    temporary files of killed writers, then those folders if empty."""
+    for f in used:
+        f.unlink()
+    for folder in {Path(p) for p in paths if Path(p).is_dir()}:
+        for f in stale_temp_files(folder):
+            f.unlink(missing_ok=True)
+        if not any(folder.iterdir()):
+            folder.rmdir()

@@ -19,7 +19,7 @@ is written atomically (zarr's local store renames a temporary file), and
 Points not computed yet read ``regime == -1`` (``PENDING``, the array's fill
 value, not one of the ``flag_values``), NaN in every float variable and -1 in the
 counts. ``--resume`` recomputes only the chunks whose regime is still pending,
-after checking the store's ``config_hash`` attribute (``store.config_hash``).
+after checking the store's ``config_hash`` attribute (``sweep.io.parts.config_hash``).
 """
 
 import itertools
@@ -37,7 +37,8 @@ import xarray as xr
 from ..errors import InputError
 from ..kernels.layout import result_width
 from ..results.dataset import data_variables, derived_fields, parameter_coords, provenance
-from .parts import config_hash, require_zarr
+from .files import require_zarr
+from .parts import config_hash
 
 log = logging.getLogger(__name__)
 

@@ -1,6 +1,6 @@
 """What makes a Dataset a complete sweep result, or a trace: the variables and
 attributes a run writes, checked before a file is read on
-(:func:`sweep.results.dataset.read_result`) and before a plot or a catalogue statistic uses a
+(:func:`sweep.read_result`) and before a plot or a catalogue statistic uses a
 Dataset it was given."""
 
 import xarray as xr

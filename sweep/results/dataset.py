@@ -12,7 +12,6 @@ earlier result.
 
 import dataclasses
 import datetime
-from pathlib import Path
 
 import numpy as np
 import xarray as xr
@@ -20,12 +19,10 @@ import xarray as xr
 from .._version import __version__
 from ..config import parse_stored_config
 from ..errors import ConfigError, InputError
-from ..io.parts import ZARR_SUFFIX, replaced_atomically, require_zarr
 from ..model import heterogeneity
 from ..model.physics import PARAMETERS
 from ..variables import ATTRACTORS, REGIMES, SCALES, VARIABLES, variables_for
 from .catalogue_statistics import MAGNITUDE_EDGES, catalogue_fields
-from .checks import RESULT_VARIABLES, missing_parts
 
 
 def derived_fields(grid, results, y_final):
@@ -320,87 +317,6 @@ def catalogue_attrs(config):
 
 def utc_now():
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
-
-
-def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
-    """Write a result to a NetCDF file atomically (a temporary file, then a rename).
-
-    Data variables are compressed (zlib, level 4); coordinates get no fill value
-    (CF). A failed write leaves an earlier file at ``path`` as it was.
-
-    Parameters
-    ----------
-    ds : xarray.Dataset
-        A result (:func:`sweep.run`) or a trace (:func:`sweep.commands.trace.compute_trace`).
-    path : str or pathlib.Path
-        The file; missing folders are created.
-
-    Returns
-    -------
-    pathlib.Path
-        The path written.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    encoding = {name: {"zlib": True, "complevel": 4} for name in ds.data_vars}
-    encoding.update({name: {"_FillValue": None} for name in ds.coords})  # CF: none on coordinates
-    with replaced_atomically(path) as tmp:
-        ds.to_netcdf(tmp, engine="netcdf4", encoding=encoding)
-    return path
-
-
-def read_result(path: str | Path, needs_config: bool = False) -> xr.Dataset:
-    """Load a result file into memory and check that it is a complete sweep result.
-
-    The file is closed again, so it can be replaced while the result is in use
-    (``xarray.open_dataset`` alone keeps it open and reads lazily).
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        A NetCDF result, or a ``.zarr`` store (needs zarr), which must be complete.
-    needs_config : bool, default False
-        The file must also hold the config that made it (``config_text``).
-
-    Returns
-    -------
-    xarray.Dataset
-        The result, in memory.
-
-    Raises
-    ------
-    InputError
-        Naming ``path``: it is missing or unreadable, not a sweep result, without
-        ``config_text`` when ``needs_config`` asks for it, or has runs not yet
-        computed (a Zarr store of a sweep in progress).
-    """
-    zarr = Path(path).suffix == ZARR_SUFFIX
-    if zarr:
-        require_zarr(path, "result")
-    try:
-        with xr.open_dataset(path, engine="zarr" if zarr else None, chunks=None) as ds:
-            ds.load()
-    except (OSError, ValueError) as exc:
-        text = str(exc).strip() or type(exc).__name__
-        why = "not a NetCDF file" if "IO backends" in text else text.splitlines()[0][:200]
-        raise InputError(path, [f"cannot read result file: {why} (a result is the NetCDF "
-                                "file or Zarr store of rsf-sweep run)"]) from None  # fmt: skip
-    missing = [v for v in RESULT_VARIABLES if v not in ds]
-    if needs_config and "config_text" not in ds.attrs:
-        missing.append("config_text attribute")
-    if missing:
-        raise InputError(path, [f"not a sweep result (no {', '.join(missing)})"])
-    incomplete = missing_parts(ds)
-    if incomplete:
-        raise InputError(path, [f"not a complete sweep result: no {', '.join(incomplete)} (a "
-                                "file edited after the run, or from another version)"])  # fmt: skip
-    pending = int((ds["regime"] < 0).sum())
-    if pending:
-        raise InputError(
-            path, [f"{pending} of {ds['regime'].size} runs are not computed yet; finish the "
-                   "sweep first (python -m sweep run CONFIG --out PATH --resume)"]
-        )  # fmt: skip
-    return ds
 
 
 def stored_config(ds, source):
