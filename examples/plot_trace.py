@@ -10,7 +10,7 @@ s/µm) and integrate that one system: the result is a Dataset with the velocity,
 """
 
 import sweep
-from sweep.commands.trace import compute_trace, pin_config
+from sweep import compute_trace, pin_config
 
 config = sweep.with_changes("oneblock", {"model": "quasi-dynamic", "parameters": {"eta_W": 0.01}})
 # the first 300 D0/V (3000 s): the oscillation grows onto its cycle

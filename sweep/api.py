@@ -108,8 +108,10 @@ def with_refine(config, refine):
     elif isinstance(refine, Mapping):
         changes = {"refine": dict(refine)}
     else:
-        problem = (f"refine must be a number of levels, a mapping like the config's refine "
-                   f"section, or a bool; got {refine!r}")  # fmt: skip
+        problem = (
+            f"refine must be a number of levels, a mapping like the config's refine "
+            f"section, or a bool; got {refine!r}"
+        )
         raise InputError(config.source, [problem])
     return with_changes(config, changes)
 
@@ -148,14 +150,18 @@ def compile_kernels(
     from .engine.grid import build_grid
 
     configs = [load_config(config) for config in configs]
-    positive = (isinstance(processes, (int, np.integer)) and not isinstance(processes, bool)
-                and processes >= 1)  # fmt: skip
+    positive = (
+        isinstance(processes, (int, np.integer))
+        and not isinstance(processes, bool)
+        and processes >= 1
+    )
     if not (processes is None or positive):
         source = configs[0].source if configs else "compile_kernels"
         raise InputError(source, [f"processes must be a positive integer, got {processes!r}"])
     grids = [build_grid(config) for config in configs]
-    load_kernels([job for g in grids for job in kernel_jobs(g.params, g.settings, every=True)],
-                 processes)  # fmt: skip
+    load_kernels(
+        [job for g in grids for job in kernel_jobs(g.params, g.settings, every=True)], processes
+    )
 
 
 def _check_threads(source, threads):

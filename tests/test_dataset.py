@@ -11,9 +11,10 @@ from conftest import KC_W, PAPER_A, PAPER_B, make_config, run_grid
 
 from sweep.engine import runner
 from sweep.errors import ConfigError, InputError
+from sweep.io.netcdf import write_netcdf
 from sweep.kernels import layout
 from sweep.model.physics import PARAMETERS
-from sweep.results.dataset import stored_config, write_netcdf
+from sweep.results.dataset import stored_config
 from sweep.variables import BY_NAME, REGIMES, VARIABLES, variables_for
 
 A, B = PAPER_A, PAPER_B

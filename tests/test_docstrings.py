@@ -43,11 +43,11 @@ API_PAGE = ROOT / "docs" / "api.md"
 ENTRY_SECTIONS = {"Parameters", "Returns", "Yields", "Raises", "Warns", "Attributes",
                   "Other Parameters", "Receives"}  # fmt: skip
 #: Names the guide and examples use that must be on the API page as well.
-REQUIRED_ON_PAGE = {"dataset.read_result", "dataset.write_netcdf", "trace.compute_trace"}
+REQUIRED_ON_PAGE = {"read_result", "write_netcdf", "compute_trace"}
 
 
 def resolve(name):
-    """The object ``sweep.<name>`` (``name`` may be dotted: ``dataset.write_netcdf``)."""
+    """The object ``sweep.<name>`` (``name`` may be dotted: ``examples.names``)."""
     obj = sweep
     for part in name.split("."):
         try:

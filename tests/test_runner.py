@@ -38,6 +38,7 @@ from sweep.engine.backends import LocalThreads, Resources
 from sweep.engine.dispatch import ready_kernel
 from sweep.engine.grid import build_grid
 from sweep.errors import Interrupted, RunError
+from sweep.io import netcdf
 from sweep.io import parts as store
 
 #: 8 slow runs, for a kernel call long enough to signal during it: fixed-step RK4 with
@@ -462,7 +463,7 @@ def test_disk_full_while_writing_the_result_keeps_the_parts(
 ):
     out = tmp_path / "r.nc"
     out.write_bytes(b"earlier result")
-    monkeypatch.setattr(chunks, "write_netcdf", disk_full)
+    monkeypatch.setattr(netcdf, "write_netcdf", disk_full)
     with pytest.raises(RunError, match=r"cannot write .*r\.nc: No space left on device"):
         runner.run_sweep(quick, out=out, chunk_size=4, show_progress=False)
     assert out.read_bytes() == b"earlier result"

@@ -146,9 +146,11 @@ def audit_result(
         problems.append(f"--near-kc must be in [0, inf), got {near_kc}")
     t_end = 10.0 * config.integrator.t_end if t_end is None else float(t_end)
     if not config.integrator.t_end < t_end < np.inf:
-        problems.append(f"--t-end must be finite and later than the file's t_end, "
-                        f"{config.integrator.t_end:g} {config.integrator.t_unit} (the audit "
-                        f"runs for longer), got {t_end:g}")  # fmt: skip
+        problems.append(
+            f"--t-end must be finite and later than the file's t_end, "
+            f"{config.integrator.t_end:g} {config.integrator.t_unit} (the audit "
+            f"runs for longer), got {t_end:g}"
+        )
     rtol = config.integrator.rtol
     if tighten is not None and not (1.0 < tighten < np.inf and rtol / tighten >= MIN_TIGHT_RTOL):
         problems.append(
@@ -200,9 +202,11 @@ def audit_result(
         data_vars["merged_blocks"] = (
             "point",
             merged,
-            {"long_name": "blocks whose final state equals another block's bit for bit, "
-                          "although the two started apart (merged by round-off)"},
-        )  # fmt: skip
+            {
+                "long_name": "blocks whose final state equals another block's bit for bit, "
+                "although the two started apart (merged by round-off)"
+            },
+        )
     attrs = {
         "title": f"Audit of the rsf-sweep result {source}",
         "audit_source": source,

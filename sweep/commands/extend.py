@@ -72,9 +72,11 @@ def final_state(ds, config):
     if missing:
         raise InputError(
             config.source,
-            [f"no {', '.join(missing)} in the file: the final state cannot be restarted; "
-             "run the config again with this version of rsf-sweep"],
-        )  # fmt: skip
+            [
+                f"no {', '.join(missing)} in the file: the final state cannot be restarted; "
+                "run the config again with this version of rsf-sweep"
+            ],
+        )
     n = ds["regime"].size
     return np.concatenate([ds[name].values.reshape(n, config.blocks) for name in names], axis=1)
 
@@ -153,9 +155,11 @@ def extend_result(
     if not t_end > old_end:
         raise InputError(
             source,
-            [f"--t-end must be later than the time its undecided runs already reached "
-             f"({old_end:g} {unit}: max_t_end, or t_end without early exit), got {t_end:g}"],
-        )  # fmt: skip
+            [
+                f"--t-end must be later than the time its undecided runs already reached "
+                f"({old_end:g} {unit}: max_t_end, or t_end without early exit), got {t_end:g}"
+            ],
+        )
     rows = undecided_rows(ds)
     if rows.size == 0:
         return ds

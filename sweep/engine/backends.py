@@ -119,8 +119,13 @@ class LocalThreads:
                 res, yf = out[k]
                 a = ranges[k][0]
                 try:
-                    integrate_grid(params[lo:hi], y0[lo:hi], settings,
-                                   res[lo - a : hi - a], yf[lo - a : hi - a])  # fmt: skip
+                    integrate_grid(
+                        params[lo:hi],
+                        y0[lo:hi],
+                        settings,
+                        res[lo - a : hi - a],
+                        yf[lo - a : hi - a],
+                    )
                 except BaseException as exc:  # raised again by the generator
                     failures.append(exc)
                     abandon.set()

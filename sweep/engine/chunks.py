@@ -54,8 +54,9 @@ def missing_ranges(ranges, have):
     return out
 
 
-def run_chunks(backend, params, y0, settings, ranges, results, y_final, progress=None,
-               save=None, stop=None):  # fmt: skip
+def run_chunks(
+    backend, params, y0, settings, ranges, results, y_final, progress=None, save=None, stop=None
+):
     """Integrate row ``ranges`` on ``backend`` into ``results``/``y_final`` (rows in place).
 
     After each chunk: ``save(start, stop)`` (e.g. write a part), then
@@ -81,8 +82,18 @@ def run_saving(backend, grid, ranges, run, progress, stop):
     ``run.save``; ``progress`` is closed after, and a ``KeyboardInterrupt`` stops the run
     like a first SIGINT (``stop``)."""
     try:
-        run_chunks(backend, grid.params, grid.y0, grid.settings, ranges, run.results,
-                   run.y_final, progress, run.save, stop)  # fmt: skip
+        run_chunks(
+            backend,
+            grid.params,
+            grid.y0,
+            grid.settings,
+            ranges,
+            run.results,
+            run.y_final,
+            progress,
+            run.save,
+            stop,
+        )
     except KeyboardInterrupt:
         stop.signum = stop.signum or signal.SIGINT
     finally:
@@ -95,8 +106,9 @@ def check_saved(run, total, left, stop, where=""):
     (e.g. ``"level 2: "``) says which part of the work stopped. A stop that came after
     the last chunk had finished stopped nothing here, and says so."""
     if stop and run.saved >= left:
-        log.warning("%s%s came after every chunk had finished", where,
-                    signal.Signals(stop.signum).name)  # fmt: skip
+        log.warning(
+            "%s%s came after every chunk had finished", where, signal.Signals(stop.signum).name
+        )
     if run.saved < left:
         raise Interrupted(
             stop.signum,
@@ -119,8 +131,9 @@ def rows_missing(gaps):
     return ", ".join(f"{a}:{b}" for a, b in gaps[:5]) + (" ..." if len(gaps) > 5 else "")
 
 
-def integrate_in_memory(params, y0, settings, threads=None, chunk_size=None, progress=None,
-                        backend=None):  # fmt: skip
+def integrate_in_memory(
+    params, y0, settings, threads=None, chunk_size=None, progress=None, backend=None
+):
     """Integrate every system (row) of the kernels' arrays, chunk by chunk, in memory.
 
     On ``backend`` (default: :class:`~sweep.engine.backends.LocalThreads` with ``threads``).
@@ -132,8 +145,9 @@ def integrate_in_memory(params, y0, settings, threads=None, chunk_size=None, pro
     chunk_size = chunk_size or chunk_size_for(n, backend, shard=None)
     results = np.empty((n, result_width(settings)))
     y_final = np.empty_like(y0)
-    run_chunks(backend, params, y0, settings, chunk_ranges(n, chunk_size), results, y_final,
-               progress)  # fmt: skip
+    run_chunks(
+        backend, params, y0, settings, chunk_ranges(n, chunk_size), results, y_final, progress
+    )
     return results, y_final
 
 

@@ -124,10 +124,15 @@ def ready_kernel(params, settings, tangent=None):
     try:
         with _COMPILE:
             kernel(
-                np.empty((0, params.shape[1])), np.empty((0, 2)), np.ascontiguousarray(settings),
-                np.empty((0, layout.result_width(settings))), np.empty((0, 2)), 0.0,
-                np.empty(0), np.empty((0, 2)),
-            )  # fmt: skip
+                np.empty((0, params.shape[1])),
+                np.empty((0, 2)),
+                np.ascontiguousarray(settings),
+                np.empty((0, layout.result_width(settings))),
+                np.empty((0, 2)),
+                0.0,
+                np.empty(0),
+                np.empty((0, 2)),
+            )
     finally:
         notice.cancel()
     return kernel
@@ -188,8 +193,7 @@ def load_kernels(jobs, processes=None, here=True):
         log.info("compiling (or loading) %d kernels in %d processes ...", len(todo), processes)
         groups = variant_groups(todo)
         with tempfile.TemporaryDirectory() as claims, ThreadPoolExecutor(processes) as pool:
-            for failure in pool.map(_compile_elsewhere, [groups] * processes,
-                                    [claims] * processes):  # fmt: skip
+            for failure in pool.map(_compile_elsewhere, [groups] * processes, [claims] * processes):
                 if failure:
                     log.warning("compiling kernels in another process failed: %s", failure)
                     here = True
@@ -218,8 +222,9 @@ def _compile_elsewhere(groups, claims):
     package_root = str(Path(__file__).resolve().parents[1])  # this copy of sweep
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [package_root, env.get("PYTHONPATH")]))
     code = "import sys; from sweep.engine.dispatch import compile_specs; compile_specs(sys.argv[1])"
-    proc = subprocess.run([sys.executable, "-c", code, spec], env=env, capture_output=True,
-                          text=True)  # fmt: skip
+    proc = subprocess.run(
+        [sys.executable, "-c", code, spec], env=env, capture_output=True, text=True
+    )
     return None if proc.returncode == 0 else proc.stderr.strip()[-500:]
 
 
@@ -227,15 +232,19 @@ def compile_spec(groups, claims):
     """The JSON that :func:`compile_specs` reads: the groups of (params, settings, tangent)
     jobs (each job by its width, settings and tangent), the claims folder and this
     process (the one that waits for them)."""
-    return json.dumps({
-        "claims": str(claims),
-        "parent": os.getpid(),
-        "groups": [
-            [{"width": params.shape[1], "settings": settings.tolist(), "tangent": tangent}
-             for params, settings, tangent in group]
-            for group in groups
-        ],
-    })  # fmt: skip
+    return json.dumps(
+        {
+            "claims": str(claims),
+            "parent": os.getpid(),
+            "groups": [
+                [
+                    {"width": params.shape[1], "settings": settings.tolist(), "tangent": tangent}
+                    for params, settings, tangent in group
+                ]
+                for group in groups
+            ],
+        }
+    )
 
 
 def compile_specs(spec):
@@ -261,8 +270,7 @@ def compile_specs(spec):
     def take(g):
         for v, job in enumerate(groups[g]):
             if claim(f"{g}-{v}"):
-                ready_kernel(np.empty((0, job["width"])), np.array(job["settings"]),
-                             job["tangent"])  # fmt: skip
+                ready_kernel(np.empty((0, job["width"])), np.array(job["settings"]), job["tangent"])
 
     for g in range(len(groups)):  # a group of its own, when done with one, ...
         if claim(str(g)):

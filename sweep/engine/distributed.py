@@ -96,9 +96,11 @@ def _open_client(Client, scheduler):
     if not isinstance(scheduler, str) and not is_cluster:
         raise InputError(
             "client",
-            [f"must be a dask distributed Client, a Cluster or a scheduler address such as "
-             f"'tcp://host:8786'; got {type(scheduler).__name__}"],
-        )  # fmt: skip
+            [
+                f"must be a dask distributed Client, a Cluster or a scheduler address such as "
+                f"'tcp://host:8786'; got {type(scheduler).__name__}"
+            ],
+        )
     try:
         return Client(scheduler)
     except (OSError, ValueError, TypeError) as exc:

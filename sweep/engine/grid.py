@@ -136,9 +136,15 @@ def build_grid(config, points=None):
     """
     phys = physical_parameters(config, points)
     dl = physics.dimensionless(
-        phys["A"], phys["B"], phys["D0"], phys["V"], phys["K_W"], phys["k2_W"],
-        phys["eta_W"], phys["m_W"],
-    )  # fmt: skip
+        phys["A"],
+        phys["B"],
+        phys["D0"],
+        phys["V"],
+        phys["K_W"],
+        phys["k2_W"],
+        phys["eta_W"],
+        phys["m_W"],
+    )
     blocks = heterogeneity.block_values(config, phys) if config.heterogeneous else {}
     n = phys["A"].size
     nb = config.blocks

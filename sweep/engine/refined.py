@@ -95,8 +95,7 @@ def _desc(config, level):
     return f"{config.name} level {level}/{config.refine.levels}"
 
 
-def compute(config, threads=None, chunk_size=None, show_progress=True, client=None,
-            command="run"):  # fmt: skip
+def compute(config, threads=None, chunk_size=None, show_progress=True, client=None, command="run"):
     """Run the refinement of ``config`` in memory and return its Dataset (nothing written);
     arguments as for :func:`sweep.engine.runner.compute`. Progress is shown per level."""
     backend = LocalThreads(threads) if client is None else DaskTasks(client)
@@ -106,8 +105,14 @@ def compute(config, threads=None, chunk_size=None, show_progress=True, client=No
     def run_level(level, index, grid):
         progress = Progress(grid.n, desc=_desc(config, level), enabled=show_progress)
         try:
-            return integrate_in_memory(grid.params, grid.y0, grid.settings, chunk_size=chunk_size,
-                                       progress=progress, backend=backend)  # fmt: skip
+            return integrate_in_memory(
+                grid.params,
+                grid.y0,
+                grid.settings,
+                chunk_size=chunk_size,
+                progress=progress,
+                backend=backend,
+            )
         finally:
             progress.close()
 
@@ -115,8 +120,17 @@ def compute(config, threads=None, chunk_size=None, show_progress=True, client=No
     return build_point_dataset(config, refinement, grid, results, y_final, command)
 
 
-def run(config, out=None, *, resources=None, chunk_size=None, resume=False, shard=None,
-        show_progress=True, stop=None):  # fmt: skip
+def run(
+    config,
+    out=None,
+    *,
+    resources=None,
+    chunk_size=None,
+    resume=False,
+    shard=None,
+    show_progress=True,
+    stop=None,
+):
     """Run the refinement of ``config`` level by level, saving each chunk as a part, and
     write the NetCDF result; arguments, errors and result as for
     :func:`sweep.engine.runner.run_sweep` (whose refined configs come here). A ``.zarr`` output
@@ -137,14 +151,31 @@ def run(config, out=None, *, resources=None, chunk_size=None, resume=False, shar
             backend.compile(first.params, first.settings)
 
             def run_level(level, index, grid):
-                return _run_level(config, level, grid, folder, level_key(chash, level, grid),
-                                  backend, chunk_size, resume, shard, show_progress, stop,
-                                  counts)  # fmt: skip
+                return _run_level(
+                    config,
+                    level,
+                    grid,
+                    folder,
+                    level_key(chash, level, grid),
+                    backend,
+                    chunk_size,
+                    resume,
+                    shard,
+                    show_progress,
+                    stop,
+                    counts,
+                )
 
             refinement, grid, results, y_final = refine_levels(config, run_level, timings)
         if shard:
-            return SweepResult(None, folder, time.perf_counter() - start_time,
-                               counts["computed"], counts["reused"], timings)  # fmt: skip
+            return SweepResult(
+                None,
+                folder,
+                time.perf_counter() - start_time,
+                counts["computed"],
+                counts["reused"],
+                timings,
+            )
         clock = time.perf_counter()
         ds = build_point_dataset(config, refinement, grid, results, y_final)
         write_result(ds, path, f"{folder} (use --resume)")
@@ -152,19 +183,43 @@ def run(config, out=None, *, resources=None, chunk_size=None, resume=False, shar
         timings["file"] = time.perf_counter() - clock
         log.info(
             "%s: %.1f s running, %.2f s planning and labelling, %.2f s writing the file",
-            config.name, timings["integration"], timings["planning"], timings["file"],
-        )  # fmt: skip
-        return SweepResult(ds, path, time.perf_counter() - start_time, counts["computed"],
-                           counts["reused"], timings)  # fmt: skip
+            config.name,
+            timings["integration"],
+            timings["planning"],
+            timings["file"],
+        )
+        return SweepResult(
+            ds,
+            path,
+            time.perf_counter() - start_time,
+            counts["computed"],
+            counts["reused"],
+            timings,
+        )
 
 
-def _run_level(config, level, grid, folder, key, backend, chunk_size, resume, shard,
-               show_progress, stop, counts):  # fmt: skip
+def _run_level(
+    config,
+    level,
+    grid,
+    folder,
+    key,
+    backend,
+    chunk_size,
+    resume,
+    shard,
+    show_progress,
+    stop,
+    counts,
+):
     """The runs of one level: read back (``resume``), run the rest of this shard's chunks
     saving each as a part, and with a shard wait for the other shards' parts."""
     if level and stop:  # (within a level, run_chunks checks after each chunk)
-        raise Interrupted(stop.signum, f"interrupted by {signal.Signals(stop.signum).name} "
-                          f"before level {level}; rerun with --resume to continue")  # fmt: skip
+        raise Interrupted(
+            stop.signum,
+            f"interrupted by {signal.Signals(stop.signum).name} "
+            f"before level {level}; rerun with --resume to continue",
+        )
     shape = (grid.n, result_width(grid.settings), grid.y0.shape[1])
     run = parts.PartStore(folder, config, shape, key)
     run.make_folder()
@@ -191,8 +246,15 @@ def _await_shards(config, level, folder, key, run, have, shard, stop):
     """Wait until every run of the level is in the parts folder (the other shards write
     them), reading them as they come; a stop request ends the wait."""
     i, n = shard
-    log.info("%s: shard %d/%d: level %d: waiting for the other shards' runs (%d of %d here)",
-             config.name, i, n, level, int(have.sum()), have.size)  # fmt: skip
+    log.info(
+        "%s: shard %d/%d: level %d: waiting for the other shards' runs (%d of %d here)",
+        config.name,
+        i,
+        n,
+        level,
+        int(have.sum()),
+        have.size,
+    )
     while True:
         run.fill(have, ~have)
         if have.all():

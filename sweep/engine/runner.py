@@ -26,15 +26,13 @@ def runner_for(config):
     return refined if config.refine is not None else uniform
 
 
-def compute(config, threads=None, chunk_size=None, show_progress=True, client=None,
-            command="run"):  # fmt: skip
+def compute(config, threads=None, chunk_size=None, show_progress=True, client=None, command="run"):
     """Run every system of ``config`` and return the result Dataset (nothing written).
 
     ``threads``: local threads (default: all cores), or ``client``: an open Dask client.
     ``command``: what is running it, for the file's ``history`` (``dataset.provenance``).
     """
-    return runner_for(config).compute(config, threads, chunk_size, show_progress, client,
-                                      command)  # fmt: skip
+    return runner_for(config).compute(config, threads, chunk_size, show_progress, client, command)
 
 
 def run_sweep(
@@ -99,9 +97,16 @@ def run_sweep(
         lock; after a stop, its subclass ``Interrupted``. In every case an earlier
         result file is left as it was, and the parts written so far are kept.
     """
-    return runner_for(config).run(config, out, resources=resources, chunk_size=chunk_size,
-                                  resume=resume, shard=shard, show_progress=show_progress,
-                                  stop=stop)  # fmt: skip
+    return runner_for(config).run(
+        config,
+        out,
+        resources=resources,
+        chunk_size=chunk_size,
+        resume=resume,
+        shard=shard,
+        show_progress=show_progress,
+        stop=stop,
+    )
 
 
 def merge_parts(paths, out):

@@ -52,8 +52,7 @@ from .run_control import StopRequest, SweepResult
 log = logging.getLogger(__name__)
 
 
-def compute(config, threads=None, chunk_size=None, show_progress=True, client=None,
-            command="run"):  # fmt: skip
+def compute(config, threads=None, chunk_size=None, show_progress=True, client=None, command="run"):
     """Run every system of ``config``'s grid and return the result Dataset (nothing
     written); arguments as for :func:`sweep.engine.runner.compute`."""
     if config.refine is not None:
@@ -67,9 +66,13 @@ def compute(config, threads=None, chunk_size=None, show_progress=True, client=No
     progress = Progress(grid.n, desc=config.name, enabled=show_progress)
     try:
         results, y_final = integrate_in_memory(
-            grid.params, grid.y0, grid.settings, chunk_size=chunk_size, progress=progress,
+            grid.params,
+            grid.y0,
+            grid.settings,
+            chunk_size=chunk_size,
+            progress=progress,
             backend=backend,
-        )  # fmt: skip
+        )
     finally:
         progress.close()
     return build_dataset(grid, results, y_final, command)
@@ -118,8 +121,9 @@ def run(
                 have = run.reuse(ranges_mask(grid.n, owned), resume)
                 todo = missing_ranges(owned, have)
             total, left = count_rows(owned), count_rows(todo)
-            log.info("%s: computing %d runs in %d chunks on %s", config.name, left, len(todo),
-                     backend)  # fmt: skip
+            log.info(
+                "%s: computing %d runs in %d chunks on %s", config.name, left, len(todo), backend
+            )
             # compiled here, not first in run_chunks: before the progress clock
             backend.compile(grid.params, grid.settings)
             progress = Progress(total, config.name, enabled=show_progress, initial=total - left)

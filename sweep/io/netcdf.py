@@ -71,8 +71,13 @@ def read_result(path: str | Path, needs_config: bool = False) -> xr.Dataset:
     except (OSError, ValueError) as exc:
         text = str(exc).strip() or type(exc).__name__
         why = "not a NetCDF file" if "IO backends" in text else text.splitlines()[0][:200]
-        raise InputError(path, [f"cannot read result file: {why} (a result is the NetCDF "
-                                "file or Zarr store of rsf-sweep run)"]) from None  # fmt: skip
+        raise InputError(
+            path,
+            [
+                f"cannot read result file: {why} (a result is the NetCDF "
+                "file or Zarr store of rsf-sweep run)"
+            ],
+        ) from None
     missing = [v for v in RESULT_VARIABLES if v not in ds]
     if needs_config and "config_text" not in ds.attrs:
         missing.append("config_text attribute")
@@ -80,14 +85,22 @@ def read_result(path: str | Path, needs_config: bool = False) -> xr.Dataset:
         raise InputError(path, [f"not a sweep result (no {', '.join(missing)})"])
     incomplete = missing_parts(ds)
     if incomplete:
-        raise InputError(path, [f"not a complete sweep result: no {', '.join(incomplete)} (a "
-                                "file edited after the run, or from another version)"])  # fmt: skip
+        raise InputError(
+            path,
+            [
+                f"not a complete sweep result: no {', '.join(incomplete)} (a "
+                "file edited after the run, or from another version)"
+            ],
+        )
     pending = int((ds["regime"] < 0).sum())
     if pending:
         raise InputError(
-            path, [f"{pending} of {ds['regime'].size} runs are not computed yet; finish the "
-                   "sweep first (python -m sweep run CONFIG --out PATH --resume)"]
-        )  # fmt: skip
+            path,
+            [
+                f"{pending} of {ds['regime'].size} runs are not computed yet; finish the "
+                "sweep first (python -m sweep run CONFIG --out PATH --resume)"
+            ],
+        )
     return ds
 
 

@@ -186,8 +186,13 @@ def read_part(path):
     except Exception as exc:  # zipfile, numpy and json each raise their own kinds
         raise PartError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None
     start, stop, n = int(match["start"]), int(match["stop"]), int(match["n"])
-    expected = {"format": PART_FORMAT, "config_hash": match["hash"], "start": start,
-                "stop": stop, "n": n}  # fmt: skip
+    expected = {
+        "format": PART_FORMAT,
+        "config_hash": match["hash"],
+        "start": start,
+        "stop": stop,
+        "n": n,
+    }
     wrong = [k for k, v in expected.items() if meta.get(k) != v]
     if wrong:
         raise PartError(f"{path}: name and content disagree on {', '.join(wrong)}")
@@ -198,8 +203,17 @@ def read_part(path):
         raise PartError(f"{path}: arrays do not hold {rows} rows")
     if _checksum(results, y_final) != meta.get("sha256"):
         raise PartError(f"{path}: checksum mismatch (corrupt data)")
-    return Part(path, match["hash"], start, stop, n, meta["config_text"],
-                meta["config_source"], results, y_final)  # fmt: skip
+    return Part(
+        path,
+        match["hash"],
+        start,
+        stop,
+        n,
+        meta["config_text"],
+        meta["config_source"],
+        results,
+        y_final,
+    )
 
 
 def part_files(paths):
@@ -354,8 +368,16 @@ class PartStore:
     def save(self, a, b):
         """Write rows ``a:b`` as a part; a failure is a :class:`RunError` saying what is kept."""
         try:
-            write_part(self.folder, self.config, self.chash, a, b, self.n,
-                       self.results[a:b], self.y_final[a:b])  # fmt: skip
+            write_part(
+                self.folder,
+                self.config,
+                self.chash,
+                a,
+                b,
+                self.n,
+                self.results[a:b],
+                self.y_final[a:b],
+            )
         except OSError as exc:
             raise RunError(
                 f"cannot write a part to {self.folder}: {exc.strerror or exc}; the parts "
@@ -390,12 +412,19 @@ class PartStore:
         mine = groups.get(self.chash, [])
         if not resume:
             if mine:
-                log.info("not reusing %d parts of this sweep in %s (--resume reuses them)",
-                         len(mine), self.folder)  # fmt: skip
+                log.info(
+                    "not reusing %d parts of this sweep in %s (--resume reuses them)",
+                    len(mine),
+                    self.folder,
+                )
             return have
         used, _ = self.fill(have, owned, mine)
-        log.info("resuming from %s: reusing %d runs from %d parts", self.folder,
-                 int(have.sum()), len(used))  # fmt: skip
+        log.info(
+            "resuming from %s: reusing %d runs from %d parts",
+            self.folder,
+            int(have.sum()),
+            len(used),
+        )
         return have
 
 

@@ -97,8 +97,9 @@ class ZarrResult:
         self.have = np.asarray(self.group["regime"][...]).reshape(-1) != PENDING
         self.saved = 0
         if resume:
-            log.info("resuming %s: %d of %d runs are stored", self.path, int(self.have.sum()),
-                     grid.n)  # fmt: skip
+            log.info(
+                "resuming %s: %d of %d runs are stored", self.path, int(self.have.sum()), grid.n
+            )
 
     def _reopen(self, resume):
         """Check that the existing store is this sweep's and may be continued; its chunks."""
@@ -106,9 +107,11 @@ class ZarrResult:
         if not resume:
             raise InputError(
                 source,
-                ["exists; --resume continues it (same config), or remove it or choose "
-                 "another --out (an existing Zarr store is never overwritten)"],
-            )  # fmt: skip
+                [
+                    "exists; --resume continues it (same config), or remove it or choose "
+                    "another --out (an existing Zarr store is never overwritten)"
+                ],
+            )
         try:
             group = self.zarr.open_group(self.path, mode="r")
             attrs, chunks = dict(group.attrs), tuple(group["regime"].chunks)
@@ -118,10 +121,12 @@ class ZarrResult:
         if attrs.get("config_hash") != want:
             raise InputError(
                 source,
-                [f"was made by another config (config_hash {attrs.get('config_hash')}, sweep "
-                 f"{attrs.get('sweep_name')!r}), not by this one ({want}); it is left as it is: "
-                 "remove it or choose another --out"],
-            )  # fmt: skip
+                [
+                    f"was made by another config (config_hash {attrs.get('config_hash')}, sweep "
+                    f"{attrs.get('sweep_name')!r}), not by this one ({want}); it is left as it is: "
+                    "remove it or choose another --out"
+                ],
+            )
         return chunks
 
     def _create(self, chunks, command):
@@ -131,8 +136,10 @@ class ZarrResult:
         block, regime_name, event) are whole in every chunk.
         """
         config = self.grid.config
-        one_point = {name: np.full(shape, PENDING, dtype)
-                     for name, (shape, dtype) in _field_shapes(self.grid).items()}  # fmt: skip
+        one_point = {
+            name: np.full(shape, PENDING, dtype)
+            for name, (shape, dtype) in _field_shapes(self.grid).items()
+        }
         data_vars, encoding = {}, {}
         for name, (dims, data, attrs) in data_variables(
             config, one_point, (1,) * len(config.shape)
@@ -144,8 +151,11 @@ class ZarrResult:
             encoding[name] = {"chunks": chunks + trailing}
             if data.dtype.kind != "f":
                 encoding[name]["fill_value"] = PENDING
-        attrs = {**provenance(config, command), "config_hash": config_hash(config),
-                 "pending": PENDING_NOTE}  # fmt: skip
+        attrs = {
+            **provenance(config, command),
+            "config_hash": config_hash(config),
+            "pending": PENDING_NOTE,
+        }
         ds = xr.Dataset(data_vars, coords=parameter_coords(config), attrs=attrs)
         tmp = Path(tempfile.mkdtemp(dir=self.path.parent, prefix=f".{self.path.name}."))
         try:

@@ -33,8 +33,12 @@ from .layout import (
 def block_parameters(p, nb, i):
     """Block ``i``'s own A, B, κ1 and state-rate factor D0/D0_i from a parameter row
     whose blocks differ (``layout``: the columns after N_PARAMS)."""
-    return (p[N_PARAMS + B_A * nb + i], p[N_PARAMS + B_B * nb + i],
-            p[N_PARAMS + B_KAPPA1 * nb + i], p[N_PARAMS + B_RATE * nb + i])  # fmt: skip
+    return (
+        p[N_PARAMS + B_A * nb + i],
+        p[N_PARAMS + B_B * nb + i],
+        p[N_PARAMS + B_KAPPA1 * nb + i],
+        p[N_PARAMS + B_RATE * nb + i],
+    )
 
 
 @jit_inline
@@ -158,7 +162,8 @@ def jacobian(y, f, p, model, law, coupling, het, nb, ev, jac):
         ev[i] = np.exp(y[i])
     for i in range(nb):
         psi_l, psi_psi, l_l, l_z, row_l, row_z, row_psi, denom = block_jacobian(
-            y, f, p, model, law, coupling, het, nb, ev, i)  # fmt: skip
+            y, f, p, model, law, coupling, het, nb, ev, i
+        )
         jac[nb + i, i] = psi_l
         jac[nb + i, nb + i] = psi_psi
         row = i
@@ -309,20 +314,24 @@ def rhs_curvature(y, u, w, p, model, law, coupling, het, nb, ev, work, out):
         elif model == QUASI_DYNAMIC:
             eta = p[P_ETA]
             den = A + eta * e
-            lnv_rate = (kappa1 * (1.0 - e) + kappa2 * coupled_sum(coupling, nb, i, ev, e, total)
-                        - B * dpsi) / den  # fmt: skip
-            du_num = -kappa1 * du_e[i] + kappa2 * coupled_sum(
-                coupling, nb, i, du_e, du_e[i], tot_u
-            ) - B * du_dpsi  # fmt: skip
-            dw_num = -kappa1 * dw_e[i] + kappa2 * coupled_sum(
-                coupling, nb, i, dw_e, dw_e[i], tot_w
-            ) - B * dw_dpsi  # fmt: skip
+            lnv_rate = (
+                kappa1 * (1.0 - e) + kappa2 * coupled_sum(coupling, nb, i, ev, e, total) - B * dpsi
+            ) / den
+            du_num = (
+                -kappa1 * du_e[i]
+                + kappa2 * coupled_sum(coupling, nb, i, du_e, du_e[i], tot_u)
+                - B * du_dpsi
+            )
+            dw_num = (
+                -kappa1 * dw_e[i]
+                + kappa2 * coupled_sum(coupling, nb, i, dw_e, dw_e[i], tot_w)
+                - B * dw_dpsi
+            )
             du_lnv = (du_num - lnv_rate * eta * du_e[i]) / den
             dw_lnv = (dw_num - lnv_rate * eta * dw_e[i]) / den
             d2_lnv = (
-                d2_num - du_lnv * eta * dw_e[i] - dw_lnv * eta * du_e[i]
-                - lnv_rate * eta * d2_e[i]
-            ) / den  # fmt: skip
+                d2_num - du_lnv * eta * dw_e[i] - dw_lnv * eta * du_e[i] - lnv_rate * eta * d2_e[i]
+            ) / den
         else:
             em = np.exp(-lnv) / p[P_MASS]
             uz, wz = u[2 * nb + i], w[2 * nb + i]

@@ -108,9 +108,15 @@ def heap_scratch(n, k_rows, mat_cols):
     mat_n = n if mat_cols >= 0 else 0
     mat_c = (mat_cols if mat_cols > 0 else n) if mat_cols >= 0 else 0
     return (
-        np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty((k_rows, n)),
-        np.empty((mat_n, mat_c)), np.empty(mat_n, np.int64), np.zeros((DENSE_ROWS, n)),
-    )  # fmt: skip
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty((k_rows, n)),
+        np.empty((mat_n, mat_c)),
+        np.empty(mat_n, np.int64),
+        np.zeros((DENSE_ROWS, n)),
+    )
 
 
 @jit_inline
@@ -133,9 +139,20 @@ def read_settings(settings):
     n_events = int(settings[S_EVENTS])
     linear = settings[S_LINEAR_VERDICTS] > 0.5
     return (
-        nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit, slip_lnv,
-        lyap, n_events, linear,
-    )  # fmt: skip
+        nb,
+        rtol,
+        atol,
+        max_steps,
+        lnv_cap,
+        steady_amp,
+        accuracy,
+        n_confirm,
+        early_exit,
+        slip_lnv,
+        lyap,
+        n_events,
+        linear,
+    )
 
 
 @jit_inline
@@ -154,11 +171,18 @@ def system_scratch(y0_row, n, nb, n_fixed, nb_fixed, k_rows, mat_cols, dk_rows, 
         mat_n = n_fixed if mat_cols >= 0 else 0
         mat_c = (mat_cols if mat_cols > 0 else n_fixed) if mat_cols >= 0 else 0
         y, f, ynew, fnew, ytmp, ev = (
-            stack_vector(n_fixed), stack_vector(n_fixed), stack_vector(n_fixed),
-            stack_vector(n_fixed), stack_vector(n_fixed), stack_vector(nb_fixed),
-        )  # fmt: skip
-        k, mat, dense = (stack_matrix(k_rows, n_fixed), stack_matrix(mat_n, mat_c),
-                         stack_matrix(DENSE_ROWS, n_fixed))  # fmt: skip
+            stack_vector(n_fixed),
+            stack_vector(n_fixed),
+            stack_vector(n_fixed),
+            stack_vector(n_fixed),
+            stack_vector(n_fixed),
+            stack_vector(nb_fixed),
+        )
+        k, mat, dense = (
+            stack_matrix(k_rows, n_fixed),
+            stack_matrix(mat_n, mat_c),
+            stack_matrix(DENSE_ROWS, n_fixed),
+        )
         perm = np.empty(mat_n, np.int64)
         dense[:, :] = 0.0
         for j in range(n):
@@ -218,8 +242,13 @@ def grid_kernel(model, law, method, coupling, het, tangent, catalogue=False, n_f
     rec_y)`` of a variant (bools ``het``, ``tangent``, ``catalogue``: whether runs keep a
     catalogue of slip events; ``n_fixed``: state size, 0: any)."""
     m = MODULES[method]  # the method: its step, interpolant, controller, scratch shapes
-    adaptive, exponent, bound, k_rows, dk_rows = (m.ADAPTIVE, m.EXPONENT, m.EXCURSION,
-                                                  m.STAGE_ROWS, m.TANGENT_ROWS)  # fmt: skip
+    adaptive, exponent, bound, k_rows, dk_rows = (
+        m.ADAPTIVE,
+        m.EXPONENT,
+        m.EXCURSION,
+        m.STAGE_ROWS,
+        m.TANGENT_ROWS,
+    )
     dense_rows, dense_stages, tangent_cap = m.DENSE_ROWS, m.DENSE_STAGES, m.TANGENT_CAP
     nb_fixed = n_fixed // values_per_block(model)
     mat_cols = m.matrix_columns(model, coupling) if m.MATRIX else -1  # 0: n × n; −1: none
@@ -231,18 +260,33 @@ def grid_kernel(model, law, method, coupling, het, tangent, catalogue=False, n_f
             raise ValueError("a catalogue asked of a kernel compiled without one")
         n = np.int64(n_fixed) if n_fixed > 0 else y0.shape[1]  # LLVM: a constant; numba: int64
         for s in range(params.shape[0]):  # settings read per system: 3 % faster per step
-            (nb, rtol, atol, max_steps, lnv_cap, steady_amp, accuracy, n_confirm, early_exit,
-             slip_lnv, lyap, n_events, linear) = read_settings(settings)  # fmt: skip
+            (
+                nb,
+                rtol,
+                atol,
+                max_steps,
+                lnv_cap,
+                steady_amp,
+                accuracy,
+                n_confirm,
+                early_exit,
+                slip_lnv,
+                lyap,
+                n_events,
+                linear,
+            ) = read_settings(settings)
             p = params[s]
             A, B, tau_end, tau_max, max_step, lin_growth = read_params(p, early_exit)
             nb, y, f, ynew, fnew, ytmp, ev, k, mat, perm, dense, delta, work, dk, t_blocks, ly = (
                 system_scratch(y0[s], n, nb, n_fixed, nb_fixed, k_rows, mat_cols, dk_rows, tangent)
-            )  # fmt: skip
+            )
             step = Step(y, ynew, f, fnew, dense, bound)
             win, past, past_cs, hist, limits, section, cs, slipped, turns = cycle_arrays(
-                y, p, nb, A, B)  # fmt: skip
-            needs_tangent, tau_max, t_settle = lyapunov_plan(lyap, tangent, ly, delta,
-                                                             tau_end, tau_max)  # fmt: skip
+                y, p, nb, A, B
+            )
+            needs_tangent, tau_max, t_settle = lyapunov_plan(
+                lyap, tangent, ly, delta, tau_end, tau_max
+            )
             horizon = tau_max if linear and early_exit else 0.0  # linear verdicts: stop time
             n_rec = record_start(y, rec_t, rec_y)
             if catalogue:  # compiled only where runs keep a catalogue
@@ -259,8 +303,26 @@ def grid_kernel(model, law, method, coupling, het, tangent, catalogue=False, n_f
                 if n_steps + n_rejected >= max_steps:
                     break
                 h = min(h, tau_stop - t, turn_step(ly) if tangent and tangent_cap else math.inf)
-                err = m.step(y, f, h, p, model, law, coupling, het, nb, ev, k, mat, perm, ytmp,
-                             ynew, fnew, rtol, atol)  # fmt: skip
+                err = m.step(
+                    y,
+                    f,
+                    h,
+                    p,
+                    model,
+                    law,
+                    coupling,
+                    het,
+                    nb,
+                    ev,
+                    k,
+                    mat,
+                    perm,
+                    ytmp,
+                    ynew,
+                    fnew,
+                    rtol,
+                    atol,
+                )
                 h_next = next_step_size(exponent, h, err, max_step) if adaptive else h
                 if not (err <= 1.0):
                     n_rejected += 1
@@ -275,22 +337,48 @@ def grid_kernel(model, law, method, coupling, het, tangent, catalogue=False, n_f
                     regime, tau_runaway = RUNAWAY, t + h
                     if crossed >= 0:  # the step is kept: the run ends after it
                         if dense_rows > 0:
-                            m.dense(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew,
-                                    dense)  # fmt: skip
+                            m.dense(
+                                y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense
+                            )
                         tau_runaway = cap_crossing(step, crossed, t, h, nb, lnv_cap, win, cs)
                         t += h
                     break
                 if tangent and ly[L_ON] > 0.0:  # the log growth of δ and |J δ|
-                    lyapunov_add(ly, t + h, h, *m.tangent_step(y, f, h, k, mat, perm, delta, work,
-                                 dk, t_blocks, p, nb, ev, model, law, coupling, het))  # fmt: skip
+                    lyapunov_add(
+                        ly,
+                        t + h,
+                        h,
+                        *m.tangent_step(
+                            y,
+                            f,
+                            h,
+                            k,
+                            mat,
+                            perm,
+                            delta,
+                            work,
+                            dk,
+                            t_blocks,
+                            p,
+                            nb,
+                            ev,
+                            model,
+                            law,
+                            coupling,
+                            het,
+                        ),
+                    )
                 # the interpolant's coefficients; where they cost stages, only where read
-                if dense_rows > 0 and (dense_stages == 0 or n_rec > 0 or dense_needed(
-                        step, h, p, nb, A, B, turns, rtol, atol) or (catalogue and
-                        cat[K_CAPACITY] > 0.0 and catalogue_reads(cat, ynew, nb))):  # fmt: skip
+                if dense_rows > 0 and (
+                    dense_stages == 0
+                    or n_rec > 0
+                    or dense_needed(step, h, p, nb, A, B, turns, rtol, atol)
+                    or (catalogue and cat[K_CAPACITY] > 0.0 and catalogue_reads(cat, ynew, nb))
+                ):
                     m.dense(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense)
-                new_peak, theta_peak, slip_ended = classify_step(step, t, h, p, nb, A, B, win,
-                                                                 cs, slipped, slip_lnv, turns,
-                                                                 rtol, atol)  # fmt: skip
+                new_peak, theta_peak, slip_ended = classify_step(
+                    step, t, h, p, nb, A, B, win, cs, slipped, slip_lnv, turns, rtol, atol
+                )
                 if new_peak and nb > 1:  # rare calls made here: see classify_step
                     event_section(step, h, nb, theta_peak, section)
                 if slip_ended:
@@ -304,19 +392,61 @@ def grid_kernel(model, law, method, coupling, het, tangent, catalogue=False, n_f
                     y[j] = ynew[j]
                     f[j] = fnew[j]
                 if new_peak:
-                    new_event(t_new_peak, y, p, nb, A, B, win, past, past_cs, hist, limits,
-                              section, cs, accuracy, steady_amp, lin_growth, rtol, atol,
-                              horizon)  # fmt: skip
+                    new_event(
+                        t_new_peak,
+                        y,
+                        p,
+                        nb,
+                        A,
+                        B,
+                        win,
+                        past,
+                        past_cs,
+                        hist,
+                        limits,
+                        section,
+                        cs,
+                        accuracy,
+                        steady_amp,
+                        lin_growth,
+                        rtol,
+                        atol,
+                        horizon,
+                    )
                 if early_exit and t >= t_settle:
                     regime = settled_early(new_peak, cs, n_confirm, y, lin_growth, steady_amp)
                     if regime >= 0:
                         break
-            finish_run(results[s], regime, t, tau_stop, y, n_steps, n_rejected, tau_runaway, nb,
-                       win, past, past_cs, hist, limits, cs, steady_amp, lin_growth, accuracy,
-                       rtol, atol, ly, lyap, n_events, needs_tangent)  # fmt: skip
+            finish_run(
+                results[s],
+                regime,
+                t,
+                tau_stop,
+                y,
+                n_steps,
+                n_rejected,
+                tau_runaway,
+                nb,
+                win,
+                past,
+                past_cs,
+                hist,
+                limits,
+                cs,
+                steady_amp,
+                lin_growth,
+                accuracy,
+                rtol,
+                atol,
+                ly,
+                lyap,
+                n_events,
+                needs_tangent,
+            )
             for j in range(n):  # not y_final[s] = y: numba compiles its error message
                 y_final[s, j] = y[j]
             results[s, R_N_RECORDED] = record_end(t, y, rec_t, rec_y, n_rec)
 
-    return jit_variant(integrate_grid, model, law, method, coupling, het, tangent, catalogue,
-                       n_fixed)  # fmt: skip
+    return jit_variant(
+        integrate_grid, model, law, method, coupling, het, tangent, catalogue, n_fixed
+    )

@@ -49,10 +49,8 @@ from .step import dense_crossing, dense_extremum, dense_tail, dense_value
 K_ACTIVE, K_T_START, K_FIRST, K_PEAK, K_AFTER, K_CAPACITY, K_START, K_LNV = range(8)
 
 # Gauss–Legendre nodes and weights on [0, 1], four points.
-_GL_X = np.array([0.06943184420297371, 0.33000947820757187, 0.6699905217924281,
-                  0.9305681557970263])  # fmt: skip
-_GL_W = np.array([0.17392742256872692, 0.3260725774312731, 0.3260725774312731,
-                  0.17392742256872692])  # fmt: skip
+_GL_X = np.array([0.06943184420297371, 0.33000947820757187, 0.6699905217924281, 0.9305681557970263])
+_GL_W = np.array([0.17392742256872692, 0.3260725774312731, 0.3260725774312731, 0.17392742256872692])
 
 
 @jit
@@ -91,8 +89,9 @@ def catalogue_reads(state, ynew, nb):
 def _falling(s, i, h, level):
     """Fraction of step ``s`` where ℓ_i falls through ``level`` (y_i > level ≥ ynew_i)."""
     r = dense_tail(s, i)
-    return dense_crossing(-s.y[i], -s.ynew[i], -s.f[i], -s.fnew[i], h,
-                          (-r[0], -r[1], -r[2], -r[3]), -level)  # fmt: skip
+    return dense_crossing(
+        -s.y[i], -s.ynew[i], -s.f[i], -s.fnew[i], h, (-r[0], -r[1], -r[2], -r[3]), -level
+    )
 
 
 @jit
@@ -104,8 +103,11 @@ def _edge(s, h, nb, slip_lnv, starting):
     theta, block = (1.0, -1) if starting else (0.0, -1)
     for i in range(nb):
         if starting and ynew[i] > slip_lnv:
-            th = 0.0 if y[i] > slip_lnv else dense_crossing(y[i], ynew[i], s.f[i], s.fnew[i], h,
-                                                            dense_tail(s, i), slip_lnv)  # fmt: skip
+            th = (
+                0.0
+                if y[i] > slip_lnv
+                else dense_crossing(y[i], ynew[i], s.f[i], s.fnew[i], h, dense_tail(s, i), slip_lnv)
+            )
             if block < 0 or th < theta:
                 theta, block = th, i
         elif not starting and y[i] > slip_lnv:
@@ -126,11 +128,14 @@ def _fold_step(s, h, nb, slip_lnv, th0, th1, state, blocks):
         r = dense_tail(s, i)
         acc = 0.0
         for q in range(4):
-            acc += _GL_W[q] * math.exp(dense_value(y[i], ynew[i], f[i], fnew[i], h, r,
-                                                   th0 + (th1 - th0) * _GL_X[q]))  # fmt: skip
+            acc += _GL_W[q] * math.exp(
+                dense_value(y[i], ynew[i], f[i], fnew[i], h, r, th0 + (th1 - th0) * _GL_X[q])
+            )
         blocks[0, i] += acc * span
-        top = max(dense_value(y[i], ynew[i], f[i], fnew[i], h, r, th0),
-                  dense_value(y[i], ynew[i], f[i], fnew[i], h, r, th1))  # fmt: skip
+        top = max(
+            dense_value(y[i], ynew[i], f[i], fnew[i], h, r, th0),
+            dense_value(y[i], ynew[i], f[i], fnew[i], h, r, th1),
+        )
         if f[i] > 0.0 and fnew[i] <= 0.0:  # a maximum inside the step
             theta = dense_extremum(y[i], ynew[i], f[i], fnew[i], h, r)
             if th0 <= theta <= th1:

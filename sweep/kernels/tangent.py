@@ -130,7 +130,7 @@ def turn_step(ly):
 @jit
 def explicit_tangent_step(
     a, b, y, f, h, k, delta, work, dk, blocks, p, nb, ev, model, law, coupling, het
-):  # fmt: skip
+):
     """Carry δ (unit length) over the accepted step of size ``h`` from ``y`` (slope
     ``f``) of an explicit method with tableau ``a``, ``b`` (:func:`explicit_tableau`;
     its stages K_1 … in the rows of ``k``) and renormalise it; returns the logarithm of

@@ -207,9 +207,16 @@ def theory(config, phys, dl, values):
     """
     args = (config.model, dl["A"], dl["B"], dl["eta_hat"], dl["mass_hat"])
     growth = physics.linear_growth_rate(
-        config.model, config.blocks, dl["A"], dl["B"], dl["kappa1"], dl["kappa2"],
-        dl["eta_hat"], dl["mass_hat"], config.coupling,
-    )  # fmt: skip
+        config.model,
+        config.blocks,
+        dl["A"],
+        dl["B"],
+        dl["kappa1"],
+        dl["kappa2"],
+        dl["eta_hat"],
+        dl["mass_hat"],
+        config.coupling,
+    )
     out = {
         "growth_rate": growth,
         "kappa_c": physics.critical_kappa(*args),
@@ -221,10 +228,17 @@ def theory(config, phys, dl, values):
     if rows.any():
         factors = heterogeneity.block_factors(config, phys)
         growth, kc, omega = unequal_theory(
-            config.model, config.coupling, values["A"][rows], values["B"][rows],
-            factors["K_W"][rows], 1.0 / factors["D0"][rows], dl["kappa2"][rows],
-            dl["eta_hat"][rows], dl["mass_hat"][rows], dl["kappa1"][rows],
-        )  # fmt: skip
+            config.model,
+            config.coupling,
+            values["A"][rows],
+            values["B"][rows],
+            factors["K_W"][rows],
+            1.0 / factors["D0"][rows],
+            dl["kappa2"][rows],
+            dl["eta_hat"][rows],
+            dl["mass_hat"][rows],
+            dl["kappa1"][rows],
+        )
         for name, value in (("growth_rate", growth), ("kappa_c", kc), ("omega", omega)):
             out[name] = np.array(out[name], float)
             out[name][rows] = value

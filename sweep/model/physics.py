@@ -145,8 +145,9 @@ def mode_stiffnesses(n_blocks, kappa1, kappa2, coupling="chain"):
     return [np.asarray(kappa1, float) + np.asarray(kappa2, float) * lk for lk in lam]
 
 
-def eigenvalues(model, n_blocks, A, B, kappa1, kappa2=0.0, eta_hat=0.0, mass_hat=0.0,
-                coupling="chain"):  # fmt: skip
+def eigenvalues(
+    model, n_blocks, A, B, kappa1, kappa2=0.0, eta_hat=0.0, mass_hat=0.0, coupling="chain"
+):
     """Eigenvalues of the linearised system of identical blocks at steady sliding,
     units of V/D0.
 
@@ -160,8 +161,9 @@ def eigenvalues(model, n_blocks, A, B, kappa1, kappa2=0.0, eta_hat=0.0, mass_hat
     return np.stack(modes, axis=-2)
 
 
-def linear_growth_rate(model, n_blocks, A, B, kappa1, kappa2=0.0, eta_hat=0.0, mass_hat=0.0,
-                       coupling="chain"):  # fmt: skip
+def linear_growth_rate(
+    model, n_blocks, A, B, kappa1, kappa2=0.0, eta_hat=0.0, mass_hat=0.0, coupling="chain"
+):
     """Largest real part of the eigenvalues (units of V/D0); > 0 means unstable."""
     lam = eigenvalues(model, n_blocks, A, B, kappa1, kappa2, eta_hat, mass_hat, coupling)
     return lam.real.max(axis=(-2, -1))

@@ -161,8 +161,10 @@ def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Bou
         corners = lattice.keys(lattice.corners(leaves, level))
         at = np.minimum(np.searchsorted(keys[order], corners), len(keys) - 1)
         if not (keys[order][at] == corners).all():
-            raise ValueError("this refined result lacks the runs at some cells' corners (a "
-                             "subset of its points?): a refined result is read whole")  # fmt: skip
+            raise ValueError(
+                "this refined result lacks the runs at some cells' corners (a "
+                "subset of its points?): a refined result is read whole"
+            )
         rows = order[at]
         labels = codes[rows]  # (n, 2^d)
         mixed = np.any(labels != labels[:, :1], axis=1)

@@ -98,8 +98,9 @@ def refined_config(ds, source="result"):
     if "regime" not in ds or not is_refined(ds) or "config_text" not in ds.attrs:
         raise InputError(source, ["not a refined result (runs along point, featureType point)"])
     try:
-        config = parse_stored_config(ds.attrs["config_text"], f"{source} (config_text)",
-                                     ds.attrs.get("integrator_method"))  # fmt: skip
+        config = parse_stored_config(
+            ds.attrs["config_text"], f"{source} (config_text)", ds.attrs.get("integrator_method")
+        )
     except ConfigError as exc:
         raise ConfigError(source, [f"stored config_text: {p}" for p in exc.problems]) from None
     if config.refine is None:
@@ -217,8 +218,10 @@ def nearest_runs(lattice, index, targets, level):
         if L == level:
             exact[todo[found]] = True
     if not (rows >= 0).all():
-        raise ValueError("this refined result lacks runs of its level-0 grid (a subset of its "
-                         "points?): a refined result is read whole")  # fmt: skip
+        raise ValueError(
+            "this refined result lacks runs of its level-0 grid (a subset of its "
+            "points?): a refined result is read whole"
+        )
     return rows, exact
 
 

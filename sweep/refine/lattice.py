@@ -168,8 +168,12 @@ class Labels:
         )
         if self.undecided is None:
             return Labels(outputs, other.rtol)
-        return Labels(outputs, other.rtol, np.concatenate([self.undecided, other.undecided]),
-                      np.concatenate([self.steady, other.steady]))  # fmt: skip
+        return Labels(
+            outputs,
+            other.rtol,
+            np.concatenate([self.undecided, other.undecided]),
+            np.concatenate([self.steady, other.steady]),
+        )
 
 
 def point_labels(config, fields):

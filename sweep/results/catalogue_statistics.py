@@ -80,8 +80,13 @@ def catalogue_fields(grid, results):
     for name, column in INTEGER_FIELDS.items():
         fields[name] = np.where(np.isnan(ev[..., column]), -1, ev[..., column])
     completeness = grid.config.catalogue.completeness
-    fields |= statistics(fields["slip_event_magnitude"], fields["slip_event_blocks"],
-                         fields["slip_event_start"], grid.config.blocks, completeness)  # fmt: skip
+    fields |= statistics(
+        fields["slip_event_magnitude"],
+        fields["slip_event_blocks"],
+        fields["slip_event_start"],
+        grid.config.blocks,
+        completeness,
+    )
     return fields
 
 
@@ -108,8 +113,10 @@ def statistics(mag, blocks, start, nb, completeness=None):
         mean_int, cv = recurrence(np.where(whole, start, np.nan))
         frac = whole.sum(axis=1) / kept.sum(axis=1)
     lo, hi = MAGNITUDE_EDGES[0], MAGNITUDE_EDGES[-1]
-    counts = [np.histogram(np.clip(m[k], lo, hi), MAGNITUDE_EDGES)[0]
-              for m, k in zip(mag, kept, strict=True)]  # fmt: skip
+    counts = [
+        np.histogram(np.clip(m[k], lo, hi), MAGNITUDE_EDGES)[0]
+        for m, k in zip(mag, kept, strict=True)
+    ]
     return {
         "b_value": np.where(ok, b, np.nan),
         "b_value_error": np.where(ok, b_err, np.nan),
@@ -174,10 +181,16 @@ def catalogue_statistics(ds: xr.Dataset, completeness: float | None = None) -> x
         name: ds[name].transpose(*dims, "slip_event").values.reshape(-1, ds.sizes["slip_event"])
         for name in ("slip_event_magnitude", "slip_event_blocks", "slip_event_start")
     }
-    blocks = np.where(np.isnan(flat["slip_event_blocks"].astype(float)), -1,
-                      flat["slip_event_blocks"])  # fmt: skip
-    stats = statistics(flat["slip_event_magnitude"], blocks, flat["slip_event_start"],
-                       int(ds.attrs["blocks"]), completeness)  # fmt: skip
+    blocks = np.where(
+        np.isnan(flat["slip_event_blocks"].astype(float)), -1, flat["slip_event_blocks"]
+    )
+    stats = statistics(
+        flat["slip_event_magnitude"],
+        blocks,
+        flat["slip_event_start"],
+        int(ds.attrs["blocks"]),
+        completeness,
+    )
     shape = tuple(ds.sizes[d] for d in dims)
     out = {}
     for name, values in stats.items():

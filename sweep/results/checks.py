@@ -22,8 +22,10 @@ def check_result(ds, argument="ds"):
     missing) unless it is a complete sweep result; ``argument`` names it in messages.
     The plotting and catalogue functions check what they are given with it."""
     if not isinstance(ds, xr.Dataset):
-        raise TypeError(f"{argument} must be a result Dataset (xarray.open_dataset of a "
-                        f"result file), got {type(ds).__name__}")  # fmt: skip
+        raise TypeError(
+            f"{argument} must be a result Dataset (xarray.open_dataset of a "
+            f"result file), got {type(ds).__name__}"
+        )
     missing = [v for v in RESULT_VARIABLES if v not in ds] or missing_parts(ds)
     if missing:
         raise ValueError(f"{argument} is not a complete sweep result: no {', '.join(missing)}")
@@ -36,8 +38,9 @@ def missing_parts(ds):
     read, ``regime``'s flag table and, where its config is stored, the output variables
     of that config."""
     missing = [f"{a} attribute" for a in RESULT_ATTRS if a not in ds.attrs]
-    missing += [f"regime {a}" for a in ("flag_values", "flag_meanings")
-                if a not in ds["regime"].attrs]  # fmt: skip
+    missing += [
+        f"regime {a}" for a in ("flag_values", "flag_meanings") if a not in ds["regime"].attrs
+    ]
     try:
         config = parse_config(ds.attrs["config_text"])
     except (KeyError, ConfigError):  # none stored, or not valid: stored_config says so
@@ -58,11 +61,15 @@ def check_trace(ds, argument="ds"):
         )
     regime = ds.attrs.get("regime")
     if regime not in REGIMES:
-        raise ValueError(f"{argument}: regime attribute must be one of {', '.join(REGIMES)}, "
-                         f"got {regime!r}")  # fmt: skip
+        raise ValueError(
+            f"{argument}: regime attribute must be one of {', '.join(REGIMES)}, got {regime!r}"
+        )
     missing = [v for v in ("lnv", "time") if v not in ds.variables]
-    missing += [f"{a} attribute" for a in (*RESULT_ATTRS, "K_over_Kc", *TRACE_ATTRS.get(regime, ()))
-                if a not in ds.attrs]  # fmt: skip
+    missing += [
+        f"{a} attribute"
+        for a in (*RESULT_ATTRS, "K_over_Kc", *TRACE_ATTRS.get(regime, ()))
+        if a not in ds.attrs
+    ]
     missing += [] if "V" in ds.coords or "V" in ds.attrs else ["V coordinate"]
     if missing:
         raise ValueError(f"{argument} is not a complete trace: no {', '.join(missing)}")

@@ -121,9 +121,11 @@ def parameter_coords(config):
         coords["event"] = (
             "event",
             np.arange(1 - m, 1, dtype=np.int32),
-            {"long_name": "event counted back from the last (0: the last event of the run)",
-             "units": "1"},
-        )  # fmt: skip
+            {
+                "long_name": "event counted back from the last (0: the last event of the run)",
+                "units": "1",
+            },
+        )
     if config.catalogue.capacity:
         coords["slip_event"] = (
             "slip_event",
@@ -134,9 +136,12 @@ def parameter_coords(config):
         coords["magnitude"] = (
             "magnitude",
             centres,
-            {"long_name": "centre of the magnitude bin (width 0.2; the end bins hold the events "
-             "beyond)", "units": "1"},
-        )  # fmt: skip
+            {
+                "long_name": "centre of the magnitude bin (width 0.2; the end bins hold the events "
+                "beyond)",
+                "units": "1",
+            },
+        )
     if config.initial.ensemble:
         coords["member"] = (
             "member",
@@ -285,8 +290,11 @@ def extra_provenance(config):
             attrs[f"spread_{name}"] = s
     if config.initial.ensemble:
         ini = config.initial
-        attrs.update(initial_ensemble=np.int32(ini.ensemble), initial_seed=np.int32(ini.seed),
-                     initial_amplitude=ini.amplitude)  # fmt: skip
+        attrs.update(
+            initial_ensemble=np.int32(ini.ensemble),
+            initial_seed=np.int32(ini.seed),
+            initial_amplitude=ini.amplitude,
+        )
     return attrs
 
 
@@ -311,8 +319,11 @@ def catalogue_attrs(config):
     left out)."""
     cat = dataclasses.replace(config.catalogue, slip_v_over_V=config.catalogue_slip_v_over_V)
     values = dataclasses.asdict(cat).items()
-    return {f"catalogue_{k}": np.int32(v) if isinstance(v, int) else v
-            for k, v in values if v is not None}  # fmt: skip
+    return {
+        f"catalogue_{k}": np.int32(v) if isinstance(v, int) else v
+        for k, v in values
+        if v is not None
+    }
 
 
 def utc_now():
@@ -329,29 +340,41 @@ def stored_config(ds, source):
     :class:`~sweep.errors.InputError` if its grid is not the file's.
     """
     try:
-        config = parse_stored_config(ds.attrs["config_text"], f"{source} (config_text)",
-                                     ds.attrs.get("integrator_method"))  # fmt: skip
+        config = parse_stored_config(
+            ds.attrs["config_text"], f"{source} (config_text)", ds.attrs.get("integrator_method")
+        )
     except ConfigError as exc:
         raise ConfigError(source, [f"stored config_text: {p}" for p in exc.problems]) from None
     if "point" in ds["regime"].dims and config.refine is not None:
         raise InputError(
-            source, ["a refined result (its runs along point) is not a grid: extend and audit "
-                     "take grid results; sweep.to_grid(ds, level) gives one"]
-        )  # fmt: skip
+            source,
+            [
+                "a refined result (its runs along point) is not a grid: extend and audit "
+                "take grid results; sweep.to_grid(ds, level) gives one"
+            ],
+        )
     dims = tuple(a.name for a in config.axes) + (("member",) if config.initial.ensemble else ())
     if ds["regime"].dims != dims or ds["regime"].shape != config.run_shape:
         raise InputError(
             source,
-            [f"regime has dims {dict(ds['regime'].sizes)}, but the stored config sweeps "
-             f"{dict(zip(dims, config.run_shape, strict=True))}"],
-        )  # fmt: skip
+            [
+                f"regime has dims {dict(ds['regime'].sizes)}, but the stored config sweeps "
+                f"{dict(zip(dims, config.run_shape, strict=True))}"
+            ],
+        )
     given = [(a.name, a.values) for a in config.axes] + [(k, (v,)) for k, v in config.parameters]
-    differ = [name for name, values in given if name in ds.coords
-              and not np.array_equal(np.atleast_1d(ds[name].values), values)]  # fmt: skip
+    differ = [
+        name
+        for name, values in given
+        if name in ds.coords and not np.array_equal(np.atleast_1d(ds[name].values), values)
+    ]
     if differ:
         raise InputError(
-            source, [f"the file's {', '.join(differ)} differ from its stored config's "
-                     "(config_text): it was edited, sorted or cut after the run, so its runs "
-                     "can no longer be matched to their parameters"]
-        )  # fmt: skip
+            source,
+            [
+                f"the file's {', '.join(differ)} differ from its stored config's "
+                "(config_text): it was edited, sorted or cut after the run, so its runs "
+                "can no longer be matched to their parameters"
+            ],
+        )
     return dataclasses.replace(config, source=ds.attrs.get("config_path", str(source)))

@@ -59,9 +59,22 @@ def kuramoto_order(t_peak_blocks, t_peak, period, nb):
 
 @jit
 def close_cycle(
-    t_peak, nb, win, past, past_cs, hist, limits, section, cs, accuracy, steady_amp, lin_growth,
-    rtol, atol, horizon,
-):  # fmt: skip
+    t_peak,
+    nb,
+    win,
+    past,
+    past_cs,
+    hist,
+    limits,
+    section,
+    cs,
+    accuracy,
+    steady_amp,
+    lin_growth,
+    rtol,
+    atol,
+    horizon,
+):
     """End the cycle at the maximum of ℓ_0 at ``t_peak`` (D0/V).
 
     Adds the cycle to the history (``hist``: the classifier's observables; ``past``,
@@ -127,8 +140,27 @@ def close_cycle(
 
 
 @jit_inline
-def new_event(t_peak, y, p, nb, A, B, win, past, past_cs, hist, limits, section, cs, accuracy,
-              steady_amp, lin_growth, rtol, atol, horizon):  # fmt: skip
+def new_event(
+    t_peak,
+    y,
+    p,
+    nb,
+    A,
+    B,
+    win,
+    past,
+    past_cs,
+    hist,
+    limits,
+    section,
+    cs,
+    accuracy,
+    steady_amp,
+    lin_growth,
+    rtol,
+    atol,
+    horizon,
+):
     """An event, the maximum of ℓ_0 at ``t_peak`` (D0/V), the state now ``y``: from the
     second on, close the cycle it ends (:func:`close_cycle`; ``horizon``: the time the
     run would stop for its linear verdicts, 0: none); start the next one there, its
@@ -137,9 +169,22 @@ def new_event(t_peak, y, p, nb, A, B, win, past, past_cs, hist, limits, section,
     cs[C_N_PEAKS] += 1
     if cs[C_N_PEAKS] >= 2:
         close_cycle(
-            t_peak, nb, win, past, past_cs, hist, limits, section, cs, accuracy, steady_amp,
-            lin_growth, rtol, atol, horizon,
-        )  # fmt: skip
+            t_peak,
+            nb,
+            win,
+            past,
+            past_cs,
+            hist,
+            limits,
+            section,
+            cs,
+            accuracy,
+            steady_amp,
+            lin_growth,
+            rtol,
+            atol,
+            horizon,
+        )
     cs[C_T_PEAK] = t_peak
     start_cycle(y, p, nb, A, B, win, cs)
     win[W_LMAX, 0] = max(win[W_LMAX, 0], cs[C_PEAK_VALUE])

@@ -296,8 +296,9 @@ def classify_step(s, t, h, p, nb, A, B, win, cs, slipped, slip_lnv, turns, rtol,
     :func:`event_section` (at a new peak, several blocks) and :func:`end_slip_event`
     from its own body: reached from here, behind these branches, the calls cost the
     arrays they take an incref and a decref every step (numba#2350)."""
-    new_peak, theta = update_cycle(s, t, h, p, nb, A, B, win, cs, slipped, slip_lnv, turns,
-                                   rtol, atol)  # fmt: skip
+    new_peak, theta = update_cycle(
+        s, t, h, p, nb, A, B, win, cs, slipped, slip_lnv, turns, rtol, atol
+    )
     slip_ended = cs[C_SLIPPING] == 0.0 and cs[C_IN_EVENT] > 0.0
     if cs[C_SLIPPING] > 0.0:
         cs[C_IN_EVENT] = 1.0

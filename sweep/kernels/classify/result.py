@@ -106,9 +106,23 @@ def write_events(result, hist, nb, n_cycles, n_events, cycle):
 
 @jit
 def write_result(
-    result, regime, attractor, t, n_steps, n_rejected, tau_runaway, nb, win, past, past_cs, hist,
-    cs, lam, lam_err, n_events,
-):  # fmt: skip
+    result,
+    regime,
+    attractor,
+    t,
+    n_steps,
+    n_rejected,
+    tau_runaway,
+    nb,
+    win,
+    past,
+    past_cs,
+    hist,
+    cs,
+    lam,
+    lam_err,
+    n_events,
+):
     """The run's statistics into ``result`` (``R_*`` columns, then the event columns).
 
     The final window (extremes, friction drop, synchronisation, slip participation)
@@ -182,10 +196,31 @@ def write_result(
 
 @jit_inline
 def finish_run(
-    result, regime, t, tau_stop, y, n_steps, n_rejected, tau_runaway, nb, win, past, past_cs,
-    hist, limits, cs, steady_amp, lin_growth, accuracy, rtol, atol, ly, lyap, n_events,
+    result,
+    regime,
+    t,
+    tau_stop,
+    y,
+    n_steps,
+    n_rejected,
+    tau_runaway,
+    nb,
+    win,
+    past,
+    past_cs,
+    hist,
+    limits,
+    cs,
+    steady_amp,
+    lin_growth,
+    accuracy,
+    rtol,
+    atol,
+    ly,
+    lyap,
+    n_events,
     needs_tangent,
-):  # fmt: skip
+):
     """The verdicts of a run stopped at ``t`` (:func:`verdicts.final_regime`; ``regime``
     the one settled in the loop, −1 if none) and its statistics into ``result``
     (:func:`write_result`), λ1 from the tangent's accumulator ``ly``. λ1 is not reported
@@ -196,14 +231,42 @@ def finish_run(
     lam, lam_err, span = lyapunov_estimate(ly)
     by_cycles = regime >= 0 or cs[C_VERDICT] >= 0  # settled by the cycle classifier
     regime, attractor = final_regime(
-        regime, t, tau_stop, y, cs, hist, limits, nb, steady_amp, lin_growth, accuracy, rtol,
-        atol, lam, lam_err, span,
-    )  # fmt: skip
+        regime,
+        t,
+        tau_stop,
+        y,
+        cs,
+        hist,
+        limits,
+        nb,
+        steady_amp,
+        lin_growth,
+        accuracy,
+        rtol,
+        atol,
+        lam,
+        lam_err,
+        span,
+    )
     if attractor == UNBOUNDED or (by_cycles and lyap == LYAP_UNSETTLED):
         lam, lam_err = np.nan, np.nan
     write_result(
-        result, regime, attractor, t, n_steps, n_rejected, tau_runaway, nb, win, past, past_cs,
-        hist, cs, lam, lam_err, n_events,
-    )  # fmt: skip
+        result,
+        regime,
+        attractor,
+        t,
+        n_steps,
+        n_rejected,
+        tau_runaway,
+        nb,
+        win,
+        past,
+        past_cs,
+        hist,
+        cs,
+        lam,
+        lam_err,
+        n_events,
+    )
     if needs_tangent:
         result[R_REGIME] = TANGENT_NEEDED

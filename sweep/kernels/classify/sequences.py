@@ -204,8 +204,11 @@ def envelope_turns(hist, n_cycles, nb, n):
         back = n - 1 - j
         a = 0.0
         for i in range(nb):
-            a = max(a, history_value(hist, i, n_cycles, back)
-                    - history_value(hist, nb + i, n_cycles, back))  # fmt: skip
+            a = max(
+                a,
+                history_value(hist, i, n_cycles, back)
+                - history_value(hist, nb + i, n_cycles, back),
+            )
         if j > 0:
             d = a - a_prev
             if d * d_prev < 0.0:

@@ -100,9 +100,23 @@ def attractor_verdict(lam, lam_err, span, conv, accuracy, ptp, turns):
 
 @jit
 def final_regime(
-    regime, t, tau_stop, y, cs, hist, limits, nb, steady_amp, lin_growth, accuracy, rtol, atol,
-    lam, lam_err, span,
-):  # fmt: skip
+    regime,
+    t,
+    tau_stop,
+    y,
+    cs,
+    hist,
+    limits,
+    nb,
+    steady_amp,
+    lin_growth,
+    accuracy,
+    rtol,
+    atol,
+    lam,
+    lam_err,
+    span,
+):
     """``(regime, attractor)`` of a run at its end.
 
     A regime settled in the loop stands (stick-slip there is a cycle: PERIODIC).
