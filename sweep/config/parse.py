@@ -22,11 +22,11 @@ from typing import Any
 import numpy as np
 import yaml
 
-from .codes import COUPLINGS, LYAPUNOV_MODES, METHODS
-from .errors import ConfigError
-from .heterogeneity import DISTRIBUTIONS, PER_BLOCK, SPREAD_AXES, SPREAD_PREFIX, spread_pattern
-from .kernels.layout import N_EVENT_FIELDS
-from .physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
+from ..codes import COUPLINGS, LYAPUNOV_MODES, METHODS
+from ..errors import ConfigError
+from ..heterogeneity import DISTRIBUTIONS, PER_BLOCK, SPREAD_AXES, SPREAD_PREFIX, spread_pattern
+from ..kernels.layout import N_EVENT_FIELDS
+from ..physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
 
 #: Default integrator per model where it is not dop853: the inertial model is stiff
 #: in stick phases (decay rate A e^(-ln v/V)/M̂ towards force balance). The explicit
@@ -595,7 +595,7 @@ def load_config(config: str | os.PathLike | Mapping[str, Any] | Config) -> Confi
         )
     if isinstance(config, Mapping):
         return parse_config(config)
-    from . import examples
+    from .. import examples
 
     if not isinstance(config, (str, os.PathLike)) or not os.fspath(config):
         what = "an empty path" if isinstance(config, (str, os.PathLike)) else type(config).__name__
@@ -1272,7 +1272,7 @@ def _parse_refine(c, raw, axes, initial, blocks, model, features, output):
     """The ``refine`` section (None when not given): levels, run budget, outputs, rtol."""
     if raw.get("refine") is None:
         return None
-    from .variables import variables_for
+    from ..variables import variables_for
 
     spec = c.mapping(raw["refine"], "refine")
     c.unknown(spec, "refine", tuple(Refine.__dataclass_fields__))
