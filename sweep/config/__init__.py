@@ -2,8 +2,17 @@
 
 from .parse import (
     COUPLINGS,
-    LYAPUNOV_MODES,
     MAPPING_SOURCE,
+    ConfigError,
+    config_mapping,
+    load_config,
+    parse_config,
+    parse_stored_config,
+    range_values,
+    with_changes,
+)
+from .schema import (
+    LYAPUNOV_MODES,
     MAX_EVENTS,
     METHODS,
     STRUCTURED_FROM,
@@ -11,18 +20,11 @@ from .parse import (
     Catalogue,
     Classification,
     Config,
-    ConfigError,
     Initial,
     Integrator,
     Refine,
-    config_mapping,
     default_method,
-    load_config,
-    parse_config,
-    parse_stored_config,
-    range_values,
     required_parameters,
-    with_changes,
 )
 
 __all__ = [
