@@ -16,7 +16,8 @@ from conftest import SUBPROCESS_TIMEOUT, make_config
 from test_dataset import failing_to_netcdf
 
 from sweep import cli, runner
-from sweep.config import STRUCTURED_FROM, parse_config, parse_stored_config
+from sweep.config import parse_config, parse_stored_config
+from sweep.config.schema import STRUCTURED_FROM
 from sweep.dataset import read_result, stored_config, write_netcdf
 from sweep.extend import extend_file, extend_result
 from sweep.kernels import layout

@@ -1,6 +1,6 @@
 """Per-block parameters and the N-block config keys: coupling, lists, seeded spreads,
-spread axes and initial-condition ensembles (sweep/heterogeneity.py, sweep/config.py,
-sweep/grid.py)."""
+spread axes and initial-condition ensembles (sweep/heterogeneity.py,
+sweep/config/, sweep/grid.py)."""
 
 import numpy as np
 import pytest

@@ -1,9 +1,8 @@
-"""YAML run configs: parsed once, validated completely, frozen (``parse.py``)."""
+"""YAML run configs: what a config is (``schema.py``), and how a file or a mapping
+becomes one, parsed once, validated completely, frozen (``parse.py``)."""
 
+from ..errors import ConfigError
 from .parse import (
-    COUPLINGS,
-    MAPPING_SOURCE,
-    ConfigError,
     config_mapping,
     load_config,
     parse_config,
@@ -11,30 +10,10 @@ from .parse import (
     range_values,
     with_changes,
 )
-from .schema import (
-    LYAPUNOV_MODES,
-    MAX_EVENTS,
-    METHODS,
-    STRUCTURED_FROM,
-    TOP_LEVEL_KEYS,
-    Catalogue,
-    Classification,
-    Config,
-    Initial,
-    Integrator,
-    Refine,
-    default_method,
-    required_parameters,
-)
+from .schema import Axis, Catalogue, Classification, Config, Initial, Integrator, Refine, Spread
 
 __all__ = [
-    "COUPLINGS",
-    "LYAPUNOV_MODES",
-    "METHODS",
-    "MAPPING_SOURCE",
-    "MAX_EVENTS",
-    "STRUCTURED_FROM",
-    "TOP_LEVEL_KEYS",
+    "Axis",
     "Catalogue",
     "Classification",
     "Config",
@@ -42,12 +21,11 @@ __all__ = [
     "Initial",
     "Integrator",
     "Refine",
+    "Spread",
     "config_mapping",
-    "default_method",
     "load_config",
     "parse_config",
     "parse_stored_config",
     "range_values",
-    "required_parameters",
     "with_changes",
 ]
