@@ -70,9 +70,12 @@ class _Loader(yaml.SafeLoader):
             key = self.construct_object(key_node)
             if key in seen:
                 raise yaml.constructor.ConstructorError(
-                    None, None, f"key {key!r} is given twice in one mapping (first on line "
-                    f"{seen[key] + 1}; YAML would keep only the last)", key_node.start_mark,
-                )  # fmt: skip
+                    None,
+                    None,
+                    f"key {key!r} is given twice in one mapping (first on line "
+                    f"{seen[key] + 1}; YAML would keep only the last)",
+                    key_node.start_mark,
+                )
             seen[key] = key_node.start_mark.line
         return super().construct_mapping(node, deep)
 
@@ -391,8 +394,9 @@ def _validate(raw, text, source):
         c.add(f"output must be a path ending in .nc (NetCDF) or .zarr (Zarr), got {output!r}")
         output = f"results/{name}.nc"
     heterogeneous = blocks_may_differ(lists, spread, axes)
-    features = output_features(blocks, heterogeneous, initial.ensemble, classification.events,
-                               catalogue.capacity)  # fmt: skip
+    features = output_features(
+        blocks, heterogeneous, initial.ensemble, classification.events, catalogue.capacity
+    )
     refine = _parse_refine(c, raw, axes, initial, blocks, model, features, output)
     if c.problems:
         raise ConfigError(source, c.problems)
@@ -585,10 +589,12 @@ def _check_runs(c, axes, ensemble):
     """At most ``MAX_RUNS`` runs in the whole sweep, ensemble members included."""
     runs = _n_runs(axes, ensemble)
     if runs > MAX_RUNS:
-        sizes = " × ".join([*(f"{len(a.values)} {a.name}" for a in axes),
-                            *([f"{ensemble} members"] if ensemble else [])])  # fmt: skip
-        c.add(f"the sweep has {runs:.3g} runs ({sizes}), more than {MAX_RUNS:.0e}: split it "
-              "into several configs, or refine where the labels change (refine:)")  # fmt: skip
+        sizes = [f"{len(a.values)} {a.name}" for a in axes]
+        sizes += [f"{ensemble} members"] if ensemble else []
+        c.add(
+            f"the sweep has {runs:.3g} runs ({' × '.join(sizes)}), more than {MAX_RUNS:.0e}: "
+            "split it into several configs, or refine where the labels change (refine:)"
+        )
 
 
 def _axis_values(c, spec, key, low, low_open):
@@ -710,8 +716,9 @@ def _parse_coupling(c, raw, blocks):
         return None
     coupling = c.choice(raw["coupling"], "coupling", COUPLINGS)
     if coupling == "ring" and blocks < 3:
-        c.add(f"coupling ring needs blocks >= 3 (a ring of {blocks} is a chain); got blocks "
-              f"{blocks}")  # fmt: skip
+        c.add(
+            f"coupling ring needs blocks >= 3 (a ring of {blocks} is a chain); got blocks {blocks}"
+        )
     elif coupling is not None and coupling != "chain" and blocks < 2:
         c.add(f"coupling {coupling} needs blocks >= 2, got blocks {blocks}")
     return coupling
@@ -766,8 +773,7 @@ def _check_spread_values(c, params, spread, axes, blocks):
         i = int(np.argmin(factors))
         info = PARAMETERS[name]
         if factors[i] < 0.0 or (info.low_open and factors[i] <= 0.0):
-            where = (f"sweep.spread_{name}" if name not in spread.sizes_dict else
-                     f"spread.{name}")  # fmt: skip
+            where = f"sweep.spread_{name}" if name not in spread.sizes_dict else f"spread.{name}"
             c.add(
                 f"{where} = {s:g} makes {name} of block {i} leave {interval_text(name)}: its "
                 f"factor 1 + s*xi = {factors[i]:.3g} (xi = {xi[name][i]:.3g}, {spread.distribution}"
@@ -870,9 +876,11 @@ def _parse_catalogue(c, raw, axes, initial):
     runs = _n_runs(axes, initial.ensemble)
     size = values["capacity"] * runs * N_EVENT_FIELDS * 8
     if size > MAX_CATALOGUE_BYTES:
-        c.add(f"catalogue.capacity {values['capacity']} over {runs} runs needs "
-              f"{size / 2**30:.1f} GiB (at most {MAX_CATALOGUE_BYTES / 2**30:.0f}): keep fewer "
-              "events per run or split the sweep")  # fmt: skip
+        c.add(
+            f"catalogue.capacity {values['capacity']} over {runs} runs needs "
+            f"{size / 2**30:.1f} GiB (at most {MAX_CATALOGUE_BYTES / 2**30:.0f}): keep fewer "
+            "events per run or split the sweep"
+        )
         return d
     return Catalogue(**values)
 
@@ -908,8 +916,9 @@ def _parse_refine(c, raw, axes, initial, blocks, model, features, output):
             )
     if isinstance(output, str) and output.endswith(".zarr"):
         c.add(f"output {output}: a refined sweep is written as NetCDF; give a path ending in .nc")
-    split_undecided = c.setting(spec.get("split_undecided", d.split_undecided),
-                                "refine.split_undecided", bool, None)  # fmt: skip
+    split_undecided = c.setting(
+        spec.get("split_undecided", d.split_undecided), "refine.split_undecided", bool, None
+    )
     full_runs = c.setting(spec.get("full_runs", d.full_runs), "refine.full_runs", bool, None)
     if len(c.problems) > problems:
         return d
@@ -921,18 +930,24 @@ def _refine_outputs(c, spec, known, ensemble):
     default = REFINE_ENSEMBLE_OUTPUTS if ensemble else REFINE_OUTPUTS
     outputs = spec.get("outputs", list(default))
     if not isinstance(outputs, list) or not outputs:
-        c.add(f"refine.outputs must be a non-empty list of output variables, e.g. "
-              f"[{', '.join(default)}]; got {outputs!r}")  # fmt: skip
+        c.add(
+            f"refine.outputs must be a non-empty list of output variables, e.g. "
+            f"[{', '.join(default)}]; got {outputs!r}"
+        )
         return None
     ok = True
     for i, name in enumerate(outputs):
         if name == "regime_fraction" and not ensemble:
-            c.add(f"refine.outputs[{i}]: regime_fraction needs an initial-condition ensemble "
-                  "(initial.ensemble > 0)")  # fmt: skip
+            c.add(
+                f"refine.outputs[{i}]: regime_fraction needs an initial-condition ensemble "
+                "(initial.ensemble > 0)"
+            )
             ok = False
         elif name not in known:
-            c.add(f"refine.outputs[{i}] must be an output variable of this sweep, one of "
-                  f"{', '.join(known)}; got {name!r}")  # fmt: skip
+            c.add(
+                f"refine.outputs[{i}] must be an output variable of this sweep, one of "
+                f"{', '.join(known)}; got {name!r}"
+            )
             ok = False
     if ok and len(set(outputs)) != len(outputs):
         c.add(f"refine.outputs must name each output once, got {outputs!r}")

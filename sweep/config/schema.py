@@ -156,11 +156,13 @@ class Integrator:
     so they are always in units of D0/V."""
 
     method: str = setting(
-        "dop853", "stepper", METHODS,
+        "dop853",
+        "stepper",
+        METHODS,
         default_text=f"dop853; model inertial: rosenbrock, and rosenbrock-structured from "
         f"{STRUCTURED_FROM['chain']} blocks in a chain, {STRUCTURED_FROM['ring']} in a ring and "
         f"{STRUCTURED_FROM['all']} all-to-all",
-    )  # fmt: skip
+    )
     rtol: float = setting(1e-8, "relative tolerance of the adaptive methods", "(0, 1)")
     atol: float = setting(1e-10, "absolute tolerance of the adaptive methods", "(0, inf)")
     dt: float = setting(0.01, "fixed step of rk4", "(0, inf)", "D0/V")
@@ -168,12 +170,17 @@ class Integrator:
     # output is as accurate as their steps, and extrema that do not stand out of the
     # error scale count as no events (kernels/classify/extrema.py, TURN_FACTOR). RODAS4 keeps
     # 0.5 D0/V (DEFAULT_MAX_STEPS; docs/internals.md, "max_step").
-    max_step: float = setting(math.inf, "largest step of the adaptive methods (.inf: no cap; "
-                              "rosenbrock's default: 0.5)", "(0, inf)", "D0/V")  # fmt: skip
+    max_step: float = setting(
+        math.inf,
+        "largest step of the adaptive methods (.inf: no cap; rosenbrock's default: 0.5)",
+        "(0, inf)",
+        "D0/V",
+    )
     t_end: float = setting(3000.0, "end time", "(0, inf)", "t_unit")
     t_unit: str = setting("D0/V", "unit of t_end and max_t_end", TIME_UNITS)
-    max_steps: int = setting(20_000_000, "step budget per run; past it the run is undecided",
-                             f"[1, {MAX_STEPS_LIMIT}]")  # fmt: skip
+    max_steps: int = setting(
+        20_000_000, "step budget per run; past it the run is undecided", f"[1, {MAX_STEPS_LIMIT}]"
+    )
 
 
 @dataclass(frozen=True)
@@ -189,27 +196,35 @@ class Classification:
 
     v_cap_over_V: float = setting(1e6, "runaway once any v/V exceeds this", "(1, inf)")
     steady_amplitude: float = setting(
-        1e-6, "steady once every |ln v/V|, |ln Phi/Phi_ss| (and inertial force) is below this",
+        1e-6,
+        "steady once every |ln v/V|, |ln Phi/Phi_ss| (and inertial force) is below this",
         "(0, inf)",
-    )  # fmt: skip
+    )
     accuracy: float = setting(1e-3, "relative accuracy of the extrapolated limit", "(0, 0.5]")
-    confirm_cycles: int = setting(2, "consecutive cycles a verdict must hold to stop early",
-                                  f"[1, {INT32_MAX}]")  # fmt: skip
-    max_t_end: float = setting(None, "unsettled runs go on up to this time", "(0, inf)",
-                               "t_unit", "10 × t_end")  # fmt: skip
-    early_exit: bool = setting(True, "stop each run as soon as its regime is settled",
-                               (True, False))  # fmt: skip
+    confirm_cycles: int = setting(
+        2, "consecutive cycles a verdict must hold to stop early", f"[1, {INT32_MAX}]"
+    )
+    max_t_end: float = setting(
+        None, "unsettled runs go on up to this time", "(0, inf)", "t_unit", "10 × t_end"
+    )
+    early_exit: bool = setting(
+        True, "stop each run as soon as its regime is settled", (True, False)
+    )
     slip_v_over_V: float = setting(
         2.0, "a block slips (slip_participation) while its v/V exceeds this", "(0, inf)"
     )
     lyapunov: str = setting(
-        "unsettled", "when lyapunov_exponent is computed: from t_end on for runs not settled by "
-        "then, over every whole run (no run then stops before t_end), or never", LYAPUNOV_MODES,
-    )  # fmt: skip
+        "unsettled",
+        "when lyapunov_exponent is computed: from t_end on for runs not settled by "
+        "then, over every whole run (no run then stops before t_end), or never",
+        LYAPUNOV_MODES,
+    )
     events: int = setting(
-        32, "events (maxima of ln v of block 0) whose values and intervals each run reports "
-        "(the event dimension)", f"[0, {MAX_EVENTS}]",
-    )  # fmt: skip
+        32,
+        "events (maxima of ln v of block 0) whose values and intervals each run reports "
+        "(the event dimension)",
+        f"[0, {MAX_EVENTS}]",
+    )
 
 
 #: Most events a run's catalogue can keep (``catalogue.capacity``).
@@ -228,18 +243,24 @@ class Catalogue:
     counts them all. In a long chain some block is nearly always above a low threshold:
     events then never end, and the threshold must be raised."""
 
-    capacity: int = setting(0, "slip events each run keeps (0: no catalogue)",
-                            f"[0, {MAX_CATALOGUE}]")  # fmt: skip
-    after: float = setting(0.0, "fraction of t_end before which events are not catalogued "
-                           "(the transient)", "[0, 1)")  # fmt: skip
+    capacity: int = setting(
+        0, "slip events each run keeps (0: no catalogue)", f"[0, {MAX_CATALOGUE}]"
+    )
+    after: float = setting(
+        0.0, "fraction of t_end before which events are not catalogued (the transient)", "[0, 1)"
+    )
     completeness: float = setting(
-        None, "magnitude above which the b-value is estimated (Aki-Utsu)", "(-inf, inf)",
+        None,
+        "magnitude above which the b-value is estimated (Aki-Utsu)",
+        "(-inf, inf)",
         default_text="the smallest magnitude of each run's catalogue",
-    )  # fmt: skip
+    )
     slip_v_over_V: float = setting(
-        None, "a block slips in an event while its v/V exceeds this", "(0, inf)",
+        None,
+        "a block slips in an event while its v/V exceeds this",
+        "(0, inf)",
         default_text="classification.slip_v_over_V",
-    )  # fmt: skip
+    )
 
 
 #: Outputs whose change between neighbouring runs splits a cell, unless ``refine.outputs``
@@ -266,30 +287,39 @@ class Refine:
     """
 
     levels: int = setting(
-        6, "levels of refinement beyond the grid: each halves the cells, so the finest cell is "
-        "the grid step / 2^levels", f"[0, {MAX_REFINE_LEVELS}]",
-    )  # fmt: skip
+        6,
+        "levels of refinement beyond the grid: each halves the cells, so the finest cell is "
+        "the grid step / 2^levels",
+        f"[0, {MAX_REFINE_LEVELS}]",
+    )
     max_runs: int = setting(
-        None, "most runs in all, the grid's included: a level that would pass it is cut to the "
+        None,
+        "most runs in all, the grid's included: a level that would pass it is cut to the "
         "cells that fit (by the order of outputs, then spread evenly) and refinement stops there",
-        "[1, inf)", default_text="no limit",
-    )  # fmt: skip
+        "[1, inf)",
+        default_text="no limit",
+    )
     outputs: tuple = setting(
-        None, "output variables whose change between the corner runs of a cell splits it",
+        None,
+        "output variables whose change between the corner runs of a cell splits it",
         default_text="regime, attractor, cycle_events; with an ensemble regime_fraction",
-    )  # fmt: skip
-    rtol: float = setting(0.05, "relative tolerance of the continuous outputs in outputs",
-                          "(0, inf)")  # fmt: skip
+    )
+    rtol: float = setting(
+        0.05, "relative tolerance of the continuous outputs in outputs", "(0, inf)"
+    )
     split_undecided: bool = setting(
-        False, "whether a cell also splits where an undecided corner differs from the others; "
+        False,
+        "whether a cell also splits where an undecided corner differs from the others; "
         "false: only where its decided corners differ (an undecided band's edges move with "
-        "max_t_end)", (True, False),
-    )  # fmt: skip
+        "max_t_end)",
+        (True, False),
+    )
     full_runs: bool = setting(
-        False, "run every point as a grid sweep does; false: a run in the linear regime whose "
+        False,
+        "run every point as a grid sweep does; false: a run in the linear regime whose "
         "envelope follows the linear theory's rate stops with the label that rate gives",
         (True, False),
-    )  # fmt: skip
+    )
 
 
 @dataclass(frozen=True)
@@ -360,9 +390,14 @@ class Config:
     def features(self) -> tuple[str, ...]:
         """Which optional output groups a result has (``variables.Variable.feature``)."""
         linear = self.refine is not None and not self.refine.full_runs
-        return output_features(self.blocks, self.heterogeneous, self.initial.ensemble,
-                               self.classification.events, self.catalogue.capacity,
-                               linear)  # fmt: skip
+        return output_features(
+            self.blocks,
+            self.heterogeneous,
+            self.initial.ensemble,
+            self.classification.events,
+            self.catalogue.capacity,
+            linear,
+        )
 
     @property
     def catalogue_slip_v_over_V(self) -> float:
