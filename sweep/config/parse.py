@@ -428,7 +428,7 @@ def _start_values(values):
     return values[0] if len(set(values)) == 1 else list(values)
 
 
-def config_mapping(config):
+def config_mapping(config: Config) -> dict[str, Any]:
     """A :class:`Config` as the mapping it could be read from (every setting explicit).
 
     ``output`` is left out where it is the default ``results/<name>.nc``, so a
@@ -641,7 +641,9 @@ def _axis_values(c, spec, key, low, low_open):
     return [float(v) for v in values], (scale, start, stop)
 
 
-def range_values(scale, start, stop, k, intervals):
+def range_values(
+    scale: str, start: float, stop: float, k: np.ndarray, intervals: int
+) -> np.ndarray:
     """Points ``k`` (an integer array) of the range from ``start`` to ``stop`` cut into
     ``intervals`` equal steps, linear or in log (``scale``).
 
