@@ -321,7 +321,7 @@ def bench_structured_crossing(n_systems, t_end, seconds, sizes=CROSSING_SIZES, m
     """Where the inertial model's structured RODAS4 (``rosenbrock-structured``) becomes
     cheaper per step than the dense one (``rosenbrock``): the number of blocks from which
     an inertial run that names no method gets the structured one
-    (``sweep.config.STRUCTURED_FROM``).
+    (``sweep.config.schema.STRUCTURED_FROM``).
 
     Per coupling (chain, ring, all) and equal or unequal blocks (a seeded spread,
     :data:`CROSSING_SPREAD`), at each of ``sizes`` blocks: the same runs (m/W = 1 s²/µm,

@@ -1,7 +1,7 @@
 """The Python API for notebooks and scripts: ``import sweep; ds = sweep.run("quick")``.
 
 Thin functions over the same pieces the CLI uses; nothing here writes a file.
-``sweep.load_config`` and ``sweep.with_changes`` come from ``sweep/config.py``.
+``sweep.load_config`` and ``sweep.with_changes`` come from ``sweep/config/``.
 """
 
 from __future__ import annotations

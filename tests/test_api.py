@@ -16,7 +16,8 @@ from conftest import QUICK, ROOT, SUBPROCESS_TIMEOUT, python_stdout, without_pro
 import sweep
 from sweep import examples
 from sweep.cli import main
-from sweep.config import MAPPING_SOURCE, config_mapping
+from sweep.config import config_mapping
+from sweep.config.parse import MAPPING_SOURCE
 from sweep.engine import runner
 from sweep.errors import InputError
 from sweep.io.netcdf import write_netcdf

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from conftest import make_config
 
-from sweep import codes, config, variables
+from sweep import codes, variables
+from sweep.config import parse, schema
 from sweep.engine.grid import build_grid
 from sweep.kernels import layout
 from sweep.model import physics
@@ -48,10 +49,10 @@ def test_the_layout_names_the_codes_of_the_tables():
 def test_the_config_accepts_the_names_of_the_tables():
     """The parser checks each choice against its table, no copy of it."""
     assert physics.MODELS is codes.MODELS and physics.STATE_LAWS is codes.STATE_LAWS
-    assert config.COUPLINGS is codes.COUPLINGS and config.LYAPUNOV_MODES is codes.LYAPUNOV_MODES
-    assert set(config.METHODS) == set(codes.METHODS)
+    assert parse.COUPLINGS is codes.COUPLINGS and schema.LYAPUNOV_MODES is codes.LYAPUNOV_MODES
+    assert set(schema.METHODS) == set(codes.METHODS)
     allowed = {f.name: f.metadata["setting"].allowed
-               for cls in (config.Integrator, config.Classification)
+               for cls in (schema.Integrator, schema.Classification)
                for f in dataclasses.fields(cls)}  # fmt: skip
     assert set(allowed["method"]) == set(codes.METHODS)
     assert set(allowed["lyapunov"]) == set(codes.LYAPUNOV_MODES)

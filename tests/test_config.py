@@ -10,14 +10,9 @@ from conftest import ROOT, config_dict, kc_w, make_config, write_config
 
 from sweep import cli
 from sweep.cli import main
-from sweep.config import (
-    METHODS,
-    STRUCTURED_FROM,
-    ConfigError,
-    default_method,
-    load_config,
-    parse_config,
-)
+from sweep.codes import METHODS
+from sweep.config import ConfigError, load_config, parse_config
+from sweep.config.schema import STRUCTURED_FROM, default_method
 from sweep.results.dataset import settings_attrs
 
 SENTINEL = b"an earlier result that must survive\n"

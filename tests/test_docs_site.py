@@ -13,7 +13,8 @@ import types
 from pathlib import Path
 
 import sweep
-from sweep.config import TOP_LEVEL_KEYS, Initial
+from sweep.config import Initial
+from sweep.config.schema import TOP_LEVEL_KEYS
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"

@@ -414,7 +414,7 @@ def test_kernels_package_docstring_names_every_module_and_method():
 def test_output_descriptions_state_the_classifiers_limits():
     """The numbers in the output schema's descriptions (written into every file) are the
     classifier's: the longest cycle it recognises and the events it keeps."""
-    from sweep.config import MAX_EVENTS
+    from sweep.config.schema import MAX_EVENTS
     from sweep.kernels.classify import state
     from sweep.variables import BY_NAME
 

@@ -17,7 +17,8 @@ from test_dataset import failing_to_netcdf
 
 from sweep import cli
 from sweep.commands.extend import extend_file, extend_result
-from sweep.config import STRUCTURED_FROM, parse_config, parse_stored_config
+from sweep.config import parse_config, parse_stored_config
+from sweep.config.schema import STRUCTURED_FROM
 from sweep.engine import runner
 from sweep.io.netcdf import read_result, write_netcdf
 from sweep.kernels import layout

@@ -1,6 +1,6 @@
 """Per-block parameters and the N-block config keys: coupling, lists, seeded spreads,
-spread axes and initial-condition ensembles (sweep/model/heterogeneity.py, sweep/config.py,
-sweep/engine/grid.py)."""
+spread axes and initial-condition ensembles (sweep/model/heterogeneity.py,
+sweep/config/, sweep/engine/grid.py)."""
 
 import numpy as np
 import pytest

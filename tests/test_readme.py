@@ -274,7 +274,7 @@ def setting_comments(section):
                                           ("catalogue", Catalogue)])  # fmt: skip
 def test_config_reference_states_each_setting_as_declared(section, cls):
     """The annotated config names every integrator and classification setting with the
-    interval or choices and the unit declared once in ``sweep.config`` (its field's
+    interval or choices and the unit declared once in ``sweep.config.schema`` (its field's
     ``Setting``), so the reference and the validation cannot drift apart."""
     comments = setting_comments(section)
     for field in dataclasses.fields(cls):
@@ -410,15 +410,25 @@ def test_nblock_configs_counts_drift():
 
 def test_layout_names_every_module():
     """The Layout section of docs/internals.md lists every module of ``sweep/``, and no
-    module that is gone."""
+    module that is gone; each subpackage's modules indented under its ``sweep/<name>/``."""
     text = (DOCS / "internals.md").read_text()
     layout = text[text.index("## Layout") :]
     layout = layout[: layout.index("\n## ", 1)] if "\n## " in layout[1:] else layout
     listed = set(re.findall(r"sweep/(\w+\.py)", layout))
     present = {p.name for p in (ROOT / "sweep").glob("*.py")}
     assert listed == present
-    kernels = set(re.findall(r"^  (\w+\.py) ", layout, re.M))
-    assert kernels == {p.name for p in (ROOT / "sweep" / "kernels").glob("*.py")} - {"__init__.py"}
+    packages, package = {}, None
+    for line in layout.splitlines():
+        if start := re.match(r"sweep/(\w+)/ ", line):
+            package = packages.setdefault(start[1], set())
+        elif not line.startswith(" "):
+            package = None
+        elif package is not None and (entry := re.match(r"  (\w+\.py) ", line)):
+            package.add(entry[1])
+    subpackages = {p.parent.name for p in (ROOT / "sweep").glob("*/__init__.py")}
+    assert set(packages) == subpackages
+    for name, modules in packages.items():
+        assert modules == {p.name for p in (ROOT / "sweep" / name).glob("*.py")} - {"__init__.py"}
 
 
 # --- the README as the landing page ------------------------------------------------------
@@ -456,7 +466,7 @@ def test_readme_and_models_page_state_the_same_numbers(pattern):
 def default_method(model, blocks=1, coupling="chain"):
     """``integrator.method`` of a config that does not set it, for ``model`` and
     ``blocks`` blocks coupled as ``coupling``."""
-    from sweep.config import required_parameters
+    from sweep.config.schema import required_parameters
 
     values = {"A": 0.03, "B": 0.08, "mu0": 0.4, "V": 0.1, "D0": 1.0, "eta_W": 0.01, "m_W": 1.0,
               "k2_W": 0.05}  # fmt: skip
@@ -479,7 +489,7 @@ def test_readme_names_each_models_default_method():
     inertial model" is what a config that names no method gets, model by model, and the
     sentence names every method the parser accepts (the method's own name: its module's
     ``NAME``)."""
-    from sweep.config import METHODS
+    from sweep.codes import METHODS
     from sweep.kernels.methods import MODULES
     from sweep.model.physics import MODELS
 
@@ -516,7 +526,7 @@ def test_stated_event_counts_are_the_codes():
     """Counts of events the pages state: the default ``classification.events`` kept per
     run (large sweeps), the longest cycle the classifier recognises (internals), and
     the events a chaotic run's amplitude spans (outputs), against the code."""
-    from sweep.config import MAX_EVENTS
+    from sweep.config.schema import MAX_EVENTS
     from sweep.kernels.classify import state
 
     (kept,) = doc_numbers(r"half of it the (\d+) event maxima and intervals kept per run")

@@ -8,7 +8,7 @@ from conftest import config_dict
 
 import sweep
 from sweep.codes import ATTRACTORS
-from sweep.config import STRUCTURED_FROM
+from sweep.config.schema import STRUCTURED_FROM
 from sweep.kernels import equations, layout
 from sweep.kernels.methods import rodas4
 from sweep.kernels.methods import rodas4_structured as structured
@@ -130,7 +130,7 @@ def assert_runs_agree(band, dense):
 @pytest.mark.slow
 @pytest.mark.parametrize("coupling", list(COUPLINGS))
 def test_default_at_the_crossing_agrees_with_dense(coupling):
-    """At ``config.STRUCTURED_FROM`` blocks, where an inertial config that names no method
+    """At ``config.schema.STRUCTURED_FROM`` blocks, where an inertial config that names no method
     turns from ``rosenbrock`` to ``rosenbrock-structured``, the default's runs are the
     dense runs to the tolerance, with the same labels: the switch moves no label. (At
     the sizes of today the stick-slip runs are chaotic in the chain, quasi-periodic in

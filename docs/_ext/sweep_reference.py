@@ -3,8 +3,9 @@
 ``{confkey}`` and ``{outvar}`` are object types (each entry is found by the search box
 and listed in the index); the directives ``{sweep-config-keys}`` and
 ``{sweep-output-variables}`` write one entry per model parameter, per integrator,
-classification and refine setting (``sweep.config``'s ``Setting``s) and per output variable
-(``sweep.variables.VARIABLES``), so the reference cannot drift from the code.
+classification, catalogue and refine setting (the ``Setting``s of ``sweep.config.schema``)
+and per output variable (``sweep.variables.VARIABLES``), so the reference cannot drift
+from the code.
 """
 
 import dataclasses
@@ -63,7 +64,7 @@ class ConfigKeys(_Generated):
     and refine setting."""
 
     def lines(self):
-        from sweep.config import Catalogue, Classification, Integrator, Refine
+        from sweep.config.schema import Catalogue, Classification, Integrator, Refine
         from sweep.model import physics
 
         out = []
