@@ -409,26 +409,32 @@ def test_nblock_configs_counts_drift():
 
 
 def test_layout_names_every_module():
-    """The Layout section of docs/internals.md lists every module of ``sweep/``, and no
-    module that is gone; each subpackage's modules indented under its ``sweep/<name>/``."""
+    """The Layout section of docs/internals.md lists every module and subpackage of
+    ``sweep/``, and none that is gone: the top-level modules under a heading of their own
+    (ground floor, faces), each subpackage as ``name/`` with its modules and
+    subpackages indented under it."""
     text = (DOCS / "internals.md").read_text()
     layout = text[text.index("## Layout") :]
     layout = layout[: layout.index("\n## ", 1)] if "\n## " in layout[1:] else layout
-    listed = set(re.findall(r"sweep/(\w+\.py)", layout))
-    present = {p.name for p in (ROOT / "sweep").glob("*.py")}
-    assert listed == present
-    packages, package = {}, None
-    for line in layout.splitlines():
-        if start := re.match(r"sweep/(\w+)/ ", line):
-            package = packages.setdefault(start[1], set())
-        elif not line.startswith(" "):
-            package = None
-        elif package is not None and (entry := re.match(r"  (\w+\.py) ", line)):
-            package.add(entry[1])
-    subpackages = {p.parent.name for p in (ROOT / "sweep").glob("*/__init__.py")}
-    assert set(packages) == subpackages
-    for name, modules in packages.items():
-        assert modules == {p.name for p in (ROOT / "sweep" / name).glob("*.py")} - {"__init__.py"}
+    block = layout[layout.index("```text") : layout.index("```", layout.index("```text") + 3)]
+    groups, group = {}, None
+    for line in block.splitlines()[1:]:
+        if line and not line.startswith(" "):  # a heading; outside sweep/ (benchmarks/...): none
+            heading = re.match(r"(\w+/|[a-z][a-z ]*?)(?:\s{2,}|$)", line)
+            group = groups.setdefault(heading[1], set()) if heading else None
+        elif group is not None and (entry := re.match(r"  (\w+\.py|\w+/) ", line)):
+            group.add(entry[1])
+    package = ROOT / "sweep"
+    top = {name for name, entries in groups.items() if not name.endswith("/")}
+    listed_top = set().union(*(groups[name] for name in top))
+    listed_top |= set(re.findall(r"sweep/(\w+\.py)", block))  # named in a description
+    assert listed_top == {p.name for p in package.glob("*.py")}
+    folders = {name for name in groups if name.endswith("/") and (package / name).is_dir()}
+    assert folders == {p.parent.name + "/" for p in package.glob("*/__init__.py")}
+    for name in folders:
+        present = {p.name for p in (package / name).glob("*.py")} - {"__init__.py"}
+        present |= {p.parent.name + "/" for p in (package / name).glob("*/__init__.py")}
+        assert groups[name] == present, name
 
 
 # --- the README as the landing page ------------------------------------------------------
