@@ -236,7 +236,7 @@ _dpi = _integer_in(10, 2000)
 
 
 def _add_dpi(parser):
-    from .plots import DPI
+    from .plot.common import DPI
 
     parser.add_argument(
         "--dpi", type=_dpi, default=DPI, help=f"resolution of PNG output (default {DPI})"
@@ -244,7 +244,7 @@ def _add_dpi(parser):
 
 
 def add_figure_commands(sub):
-    """Subcommands plot, trace, bifurcation and figures (``sweep/plots.py``, ``sweep/trace.py``)."""
+    """Subcommands plot, trace, bifurcation and figures (``sweep/plot/``, ``sweep/trace.py``)."""
     plot = sub.add_parser("plot", help="phase diagram, or a map of one variable, of a result")
     plot.add_argument("result", help="result NetCDF file of python -m sweep run")
     plot.add_argument(
@@ -558,7 +558,8 @@ def cmd_merge(args):
 def _plotted(source, draw, out, dpi):
     """Save the figure ``draw()`` to ``out`` after checking ``out``; a result it cannot
     draw is bad input."""
-    from .plots import FORMATS, save_figure
+    from .plot import save_figure
+    from .plot.common import FORMATS
     from .store import check_writable
 
     check_writable(out, source, "--out", tuple(FORMATS))
@@ -583,13 +584,13 @@ def cmd_plot(args):
     from pathlib import Path
 
     from .dataset import read_result
-    from .plots import plot_orbit_diagram, plot_result, plot_variable
+    from .plot import plot_orbit_diagram, plot_result, plot_variable
 
     ds = read_result(args.result)
     if sum((bool(args.var), args.orbit is not None, args.catalogue is not None)) > 1:
         raise InputError(args.result, ["give one of --var, --orbit and --catalogue"])
     if args.catalogue is not None:
-        from .catalogue_plots import plot_catalogue
+        from .plot import plot_catalogue
 
         _once(args.result, "--catalogue", args.catalogue)
         suffix, draw = "_catalogue.png", functools.partial(plot_catalogue, ds, dict(args.catalogue))
@@ -623,7 +624,7 @@ def cmd_bifurcation(args):
     from pathlib import Path
 
     from .dataset import read_result
-    from .plots import plot_bifurcation
+    from .plot import plot_bifurcation
 
     first = Path(args.results[0])
     out = args.out or first.with_name(first.stem + "_bifurcation.png")

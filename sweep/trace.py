@@ -236,13 +236,14 @@ def run_trace(config, at, out=None, png=None, t_end=None, points=4000, dpi=None)
 
     Default paths: ``results/<name>_trace_<name>=<value>….nc`` and the same
     with ``.png``; ``png`` may end in ``.png``, ``.pdf`` or ``.svg``; ``dpi``:
-    resolution of a PNG (default ``plots.DPI``). Returns ``(dataset, nc_path,
+    resolution of a PNG (default ``plot.common.DPI``). Returns ``(dataset, nc_path,
     figure_path)``.
     """
     from pathlib import Path
 
     from .dataset import write_netcdf
-    from .plots import DPI, FORMATS, plot_trace, save_figure
+    from .plot import plot_trace, save_figure
+    from .plot.common import DPI, FORMATS
     from .store import check_writable
 
     pinned = pin_config(config, at, t_end)

@@ -249,7 +249,7 @@ def test_trace_figure_ends_where_the_run_ended_and_takes_an_axes():
     not at the end time. CF attributes of the time coordinate are set."""
     from matplotlib.figure import Figure
 
-    from sweep.plots import plot_trace
+    from sweep.plot import plot_trace
 
     ds = compute_trace(pin_config(load_config(QUICK), {"K_W": 0.046}, 2000.0), points=300)
     assert ds.attrs["regime"] == "runaway" and ds.attrs["t_end"] == 20000.0
