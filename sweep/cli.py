@@ -606,14 +606,29 @@ def cmd_plot(args):
 
 
 def cmd_trace(args):
+    """Pin the config at ``--at``, integrate, write the trace's NetCDF and its figure
+    (both paths checked before the run)."""
+    from pathlib import Path
+
     from .config import load_config
-    from .trace import run_trace
+    from .dataset import write_netcdf
+    from .plot import plot_trace, save_figure
+    from .plot.common import FORMATS
+    from .store import check_writable
+    from .trace import compute_trace, pin_config
 
     config = load_config(args.config)
     _once(args.config, "--at", args.at)
-    ds, nc, png = run_trace(
-        config, dict(args.at), args.out, args.png, args.t_end, args.points, args.dpi
-    )
+    at = dict(args.at)
+    pinned = pin_config(config, at, args.t_end)
+    stem = "_".join(f"{name}={value:g}" for name, value in at.items())
+    nc = Path(args.out) if args.out else Path("results") / f"{config.name}_trace_{stem}.nc"
+    png = Path(args.png) if args.png else nc.with_suffix(".png")
+    check_writable(nc, config.source, "--out")
+    check_writable(png, config.source, "--png", tuple(FORMATS))
+    ds = compute_trace(pinned, args.points)
+    write_netcdf(ds, nc)
+    save_figure(plot_trace(ds), png, args.dpi)
     end = f", t_runaway = {ds.attrs['t_runaway']:.6g} s" if ds.attrs["regime"] == "runaway" else ""
     print(f"{ds.attrs['regime']} (t_final = {ds.attrs['t_final']:.6g} s{end})")
     print(f"wrote {nc} ({ds.sizes['time']} time points) and {png}")
