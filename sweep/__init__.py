@@ -12,8 +12,8 @@ Importing the package compiles nothing; kernels compile on first use::
 Kernels: :func:`compile_kernels` (warm numba's cache before job arrays);
 configs: :func:`load_config`, :func:`with_changes`, :func:`examples.names`;
 figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
-:func:`plot_orbit_diagram`, :func:`plot_trace` (``sweep/plots.py``), :func:`plot_catalogue`
-(``sweep/catalogue_plots.py``); slip-event statistics: :func:`catalogue_statistics`;
+:func:`plot_orbit_diagram`, :func:`plot_trace`, :func:`plot_catalogue` (``sweep/plot/``,
+one module per family); slip-event statistics: :func:`catalogue_statistics`;
 traces: :func:`compute_trace`; refined results: :func:`to_grid`, :func:`boundaries`;
 files: :func:`read_result`, :func:`write_netcdf`; runs with parts, shards and Dask:
 :func:`run_sweep`, :func:`merge_parts`, :class:`Resources`; extending and auditing a
@@ -27,13 +27,13 @@ from .config import Config, load_config, parse_config, with_changes
 from .errors import ConfigError, InputError, RunError, SweepError
 
 _LAZY = {
-    "plot_result": "plots",
-    "plot_variable": "plots",
-    "plot_bifurcation": "plots",
-    "plot_orbit_diagram": "plots",
-    "plot_trace": "plots",
-    "save_figure": "plots",
-    "plot_catalogue": "catalogue_plots",
+    "plot_result": "plot",
+    "plot_variable": "plot",
+    "plot_bifurcation": "plot",
+    "plot_orbit_diagram": "plot",
+    "plot_trace": "plot",
+    "save_figure": "plot",
+    "plot_catalogue": "plot",
     "catalogue_statistics": "results.catalogue_statistics",
     "to_grid": "refine.dataset",
     "boundaries": "refine.boundaries",

@@ -236,7 +236,7 @@ _dpi = _integer_in(10, 2000)
 
 
 def _add_dpi(parser):
-    from .plots import DPI
+    from .plot.common import DPI
 
     parser.add_argument(
         "--dpi", type=_dpi, default=DPI, help=f"resolution of PNG output (default {DPI})"
@@ -244,7 +244,7 @@ def _add_dpi(parser):
 
 
 def add_figure_commands(sub):
-    """Subcommands plot, trace, bifurcation and figures (``sweep/plots.py``,
+    """Subcommands plot, trace, bifurcation and figures (``sweep/plot/``,
     ``sweep/commands/trace.py``)."""
     plot = sub.add_parser("plot", help="phase diagram, or a map of one variable, of a result")
     plot.add_argument("result", help="result NetCDF file of python -m sweep run")
@@ -560,7 +560,8 @@ def _plotted(source, draw, out, dpi):
     """Save the figure ``draw()`` to ``out`` after checking ``out``; a result it cannot
     draw is bad input."""
     from .io.files import check_writable
-    from .plots import FORMATS, save_figure
+    from .plot import save_figure
+    from .plot.common import FORMATS
 
     check_writable(out, source, "--out", tuple(FORMATS))
     try:
@@ -584,13 +585,13 @@ def cmd_plot(args):
     from pathlib import Path
 
     from .io.netcdf import read_result
-    from .plots import plot_orbit_diagram, plot_result, plot_variable
+    from .plot import plot_orbit_diagram, plot_result, plot_variable
 
     ds = read_result(args.result)
     if sum((bool(args.var), args.orbit is not None, args.catalogue is not None)) > 1:
         raise InputError(args.result, ["give one of --var, --orbit and --catalogue"])
     if args.catalogue is not None:
-        from .catalogue_plots import plot_catalogue
+        from .plot import plot_catalogue
 
         _once(args.result, "--catalogue", args.catalogue)
         suffix, draw = "_catalogue.png", functools.partial(plot_catalogue, ds, dict(args.catalogue))
@@ -606,14 +607,29 @@ def cmd_plot(args):
 
 
 def cmd_trace(args):
-    from .commands.trace import run_trace
+    """Pin the config at ``--at``, integrate, write the trace's NetCDF and its figure
+    (both paths checked before the run)."""
+    from pathlib import Path
+
+    from .commands.trace import compute_trace, pin_config
     from .config import load_config
+    from .io.files import check_writable
+    from .io.netcdf import write_netcdf
+    from .plot import plot_trace, save_figure
+    from .plot.common import FORMATS
 
     config = load_config(args.config)
     _once(args.config, "--at", args.at)
-    ds, nc, png = run_trace(
-        config, dict(args.at), args.out, args.png, args.t_end, args.points, args.dpi
-    )
+    at = dict(args.at)
+    pinned = pin_config(config, at, args.t_end)
+    stem = "_".join(f"{name}={value:g}" for name, value in at.items())
+    nc = Path(args.out) if args.out else Path("results") / f"{config.name}_trace_{stem}.nc"
+    png = Path(args.png) if args.png else nc.with_suffix(".png")
+    check_writable(nc, config.source, "--out")
+    check_writable(png, config.source, "--png", tuple(FORMATS))
+    ds = compute_trace(pinned, args.points)
+    write_netcdf(ds, nc)
+    save_figure(plot_trace(ds), png, args.dpi)
     end = f", t_runaway = {ds.attrs['t_runaway']:.6g} s" if ds.attrs["regime"] == "runaway" else ""
     print(f"{ds.attrs['regime']} (t_final = {ds.attrs['t_final']:.6g} s{end})")
     print(f"wrote {nc} ({ds.sizes['time']} time points) and {png}")
@@ -624,7 +640,7 @@ def cmd_bifurcation(args):
     from pathlib import Path
 
     from .io.netcdf import read_result
-    from .plots import plot_bifurcation
+    from .plot import plot_bifurcation
 
     first = Path(args.results[0])
     out = args.out or first.with_name(first.stem + "_bifurcation.png")

@@ -1,5 +1,4 @@
-"""Figures (sweep/plots.py, sweep/commands/figures.py): phase diagrams, bifurcation, paper
-figures."""
+"""Figures (sweep/plot/, sweep/commands/figures.py): phase diagrams, bifurcation, paper figures."""
 
 from pathlib import Path
 
@@ -11,18 +10,10 @@ from sweep.cli import main
 from sweep.config import config_mapping, load_config, parse_config, with_changes
 from sweep.engine.runner import compute
 from sweep.io.netcdf import write_netcdf
-from sweep.plots import (
-    REGIME_COLOURS,
-    axis_label,
-    bifurcation_curves,
-    critical_crossings,
-    plot_bifurcation,
-    plot_result,
-    plot_variable,
-    save_figure,
-    stiffness_ratio,
-    unit_text,
-)
+from sweep.plot import plot_bifurcation, plot_result, plot_variable, save_figure
+from sweep.plot.bifurcation import bifurcation_curves
+from sweep.plot.common import REGIME_COLOURS, axis_label, stiffness_ratio, unit_text
+from sweep.plot.maps import critical_crossings
 from sweep.variables import REGIMES
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -320,7 +311,7 @@ def test_nblock_figure_draws_the_ensemble_and_kc():
     import xarray as xr
     from matplotlib.patches import Rectangle
 
-    from sweep.plots import plot_nblock
+    from sweep.plot import plot_nblock
 
     nblock, heterogeneous = (compute(c, show_progress=False) for c in small_nblock_configs())
     sizes = xr.DataArray(
@@ -364,7 +355,7 @@ def test_plots_are_figures_drawn_without_pyplot(one_d, tmp_path):
 import sys, matplotlib
 matplotlib.use = lambda *args, **kwargs: sys.exit("matplotlib.use was called")
 from sweep.io.netcdf import read_result
-from sweep.plots import plot_result, plot_variable, save_figure
+from sweep.plot import plot_result, plot_variable, save_figure
 ds = read_result({str(result)!r})
 fig = plot_result(ds)
 save_figure(plot_variable(ds, "period"), {str(tmp_path / "p.svg")!r})
@@ -407,7 +398,7 @@ def test_plot_command_maps_any_variable_in_any_format(one_d, tmp_path, capsys):
 
 def test_reading_and_plotting_results_loads_no_numba():
     """Plots and result files need no kernels: importing them loads no numba (1.25 s)."""
-    code = "import sys, sweep.plots, sweep.results.dataset; print('numba' in sys.modules)"
+    code = "import sys, sweep.plot, sweep.results.dataset; print('numba' in sys.modules)"
     assert python_stdout(code).strip() == "False"
 
 
@@ -418,7 +409,7 @@ def test_orbit_diagram_plots_each_runs_events_by_attractor(one_d, two_d, tmp_pat
     The CLI draws it with ``plot --orbit``."""
     from matplotlib.figure import Figure
 
-    from sweep.plots import plot_orbit_diagram
+    from sweep.plot import plot_orbit_diagram
 
     fig = plot_orbit_diagram(one_d)
     orbit, lam = fig.axes

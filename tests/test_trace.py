@@ -244,12 +244,24 @@ def test_trace_command_missing_axis_exits_2(tmp_path, capsys):
     assert not (tmp_path / "t.nc").exists()
 
 
+def test_the_trace_module_computes_and_draws_nothing():
+    """sweep/commands/trace.py computes traces and the trace command draws them: the module
+    imports nothing from sweep/plot/, not even inside a function."""
+    import ast
+
+    import sweep.commands.trace
+
+    tree = ast.parse(Path(sweep.commands.trace.__file__).read_text())
+    imported = [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+    assert [m for m in imported if m.split(".")[0] == "plot"] == []
+
+
 def test_trace_figure_ends_where_the_run_ended_and_takes_an_axes():
     """A runaway at ~970 s of a 20000 s end time: the time axis stops at the last sample,
     not at the end time. CF attributes of the time coordinate are set."""
     from matplotlib.figure import Figure
 
-    from sweep.plots import plot_trace
+    from sweep.plot import plot_trace
 
     ds = compute_trace(pin_config(load_config(QUICK), {"K_W": 0.046}, 2000.0), points=300)
     assert ds.attrs["regime"] == "runaway" and ds.attrs["t_end"] == 20000.0

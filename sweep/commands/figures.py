@@ -24,16 +24,9 @@ import numpy as np
 from ..config import load_config, with_changes
 from ..errors import InputError
 from ..io.files import check_writable
-from ..plots import (
-    BLOCK_STYLES,
-    DPI,
-    draw_trace,
-    initial_text,
-    new_figure,
-    parameter_text,
-    power_text,
-    save_figure,
-)
+from ..plot import draw_trace, save_figure
+from ..plot.common import DPI, initial_text, new_figure, parameter_text, power_text
+from ..plot.trace import BLOCK_STYLES
 from ..results.dataset import parameter_values
 from .trace import compute_trace, pin_config
 
@@ -256,7 +249,7 @@ def figure_nblock(nblock="nblock", heterogeneous="heterogeneous", threads=None):
     ensemble regime maps of ``heterogeneous`` (K/W × spread of D0) and ``nblock``
     (K/W × k2/W); returns the Figure."""
     from ..engine.runner import compute
-    from ..plots import plot_nblock
+    from ..plot import plot_nblock
 
     spread_config, coupling_config = load_config(heterogeneous), load_config(nblock)
     sizes = critical_ratios(spread_config)
@@ -271,9 +264,9 @@ def figure_nblock(nblock="nblock", heterogeneous="heterogeneous", threads=None):
 
 def figure_refined(ds):
     """The refined map ``ds`` (a refined result): its cells at their level and the
-    boundaries between its labels (``plots.plot_refined``), with the runs it took beside
+    boundaries between its labels (``plot.plot_refined``), with the runs it took beside
     those of the uniform grid of its finest cells; returns the Figure."""
-    from ..plots import plot_result
+    from ..plot import plot_result
     from ..refine.dataset import refined_config
 
     config = refined_config(ds)
@@ -295,11 +288,10 @@ LONG_CHAIN_MAPS = ("system_wide_fraction", "b_value", "recurrence_cv")
 def figure_long_chain(ds, point=None):
     """A long chain's sweep ``ds`` (a result with a catalogue): maps of the fraction of
     system-wide events, the b-value and the recurrence's coefficient of variation over
-    the sweep (``plots.plot_variable``), above one run's events in space and time and
-    its size–frequency plot (``catalogue_plots.plot_catalogue`` at ``point``; default:
+    the sweep (``sweep.plot_variable``), above one run's events in space and time and
+    its size–frequency plot (``sweep.plot_catalogue`` at ``point``; default:
     the run with the most events); returns the Figure."""
-    from ..catalogue_plots import plot_catalogue
-    from ..plots import new_figure, plot_variable
+    from ..plot import plot_catalogue, plot_variable
 
     if point is None:
         busiest = ds["slip_event_count"].argmax(...)
@@ -336,7 +328,7 @@ def make_figures(
     from ..engine.dispatch import load_kernels
     from ..engine.grid import build_grid
     from ..engine.runner import compute
-    from ..plots import plot_bifurcation, plot_orbit_diagram, plot_result
+    from ..plot import plot_bifurcation, plot_orbit_diagram, plot_result
 
     out_dir = Path(out_dir)
     # every input and the output folder are checked before any work

@@ -229,29 +229,3 @@ def trace_attributes(grid, result, y_final):
         attrs[var.name] = value.item()
         attrs[f"{var.name}_units"] = var.units
     return attrs
-
-
-def run_trace(config, at, out=None, png=None, t_end=None, points=4000, dpi=None):
-    """Pin ``config`` at ``at``, integrate, write the trace NetCDF and its figure.
-
-    Default paths: ``results/<name>_trace_<name>=<value>….nc`` and the same
-    with ``.png``; ``png`` may end in ``.png``, ``.pdf`` or ``.svg``; ``dpi``:
-    resolution of a PNG (default ``plots.DPI``). Returns ``(dataset, nc_path,
-    figure_path)``.
-    """
-    from pathlib import Path
-
-    from ..io.files import check_writable
-    from ..io.netcdf import write_netcdf
-    from ..plots import DPI, FORMATS, plot_trace, save_figure
-
-    pinned = pin_config(config, at, t_end)
-    stem = "_".join(f"{name}={value:g}" for name, value in at.items())
-    nc = Path(out) if out else Path("results") / f"{config.name}_trace_{stem}.nc"
-    png = Path(png) if png else nc.with_suffix(".png")
-    check_writable(nc, config.source, "--out")
-    check_writable(png, config.source, "--png", tuple(FORMATS))
-    ds = compute_trace(pinned, points)
-    write_netcdf(ds, nc)
-    save_figure(plot_trace(ds), png, dpi or DPI)
-    return ds, nc, png

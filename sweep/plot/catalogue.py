@@ -9,8 +9,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .plots import colormap, describe, new_figure, parameter_text
-from .results.checks import check_result
+from ..results.checks import check_result
+from .common import colormap, describe, new_figure, parameter_text
 
 if TYPE_CHECKING:
     import xarray
@@ -26,8 +26,11 @@ def catalogue_run(ds, point=None):
     if point is not None and not isinstance(point, Mapping):
         raise TypeError(f"point must be a mapping of sweep axes to values, got {point!r}")
     point = dict(point or {})
-    bad = [k for k, v in point.items() if not (isinstance(v, (int, float, np.number))
-                                               and np.isfinite(v))]  # fmt: skip
+    bad = [
+        k
+        for k, v in point.items()
+        if not (isinstance(v, (int, float, np.number)) and np.isfinite(v))
+    ]
     if bad:
         raise ValueError(f"point: {', '.join(map(str, bad))} must be finite numbers")
     unknown = set(point) - set(ds["slip_event_start"].dims[:-1])
@@ -80,8 +83,13 @@ def plot_catalogue(
     space, sizes = fig.subplots(1, 2, width_ratios=(2.2, 1))
     _space_time(fig, space, ev, int(ds.attrs["blocks"]))
     _size_frequency(sizes, ev, run)
-    where = parameter_text({k: float(run[k]) for k in ds["slip_event_start"].dims[:-1]
-                            if k in run.coords and k != "member"})  # fmt: skip
+    where = parameter_text(
+        {
+            k: float(run[k])
+            for k in ds["slip_event_start"].dims[:-1]
+            if k in run.coords and k != "member"
+        }
+    )
     kept = f"{count} of {int(run['slip_event_count'])} events kept"
     fig.suptitle(f"{describe(ds)}\n{where}; {kept}", fontsize=9.5)
     return fig
@@ -101,8 +109,15 @@ def _space_time(fig, ax, ev, blocks):
     cmap = colormap("viridis")
     for s, e, a, b, m in zip(start, end, lo, hi, mag, strict=True):
         ax.add_patch(_bar(s, e, a, b, cmap(norm(m))))
-    ax.scatter(start, ev["slip_event_first_block"].values, s=6, c="k", marker=".", lw=0,
-               label="first block")  # fmt: skip
+    ax.scatter(
+        start,
+        ev["slip_event_first_block"].values,
+        s=6,
+        c="k",
+        marker=".",
+        lw=0,
+        label="first block",
+    )
     if start.size:
         ax.set_xlim(start.min(), end.max())
     ax.set_ylim(-0.5, blocks - 0.5)
@@ -130,8 +145,13 @@ def _size_frequency(ax, ev, run):
     if np.isfinite(b) and mag.size:
         above = int((mag >= mc).sum())
         m = np.linspace(mc, mag.max(), 50)
-        ax.plot(m, above * 10 ** (-b * (m - mc)), "--", color="#D55E00",
-                label=f"b = {b:.2f} ± {err:.2f} (m ≥ {mc:.2f})")  # fmt: skip
+        ax.plot(
+            m,
+            above * 10 ** (-b * (m - mc)),
+            "--",
+            color="#D55E00",
+            label=f"b = {b:.2f} ± {err:.2f} (m ≥ {mc:.2f})",
+        )
         ax.axvline(mc, color="#999999", lw=0.8)
     ax.set_yscale("log")
     ax.set_xlabel("magnitude m")

@@ -1,0 +1,34 @@
+"""Figures of sweep results and traces, one module per family of figures.
+
+Every ``plot_*`` function returns a matplotlib Figure (drawn in a notebook, saved with
+:func:`save_figure`); those with one panel draw on a given ``ax=`` instead. Figures are
+made without pyplot, so nothing here selects a backend or keeps figures open;
+matplotlib is imported on first use, so importing the package stays light.
+
+``maps`` (phase diagrams, maps of a variable), ``refined`` (refined results and their
+boundaries), ``bifurcation`` (bifurcation and orbit diagrams), ``trace`` (time series),
+``catalogue`` (a run's slip events), ``nblock`` (the N-block figure); ``common``: what
+they share (colours, labels, titles, saving).
+"""
+
+from .bifurcation import plot_bifurcation, plot_orbit_diagram
+from .catalogue import plot_catalogue
+from .common import save_figure
+from .maps import plot_result, plot_variable, plottable
+from .nblock import plot_nblock
+from .refined import plot_refined
+from .trace import draw_trace, plot_trace
+
+__all__ = [
+    "draw_trace",
+    "plot_bifurcation",
+    "plot_catalogue",
+    "plot_nblock",
+    "plot_orbit_diagram",
+    "plot_refined",
+    "plot_result",
+    "plot_trace",
+    "plot_variable",
+    "plottable",
+    "save_figure",
+]

@@ -1,0 +1,246 @@
+"""What every figure shares: the colour tables, figures made without pyplot, colour
+maps, labels with units, title lines (parameters, start, caption), grid-cell edges,
+and :func:`save_figure` with its formats and default resolution.
+
+One table, :data:`REGIME_COLOURS`, colours each regime in every figure;
+:data:`ATTRACTOR_COLOURS` each attractor kind.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import textwrap
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..model.physics import PARAMETERS
+from ..results.dataset import parameter_values
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from matplotlib.figure import Figure
+
+#: Colour of each regime in every figure (Okabe–Ito palette, colour-blind safe).
+REGIME_COLOURS = {
+    "steady": "#0072B2",
+    "stick_slip": "#009E73",
+    "runaway": "#D55E00",
+    "undecided": "#999999",
+}
+#: Colour of each attractor kind in an orbit diagram (Okabe–Ito palette, colour-blind safe).
+ATTRACTOR_COLOURS = {
+    "fixed_point": "#0072B2",
+    "periodic": "#009E73",
+    "quasi_periodic": "#E69F00",
+    "chaotic": "#CC79A7",
+    "unresolved": "#999999",
+    "unbounded": "#D55E00",
+}
+#: Default resolution of saved raster figures (dots per inch; ``--dpi`` changes it).
+DPI = 150
+#: File types :func:`save_figure` writes, by suffix.
+FORMATS = {".png": "png", ".pdf": "pdf", ".svg": "svg"}
+#: Parameters shown in figure titles, in this order (mu0, V0, Phi0 do not change the dynamics).
+TITLE_PARAMETERS = ("A", "B", "D0", "V", "K_W", "k2_W", "eta_W", "m_W")
+SYMBOLS = {"D0": "D0", "K_W": "K/W", "k2_W": "k2/W", "eta_W": "η/W", "m_W": "m/W"}
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def new_figure(**kwargs):
+    """A matplotlib Figure with constrained layout, made without pyplot (so no
+    backend is selected and nothing is kept open)."""
+    from matplotlib.figure import Figure
+
+    return Figure(layout="constrained", **kwargs)
+
+
+def colormap(name):
+    """The registered matplotlib colormap ``name``."""
+    import matplotlib
+
+    return matplotlib.colormaps[name]
+
+
+def power_text(x):
+    """A number for a label: ``1e6`` → ``"10⁶"``; other numbers as ``:g``."""
+    exponent = np.log10(x) if x > 0 else np.nan
+    if np.isfinite(exponent) and exponent == round(exponent):
+        return "10" + str(int(exponent)).translate(_SUPERSCRIPT)
+    return f"{x:g}"
+
+
+def unit_text(units):
+    """CF-style units → display text: ``"um-1"`` → ``"µm⁻¹"``, ``"1"`` → ``""``."""
+    if units in ("", "1"):
+        return ""
+    words = []
+    for word in units.split():
+        base, power = re.fullmatch(r"([A-Za-z]+)(-?\d*)", word).groups()
+        words.append(base.replace("um", "µm") + power.translate(_SUPERSCRIPT))
+    return " ".join(words)
+
+
+def axis_label(var):
+    """Axis label of a coordinate or variable: its long name and units in brackets."""
+    units = unit_text(var.attrs.get("units", "1"))
+    name = var.attrs.get("long_name", var.name)
+    return f"{name} [{units}]" if units else name
+
+
+def parameter_text(values):
+    """``"A = 0.03, B = 0.08, D0 = 1 µm"`` from a mapping of parameter name → value."""
+    parts = []
+    for name in TITLE_PARAMETERS:
+        if name in values:
+            units = unit_text(PARAMETERS[name].units)
+            parts.append(
+                f"{SYMBOLS.get(name, name)} = {float(values[name]):g}{' ' + units if units else ''}"
+            )
+    return ", ".join(parts)
+
+
+def describe(ds):
+    """Title line of a result or trace: blocks, model, state law and fixed parameters."""
+    blocks = int(ds.attrs["blocks"])
+    kind = "one block" if blocks == 1 else f"{blocks} blocks"
+    fixed = parameter_text(parameter_values(ds))
+    return f"{kind}, {ds.attrs['model']}, {ds.attrs['state_law']} law: {fixed}"
+
+
+def initial_text(ds):
+    """The initial perturbation of a result or trace, e.g. ``"start Φ/Φss = 1.01, v/V = 1"``."""
+    phi = np.atleast_1d(ds.attrs["initial_phi_over_phi_ss"])
+    v = np.atleast_1d(ds.attrs["initial_v_over_V"])
+    return (
+        f"start Φ/Φss = {', '.join(f'{x:g}' for x in phi)}; v/V = {', '.join(f'{x:g}' for x in v)}"
+    )
+
+
+def regime_names(ds):
+    """Regime name of every code in a result's ``regime`` flag attributes."""
+    attrs = ds["regime"].attrs
+    return dict(
+        zip((int(c) for c in attrs["flag_values"]), attrs["flag_meanings"].split(), strict=True)
+    )
+
+
+def regime_legend(ax, regimes, counts=None, **kwargs):
+    """A legend of coloured patches naming each regime (with run counts if given)."""
+    from matplotlib.patches import Patch
+
+    handles = [
+        Patch(
+            color=REGIME_COLOURS[name],
+            label=name.replace("_", "-") + (f" ({counts[name]})" if counts else ""),
+        )
+        for name in regimes
+    ]
+    return ax.legend(handles=handles, **kwargs)
+
+
+def _squeeze(ds, keep=None):
+    """Take sweep axes of length one, and any beyond the first ``keep`` longer ones,
+    at their first value; return the Dataset and a note naming those values."""
+    longer = [d for d in ds["regime"].dims if ds.sizes[d] > 1]
+    taken = [d for d in ds["regime"].dims if d not in longer[:keep]]
+    values = {d: ds[d].values[0] for d in taken}
+    return ds.isel({d: 0 for d in taken}), parameter_text(values)
+
+
+def stiffness_ratio(ds):
+    """K/Kc, NaN where Kc ≤ 0 (steady sliding is then stable at every stiffness)."""
+    return ds["K_over_Kc"].where(ds["critical_K_W"] > 0)
+
+
+def _check_caption(caption):
+    """Raise TypeError unless ``caption`` (an extra title line) is a string."""
+    if not isinstance(caption, str):
+        raise TypeError(f"caption must be a string, got {type(caption).__name__}")
+
+
+def _suptitle(fig, lines):
+    """Figure title from non-empty ``lines``, each wrapped to the figure's width."""
+    width = int(12 * fig.get_figwidth())  # characters of 10-point text per line (100 dpi)
+    fig.suptitle("\n".join(textwrap.fill(line, width) for line in lines if line), fontsize=10)
+
+
+def _log_spaced(values):
+    """Whether grid values are evenly spaced in log but not linearly (a log-scale axis)."""
+    v = np.asarray(values, float)
+    if v.size < 3 or np.any(v <= 0):
+        return False
+    return np.allclose(np.diff(np.log(v)), np.log(v[1] / v[0])) and not np.allclose(
+        np.diff(v), v[1] - v[0]
+    )
+
+
+def _edges(values):
+    """Cell edges around grid values (geometric midpoints on a log-spaced axis)."""
+    v = np.asarray(values, float)
+    log = _log_spaced(v)
+    w = np.log(v) if log else v
+    mid = 0.5 * (w[1:] + w[:-1])
+    e = np.concatenate([[2 * w[0] - mid[0]], mid, [2 * w[-1] - mid[-1]]])
+    return np.exp(e) if log else e
+
+
+def _figure_and_axes(ax, figsize):
+    """``(figure, ax)``: the given axes and its figure, or a new figure with one axes."""
+    if ax is not None:
+        if not hasattr(ax, "figure"):
+            raise TypeError(f"ax must be a matplotlib Axes, got {type(ax).__name__}")
+        return ax.figure, ax
+    fig = new_figure(figsize=figsize)
+    return fig, fig.subplots()
+
+
+def _refined(ds):
+    from ..refine.dataset import is_refined
+
+    return "regime" in ds and is_refined(ds)
+
+
+def _as_grid(ds):
+    """A refined result on a grid (``refined_dataset.as_grid``); any other as it is."""
+    from ..refine.dataset import as_grid
+
+    return as_grid(ds) if _refined(ds) else ds
+
+
+def save_figure(fig: Figure, out: str | os.PathLike, dpi: float = DPI) -> Path:
+    """Write a figure to a file atomically (a temporary file, then a rename).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure, e.g. from :func:`plot_result`.
+    out : str or os.PathLike
+        The file; its suffix picks the format: ``.png``, ``.pdf`` or ``.svg``.
+        Missing folders are created.
+    dpi : float, default 150
+        Resolution of a PNG, in dots per inch.
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+
+    Raises
+    ------
+    ValueError
+        The suffix is not ``.png``, ``.pdf`` or ``.svg``.
+    """
+    from pathlib import Path
+
+    from ..io.files import replaced_atomically
+
+    out = Path(out)
+    if out.suffix not in FORMATS:
+        raise ValueError(f"{out}: figure files end in {', '.join(FORMATS)}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with replaced_atomically(out) as tmp:
+        fig.savefig(tmp, dpi=dpi, format=FORMATS[out.suffix])
+    return out

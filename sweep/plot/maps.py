@@ -1,0 +1,317 @@
+"""Maps of a sweep result over its sweep axes: the phase diagram (:func:`plot_result`:
+regimes beside the amplitude and growth rate) and any one variable
+(:func:`plot_variable`); along one axis, the values against it coloured by regime.
+The analytic Kc (K/Kc = 1) is drawn dashed on each."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..results.checks import check_result
+from ..variables import REGIMES
+from .common import (
+    REGIME_COLOURS,
+    _as_grid,
+    _check_caption,
+    _edges,
+    _figure_and_axes,
+    _log_spaced,
+    _refined,
+    _squeeze,
+    _suptitle,
+    axis_label,
+    colormap,
+    describe,
+    initial_text,
+    new_figure,
+    regime_legend,
+    regime_names,
+    stiffness_ratio,
+)
+
+if TYPE_CHECKING:
+    import xarray
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+#: Continuous measures shown beside the regimes in a phase diagram.
+MEASURES = ("lnv_amplitude", "growth_rate")
+
+
+def plot_result(ds: xarray.Dataset, caption: str = "", ax: Axes | None = None) -> Figure:
+    """Phase diagram of a sweep result.
+
+    Two or more sweep axes: regimes as a categorical map over the first two
+    (first axis along x), beside maps of :data:`MEASURES`; one axis: the
+    measures against it, points coloured by regime, with the linear growth
+    rate. The analytic critical stiffness (where K/Kc = 1) is drawn over every
+    panel. Further axes are taken at their first value (named in the title).
+    A refined result (runs along ``point``) is drawn by :func:`plot_refined`: its
+    cells at their level with the boundaries between labels on top.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A sweep result (:func:`sweep.run`, or a file opened with xarray).
+    caption : str, optional
+        An extra line of the figure's title.
+    ax : matplotlib.axes.Axes, optional
+        Draw only the regime panel there (one axis: the first measure coloured by
+        regime), with no figure title (default: a new figure with every panel).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The new figure, or the figure of ``ax``.
+
+    Raises
+    ------
+    ValueError
+        No sweep axis has more than one value.
+    """
+    check_result(ds)
+    _check_caption(caption)
+    if _refined(ds):
+        from .refined import plot_refined  # here: refined.py draws through plot_result
+
+        return plot_refined(ds, caption, ax)
+    ds, fixed_axes = _squeeze(ds, keep=2)
+    if ds["regime"].ndim not in (1, 2):
+        raise ValueError("a phase diagram needs a sweep axis with more than one value")
+    if ax is not None:
+        if ds["regime"].ndim == 2:
+            counts = _regime_map(ax, ds)
+            _grid_axes(ax, ds)
+            ax.set_ylabel(axis_label(ds[ds["regime"].dims[1]]))
+            present = [name for name in REGIMES if counts.get(name)]
+            regime_legend(ax, present, counts, fontsize=8)
+        else:
+            _measure_line(ax, ds, MEASURES[0])
+        return ax.figure
+    if ds["regime"].ndim == 2:
+        fig = _phase_map(ds)
+    else:
+        fig = _phase_line(ds)
+    note = "; ".join(filter(None, [fixed_axes and f"at {fixed_axes}", initial_text(ds)]))
+    _suptitle(fig, [f"{ds.attrs.get('sweep_name', '')}: {describe(ds)}", note, caption])
+    return fig
+
+
+def _kc_handle():
+    from matplotlib.lines import Line2D
+
+    return Line2D([], [], color="k", ls="--", lw=1.5, label="analytic Kc (K/Kc = 1)")
+
+
+def _phase_map(ds):
+    xdim, ydim = ds["regime"].dims
+    fig = new_figure(figsize=(14.5, 4.8))
+    axes = fig.subplots(1, 1 + len(MEASURES), sharey=True)
+    counts = _regime_map(axes[0], ds)
+    for ax, measure in zip(axes[1:], MEASURES, strict=True):
+        _measure_map(ax, ds, ds[measure])
+    for ax in axes:
+        _grid_axes(ax, ds)
+    axes[0].set_ylabel(axis_label(ds[ydim]))
+    present = [name for name in REGIMES if counts.get(name)]
+    below = {"loc": "upper left", "bbox_to_anchor": (0, -0.15), "fontsize": 8, "frameon": False}
+    regime_legend(axes[0], present, counts, ncol=2, **below)
+    axes[1].legend(handles=[_kc_handle()], **below)
+    return fig
+
+
+def _grid_axes(ax, ds):
+    """Labels and scales of a map over a result's two sweep axes, and the line K/Kc = 1."""
+    xdim, ydim = ds["regime"].dims
+    x, y = ds[xdim].values, ds[ydim].values
+    ratio = stiffness_ratio(ds).transpose(ydim, xdim).values
+    if np.any(np.isfinite(ratio)) and min(ratio.shape) > 1:
+        ax.contour(x, y, ratio, levels=[1.0], colors="k", linewidths=1.5, linestyles="--")
+    ax.set_xlabel(axis_label(ds[xdim]))
+    ax.set_xscale("log" if _log_spaced(x) else "linear")
+    ax.set_yscale("log" if _log_spaced(y) else "linear")
+
+
+def _regime_map(ax, ds):
+    """Regimes of a 2-D result as a categorical map on ``ax``; returns the run count
+    of each regime."""
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+
+    xdim, ydim = ds["regime"].dims
+    names = regime_names(ds)
+    codes = sorted(names)
+    regime = ds["regime"].transpose(ydim, xdim).values
+    cmap = ListedColormap([REGIME_COLOURS[names[c]] for c in codes])
+    norm = BoundaryNorm(np.arange(len(codes) + 1) - 0.5, len(codes))
+    ax.pcolormesh(_edges(ds[xdim].values), _edges(ds[ydim].values), regime, cmap=cmap, norm=norm)
+    ax.set_title("regime")
+    return {names[c]: int(np.count_nonzero(regime == c)) for c in codes}
+
+
+def _measure_map(ax, ds, var):
+    """One continuous variable of a 2-D result as a colour map on ``ax``: diverging
+    about 0 if it changes sign, else logarithmic when it spans more than a decade;
+    grey where it was not measured (NaN). The colour bar names its units."""
+    from matplotlib.colors import LogNorm, Normalize, TwoSlopeNorm
+
+    xdim, ydim = ds["regime"].dims
+    var = var.transpose(ydim, xdim)
+    values = var.values.astype(float)
+    finite = values[np.isfinite(values)]
+    if finite.size == 0 or finite.min() < 0 < finite.max():
+        top = np.abs(finite).max() if finite.size and finite.any() else 1.0
+        norm, cmap = TwoSlopeNorm(0.0, -top, top), colormap("RdBu_r")
+    elif finite.min() > 0 and finite.max() > 10 * finite.min():
+        norm, cmap = LogNorm(finite.min(), finite.max()), colormap("viridis")
+    else:
+        norm, cmap = Normalize(finite.min(), finite.max()), colormap("viridis")
+    cmap = cmap.with_extremes(bad="#DDDDDD")
+    xe, ye = _edges(ds[xdim].values), _edges(ds[ydim].values)
+    mesh = ax.pcolormesh(xe, ye, np.ma.masked_invalid(values), cmap=cmap, norm=norm)
+    grey = "\n(grey: not measured)" if finite.size < values.size else ""
+    ax.figure.colorbar(mesh, ax=ax, label=axis_label(var) + grey)
+    ax.set_title(var.attrs.get("long_name", var.name))
+
+
+def _phase_line(ds):
+    fig = new_figure(figsize=(7.5, 6.4))
+    axes = fig.subplots(len(MEASURES), 1, sharex=True)
+    for i, (ax, measure) in enumerate(zip(axes, MEASURES, strict=True)):
+        _measure_line(ax, ds, measure, legend=i == 0)
+        if i < len(axes) - 1:
+            ax.set_xlabel("")
+    axes[-1].legend(handles=[*axes[-1].get_lines()[:1], _kc_handle()], loc="best", fontsize=8)
+    return fig
+
+
+def _measure_line(ax, ds, measure, legend=True):
+    """One variable of a 1-D result against its sweep axis on ``ax``, points coloured by
+    regime (growth rate with the linear theory), the analytic Kc dashed."""
+    (xdim,) = ds["regime"].dims
+    x = ds[xdim].values
+    names = regime_names(ds)
+    regime = ds["regime"].values
+    counts = {name: int(np.count_nonzero(regime == code)) for code, name in names.items()}
+    values = ds[measure].values.astype(float)
+    if measure == "growth_rate":
+        ax.plot(
+            x,
+            ds["linear_growth_rate"].values,
+            color="k",
+            lw=1.2,
+            label="linear theory: max Re λ",
+        )
+        ax.axhline(0.0, color="#BBBBBB", lw=0.8)
+    else:
+        ax.plot(x, values, color="#BBBBBB", lw=1, zorder=1)
+    for code, name in names.items():
+        sel = regime == code
+        ax.scatter(x[sel], values[sel], color=REGIME_COLOURS[name], s=18, zorder=3)
+    finite = values[np.isfinite(values)]
+    if finite.size and finite.min() > 0 and finite.max() > 100 * finite.min():
+        ax.set_yscale("log")
+    for xc in critical_crossings(x, stiffness_ratio(ds).values):
+        ax.axvline(xc, color="k", ls="--", lw=1.5)
+    ax.set_ylabel(axis_label(ds[measure]))
+    ax.set_xlabel(axis_label(ds[xdim]))
+    ax.set_xscale("log" if _log_spaced(x) else "linear")
+    if legend:
+        present = [name for name in REGIMES if counts.get(name)]
+        regime_legend(ax, present, counts, loc="best", fontsize=8)
+
+
+def critical_crossings(x, ratio):
+    """Values of x where K/Kc crosses 1 (linear interpolation between grid points)."""
+    d = np.asarray(ratio, float) - 1.0
+    out = [x[i] for i in np.flatnonzero(d == 0.0)]
+    for i in np.flatnonzero(d[:-1] * d[1:] < 0):
+        out.append(x[i] - d[i] * (x[i + 1] - x[i]) / (d[i + 1] - d[i]))
+    return out
+
+
+def plottable(ds):
+    """Names of the variables of a result that :func:`plot_variable` can map: numeric,
+    over the sweep axes (per-block ones too)."""
+    dims = set(ds["regime"].dims)
+    return [
+        name
+        for name, var in ds.data_vars.items()
+        if dims <= set(var.dims) and set(var.dims) <= dims | {"block"} and var.dtype.kind in "iuf"
+    ]
+
+
+def plot_variable(ds: xarray.Dataset, name: str, ax: Axes | None = None, block: int = 0) -> Figure:
+    """Any variable of a sweep result over its sweep axes.
+
+    Two or more sweep axes: a colour map over the first two (``regime`` as
+    categories, others with a colour bar naming the units); one axis: the
+    variable against it, points coloured by regime. Further axes are taken at
+    their first value, per-block variables at ``block``; both are named in the
+    title. The analytic Kc (K/Kc = 1) is drawn dashed. A refined result is drawn on
+    a grid (``refined_dataset.as_grid``).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A sweep result.
+    name : str
+        The variable, e.g. ``"period"`` (s) or ``"v_max"`` (µm s⁻¹): any numeric
+        data variable of the result (``sweep.plot.plottable(ds)`` lists them).
+    ax : matplotlib.axes.Axes, optional
+        Draw there (default: a new figure).
+    block : int, default 0
+        Block index for per-block variables.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The new figure, or the figure of ``ax``.
+
+    Raises
+    ------
+    ValueError
+        ``name`` is not a variable of the result (the message lists the valid
+        names), ``block`` is not one of its blocks, or no sweep axis has more than one
+        value.
+    """
+    check_result(ds)
+    ds = _as_grid(ds)
+    valid = plottable(ds)
+    if name not in valid:
+        raise ValueError(f"no variable {name!r} to plot; valid names: {', '.join(valid)}")
+    ds, fixed_axes = _squeeze(ds, keep=2)
+    notes = [f"at {fixed_axes}"] if fixed_axes else []
+    if "block" in ds[name].dims:
+        n_blocks = ds.sizes["block"]
+        if (
+            isinstance(block, bool)
+            or not isinstance(block, (int, np.integer))
+            or not (0 <= block < n_blocks)
+        ):
+            raise ValueError(f"block must be an integer in [0, {n_blocks - 1}], got {block!r}")
+        ds = ds.assign({name: ds[name].isel(block=int(block))})
+        notes.append(f"block {block}")
+    ndim = ds["regime"].ndim
+    if ndim == 0:
+        raise ValueError("a map needs a sweep axis with more than one value")
+    fig, ax = _figure_and_axes(ax, (7.5, 5.0) if ndim == 2 else (7.5, 4.2))
+    if ndim == 2:
+        if name == "regime":
+            counts = _regime_map(ax, ds)
+            present = [n for n in REGIMES if counts.get(n)]
+            regime_legend(ax, present, counts, loc="best", fontsize=8)
+        else:
+            _measure_map(ax, ds, ds[name])
+        _grid_axes(ax, ds)
+        ax.set_ylabel(axis_label(ds[ds["regime"].dims[1]]))
+    elif name == "regime":
+        _measure_line(ax, ds.assign(regime_code=ds["regime"].astype(float)), "regime_code")
+        ax.set_ylabel("regime")
+        ax.set_yticks(list(regime_names(ds)), list(regime_names(ds).values()))
+    else:
+        _measure_line(ax, ds, name)
+    title = ds[name].attrs.get("long_name", name)
+    ax.set_title(f"{title} ({'; '.join(notes)})" if notes else title, fontsize=10)
+    return fig
