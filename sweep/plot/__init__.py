@@ -5,8 +5,8 @@ Every ``plot_*`` function returns a matplotlib Figure (drawn in a notebook, save
 made without pyplot, so nothing here selects a backend or keeps figures open;
 matplotlib is imported on first use, so importing the package stays light.
 
-``maps`` (phase diagrams, maps of a variable), ``refined`` (refined results and their
-boundaries), ``bifurcation`` (bifurcation and orbit diagrams), ``trace`` (time series),
+``maps`` (phase diagrams, maps of a variable, refined results and their boundaries),
+``bifurcation`` (bifurcation and orbit diagrams), ``trace`` (time series),
 ``catalogue`` (a run's slip events), ``nblock`` (the N-block figure); ``common``: what
 they share (colours, labels, titles, saving).
 """
@@ -14,9 +14,8 @@ they share (colours, labels, titles, saving).
 from .bifurcation import plot_bifurcation, plot_orbit_diagram
 from .catalogue import plot_catalogue
 from .common import save_figure
-from .maps import plot_result, plot_variable, plottable
+from .maps import plot_refined, plot_result, plot_variable, plottable
 from .nblock import plot_nblock
-from .refined import plot_refined
 from .trace import draw_trace, plot_trace
 
 __all__ = [
