@@ -53,10 +53,11 @@ import yaml
 
 from sweep.config import load_config, parse_config, with_changes
 from sweep.engine.backends import DaskTasks, LocalThreads, Resources
+from sweep.engine.chunks import integrate_in_memory
 from sweep.engine.dispatch import load_kernel
 from sweep.engine.distributed import connect
 from sweep.engine.grid import build_grid
-from sweep.engine.runner import compute, integrate_in_memory, run_sweep
+from sweep.engine.runner import compute, run_sweep
 from sweep.kernels import layout
 from sweep.model import physics
 from sweep.variables import REGIMES

@@ -10,7 +10,7 @@ import xarray as xr
 from conftest import KC_W, PAPER_A, PAPER_B, make_config, run_grid
 
 from sweep.engine import runner
-from sweep.errors import ConfigError, InputError
+from sweep.errors import ConfigError, InputError, RunError
 from sweep.io.netcdf import write_netcdf
 from sweep.kernels import layout
 from sweep.model.physics import PARAMETERS
@@ -205,7 +205,7 @@ def test_failed_sweep_write_keeps_earlier_result(in_tmp, monkeypatch):
     (in_tmp / "res").mkdir()
     (in_tmp / "res" / "r.nc").write_bytes(b"earlier result")
     monkeypatch.setattr(xr.Dataset, "to_netcdf", failing_to_netcdf)
-    with pytest.raises(runner.RunError, match="No space left"):
+    with pytest.raises(RunError, match="No space left"):
         runner.run_sweep(config, show_progress=False)
     assert (in_tmp / "res" / "r.nc").read_bytes() == b"earlier result"
     assert sorted(os.listdir(in_tmp / "res")) == ["r.nc", "r.parts"]

@@ -20,6 +20,7 @@ from sweep.commands.extend import extend_file, extend_result
 from sweep.config import parse_config, parse_stored_config
 from sweep.config.schema import STRUCTURED_FROM
 from sweep.engine import runner
+from sweep.errors import RunError
 from sweep.io.netcdf import read_result, write_netcdf
 from sweep.kernels import layout
 from sweep.results.dataset import stored_config
@@ -266,8 +267,8 @@ def test_extend_in_place_refuses_while_a_run_holds_the_file(short_file, lock_hol
     refuses naming that process and leaves the file as it was."""
     before = short_file.read_bytes()
     holder = lock_holder(short_file)
-    with pytest.raises(runner.RunError, match=rf"r.nc is in use .* pid {holder.pid} "):
+    with pytest.raises(RunError, match=rf"r.nc is in use .* pid {holder.pid} "):
         extend_file(short_file, t_end=100.0)
-    with pytest.raises(runner.RunError, match=f"pid {holder.pid}"):
+    with pytest.raises(RunError, match=f"pid {holder.pid}"):
         extend_file(short_file.with_name("elsewhere.nc"), t_end=100.0, out=short_file)
     assert short_file.read_bytes() == before

@@ -112,17 +112,34 @@ def run_sweep(
 def merge_parts(paths, out):
     """Assemble the NetCDF result ``out`` from part files or folders of parts.
 
-    Uses the one config whose valid parts cover its whole grid (parts of
-    other configs are ignored; corrupt parts are reported and never used); the parts of
-    a refinement are replayed level by level. That config's parts are removed once
-    ``out`` is written, and so are temporary files of writers that were killed
-    (:func:`~sweep.io.parts.stale_temp_files`), then folders left empty. Raises
-    ``InputError`` for paths that are not parts and ``RunError`` naming the missing rows
-    when no config is complete. Returns the Dataset.
+    Uses the one config whose valid parts cover its whole grid (parts of other configs
+    are ignored; corrupt parts are reported and never used); the parts of a refinement
+    are replayed level by level. That config's parts are removed once ``out`` is
+    written, and so are temporary files of writers that were killed
+    (:func:`~sweep.io.parts.stale_temp_files`), then folders left empty. Holds the lock
+    of ``out`` and of every output whose parts folder it reads (``x.parts`` → ``x.nc``),
+    so a run or shard still working on those parts makes it refuse instead of removing
+    parts under it.
 
-    Holds the lock of ``out`` and of every output whose parts folder it reads
-    (``x.parts`` → ``x.nc``), so a run or shard still working on those parts makes it
-    refuse with ``OutputBusy`` instead of removing parts under it.
+    Parameters
+    ----------
+    paths : list of str or pathlib.Path
+        Part files, or folders of them (``<output>.parts``).
+    out : str or pathlib.Path
+        The NetCDF file to write.
+
+    Returns
+    -------
+    xarray.Dataset
+        The merged result.
+
+    Raises
+    ------
+    InputError
+        A path is not a part file, or there is none.
+    RunError
+        No config's parts cover its grid (naming the missing rows), or another process
+        holds a lock (``OutputBusy``).
     """
     files.check_writable(out, "merge", "--out")
     folders = {Path(p) if Path(p).is_dir() else Path(p).parent for p in paths}

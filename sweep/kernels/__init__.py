@@ -14,7 +14,7 @@
 - ``classify``: the cycle classifier, split by job (its state, the per-step extrema,
   the per-cycle and end-of-run verdicts, the result row).
 - ``record``: the recorder of traces.
-- ``catalogue``: the catalogue of slip events of a run, written as it goes.
+- ``slip_events``: the catalogue of slip events of a run, written as it goes.
 - ``integrate``: the per-variant grid kernel, the integration loop.
 
 (``tests/test_docstrings.py`` checks that this list names every module and method.)
