@@ -8,8 +8,10 @@ depend on the chunk size, the number of threads or workers, sharding or resumpti
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from contextlib import ExitStack
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..config import Config, parse_config
 from ..errors import InputError
@@ -17,6 +19,9 @@ from ..io import files, parts
 from . import refined, uniform
 from .backends import Resources
 from .run_control import StopRequest, SweepResult
+
+if TYPE_CHECKING:
+    import xarray
 
 
 def runner_for(config):
@@ -109,7 +114,7 @@ def run_sweep(
     )
 
 
-def merge_parts(paths, out):
+def merge_parts(paths: Iterable[str | Path], out: str | Path) -> xarray.Dataset:
     """Assemble the NetCDF result ``out`` from part files or folders of parts.
 
     Uses the one config whose valid parts cover its whole grid (parts of other configs
@@ -123,7 +128,7 @@ def merge_parts(paths, out):
 
     Parameters
     ----------
-    paths : list of str or pathlib.Path
+    paths : iterable of str or pathlib.Path
         Part files, or folders of them (``<output>.parts``).
     out : str or pathlib.Path
         The NetCDF file to write.
