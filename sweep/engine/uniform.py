@@ -23,11 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config import Config
-from ..errors import (
-    InputError,
-    Interrupted,  # noqa: F401 (what run_sweep raises when it is stopped)
-    RunError,
-)
+from ..errors import InputError, RunError
 from ..io import files, parts
 from ..io.netcdf import write_result
 from ..io.zarr import ZarrResult, open_result
@@ -55,10 +51,6 @@ log = logging.getLogger(__name__)
 def compute(config, threads=None, chunk_size=None, show_progress=True, client=None, command="run"):
     """Run every system of ``config``'s grid and return the result Dataset (nothing
     written); arguments as for :func:`sweep.engine.runner.compute`."""
-    if config.refine is not None:
-        from .refined import compute_refined
-
-        return compute_refined(config, threads, chunk_size, show_progress, client, command)
     grid = build_grid(config)
     backend = LocalThreads(threads) if client is None else DaskTasks(client)
     # compiled here, not first in integrate_in_memory: before the progress clock
