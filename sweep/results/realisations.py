@@ -36,7 +36,7 @@ def over_realisations(ds: xr.Dataset, dim: str = SEED_AXIS) -> xr.Dataset:
     ----------
     ds : xarray.Dataset
         A result with the dimension ``dim``, e.g. a sweep with the axis ``spread_seed``.
-    dim : str, default "spread_seed"
+    dim : str, default spread_seed
         The dimension of the realisations.
 
     Returns
