@@ -30,7 +30,9 @@ def over_realisations(ds: xr.Dataset, dim: str = SEED_AXIS) -> xr.Dataset:
     e.g. ``regime`` and ``attractor``; booleans and text) have no mean: they are left
     out and named in the attribute ``realisations_skipped`` (the share of realisations
     in each label is ``(ds.regime == code).mean(dim)``). Variables without ``dim`` are
-    left out too.
+    left out too. An integer's special values other than its fill are numbers here
+    (``cycle_events`` is 0 where a run is not periodic): mask such runs first, e.g.
+    ``over_realisations(ds.where(ds.cycle_events > 0))``.
 
     Parameters
     ----------
