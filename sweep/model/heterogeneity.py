@@ -12,7 +12,10 @@ is the same at every grid point of that seed: a swept spread size (axis
 axis ``spread_seed`` (:data:`SEED_AXIS`): each of its values is one realisation of the
 disorder, the pattern :func:`spread_pattern` draws from it (a one-value axis gives the
 numbers of ``spread.seed`` with that value, bit for bit). A row's pattern depends on its
-seed only, so no result depends on chunking, threads or resuming. ``x`` is the
+seed only, so no result depends on chunking, threads or resuming. Seeds are categories,
+not points of a range: refinement does not split them (a config with ``refine`` and a
+seed axis is refused), and a seed axis needs a spread size above 0 (else every seed runs
+the same systems). ``x`` is the
 parameter's scalar or swept value; for a list it is the list's mean (the common
 value stored as the parameter's coordinate). A swept K_W with a K_W spread: the
 spread multiplies the swept value, so ``critical_K_W`` is that common K_W at onset.
