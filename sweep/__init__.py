@@ -14,6 +14,7 @@ configs: :func:`load_config`, :func:`with_changes`, :func:`examples.names`;
 figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
 :func:`plot_orbit_diagram`, :func:`plot_trace`, :func:`plot_catalogue` (``sweep/plot/``,
 one module per family); slip-event statistics: :func:`catalogue_statistics`;
+statistics over realisations of the disorder (seeds): :func:`over_realisations`;
 traces: :func:`compute_trace`; refined results: :func:`to_grid`, :func:`boundaries`;
 files: :func:`read_result`, :func:`write_netcdf`; runs with parts, shards and Dask:
 :func:`run_sweep`, :func:`merge_parts`, :class:`Resources`; extending and auditing a
@@ -35,6 +36,7 @@ _LAZY = {
     "save_figure": "plot",
     "plot_catalogue": "plot",
     "catalogue_statistics": "results.catalogue_statistics",
+    "over_realisations": "results.realisations",
     "to_grid": "refine.dataset",
     "boundaries": "refine.boundaries",
     "read_result": "io.netcdf",
@@ -78,6 +80,7 @@ __all__ = [
     "RunError",
     "examples",
     "load_config",
+    "over_realisations",
     "parse_config",
     "plot_bifurcation",
     "plot_catalogue",

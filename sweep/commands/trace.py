@@ -28,7 +28,7 @@ from ..engine.grid import build_grid
 from ..errors import InputError
 from ..kernels import layout
 from ..model import physics
-from ..model.heterogeneity import SPREAD_AXES, SPREAD_PREFIX
+from ..model.heterogeneity import SEED_AXIS, SPREAD_AXES, SPREAD_PREFIX
 from ..model.physics import PARAMETERS
 from ..results.dataset import (
     derived_fields,
@@ -79,7 +79,7 @@ def pin_config(config: Config, at: Mapping[str, float], t_end: float | None = No
     """
     text = " ".join(f"--at {name}={value:g}" for name, value in at.items())
     source = f"{config.source} {text}".strip()
-    known = (*PARAMETERS, *SPREAD_AXES)
+    known = (*PARAMETERS, *SPREAD_AXES, SEED_AXIS)
     problems = [
         f"--at {name}: unknown parameter; known: {', '.join(known)}"
         for name in at
@@ -97,11 +97,13 @@ def pin_config(config: Config, at: Mapping[str, float], t_end: float | None = No
     swept = [axis.name for axis in config.axes]
     fixed = {k: float(v) for k, v in at.items() if k not in swept}
     changes = {
-        "sweep": {name: [float(at[name])] for name in swept},
+        "sweep": {name: [_pinned(name, at[name])] for name in swept},
         "parameters": {k: v for k, v in fixed.items() if k in PARAMETERS},
         "classification": {"early_exit": False},
     }
     spread_sizes = {k[len(SPREAD_PREFIX) :]: v for k, v in fixed.items() if k in SPREAD_AXES}
+    if SEED_AXIS in fixed:
+        spread_sizes["seed"] = _pinned(SEED_AXIS, fixed[SEED_AXIS])
     if spread_sizes:
         changes["spread"] = spread_sizes
     if t_end is not None:
@@ -113,6 +115,13 @@ def pin_config(config: Config, at: Mapping[str, float], t_end: float | None = No
     except ConfigError as exc:  # the values given, not the config, are at fault
         raise InputError(exc.source, exc.problems) from None
     return dataclasses.replace(pinned, source=config.source)
+
+
+def _pinned(name, value):
+    """A value given with ``--at``: a seed of ``spread_seed`` as an integer where it is
+    one (the config's check names any other), other values as floats."""
+    value = float(value)
+    return int(value) if name == SEED_AXIS and value.is_integer() else value
 
 
 def decimate(lnv, points):

@@ -30,6 +30,7 @@ from ..kernels.layout import N_EVENT_FIELDS
 from ..model.heterogeneity import (
     DISTRIBUTIONS,
     PER_BLOCK,
+    SEED_AXIS,
     SPREAD_AXES,
     SPREAD_PREFIX,
     spread_pattern,
@@ -466,6 +467,8 @@ def config_mapping(config: Config) -> dict[str, Any]:
     sp = config.spread
     if sp.sizes or sp != Spread():
         raw["spread"] = {**sp.sizes_dict, "distribution": sp.distribution, "seed": sp.seed}
+        if any(a.name == SEED_AXIS for a in config.axes):
+            del raw["spread"]["seed"]  # the seeds are the axis
     if config.initial.ensemble:
         ini = config.initial
         raw["initial"].update(ensemble=ini.ensemble, seed=ini.seed, amplitude=ini.amplitude)
@@ -563,6 +566,11 @@ def _parse_sweep(c, raw):
     axes = []
     for name, spec in sweep.items():
         key = f"sweep.{name}"
+        if name == SEED_AXIS:
+            seeds = _seed_values(c, spec, key)
+            if seeds is not None:
+                axes.append(Axis(name, seeds))
+            continue
         if name in SPREAD_AXES:
             values, span = _axis_values(c, spec, key, 0.0, False)
             if values is not None and all(
@@ -571,7 +579,7 @@ def _parse_sweep(c, raw):
                 axes.append(Axis(name, tuple(float(v) for v in values), span))
             continue
         if name not in PARAMETERS:
-            allowed = ", ".join((*PARAMETERS, *SPREAD_AXES))
+            allowed = ", ".join((*PARAMETERS, *SPREAD_AXES, SEED_AXIS))
             c.add(f"unknown sweep axis {key}; allowed: {allowed}")
             continue
         values, span = _axis_values(c, spec, key, PARAMETERS[name].low, PARAMETERS[name].low_open)
@@ -584,6 +592,27 @@ def _parse_sweep(c, raw):
         if not bad:
             axes.append(Axis(name, tuple(float(v) for v in values), span))
     return axes
+
+
+def _seed_values(c, spec, key):
+    """The seeds of the axis ``spread_seed``: a list (or {values: [...]}) of distinct
+    integers in [0, 2^31 - 1], as a tuple; None after a problem."""
+    if isinstance(spec, dict) and set(spec) == {"values"}:
+        spec = spec["values"]
+    if not isinstance(spec, list) or not spec:
+        c.add(
+            f"{key} must be a non-empty list of distinct integers in [0, {INT32_MAX}] (seeds of "
+            f"the spread's pattern, one realisation each), e.g. [1, 2, 3]; got {spec!r}"
+        )
+        return None
+    seeds = [c.integer(v, f"{key}[{i}]", 0) for i, v in enumerate(spec)]
+    if None in seeds:
+        return None
+    if len(set(seeds)) != len(seeds):
+        twice = sorted({s for s in seeds if seeds.count(s) > 1})
+        c.add(f"{key} must be distinct seeds; {', '.join(map(str, twice))} given more than once")
+        return None
+    return tuple(seeds)
 
 
 def _n_runs(axes, ensemble):
@@ -734,12 +763,14 @@ def _parse_coupling(c, raw, blocks):
 
 def _parse_spread(c, raw, blocks, lists, axes):
     """The ``spread`` section: relative spread sizes of per-block values, distribution, seed."""
-    swept = {a.name[len(SPREAD_PREFIX) :] for a in axes if a.name.startswith(SPREAD_PREFIX)}
+    swept = {a.name[len(SPREAD_PREFIX) :] for a in axes if a.name in SPREAD_AXES}
+    seed_axis = next((a for a in axes if a.name == SEED_AXIS), None)
     if swept and blocks < 2:
         c.add(f"sweep.spread_{sorted(swept)[0]} (a spread between blocks) needs blocks >= 2")
     for name in sorted(swept & set(lists)):
         c.add(f"sweep.spread_{name} and a list parameters.{name}: give per-block values one way")
     if "spread" not in raw:
+        _check_seed_axis(c, seed_axis, Spread(), axes, blocks)
         return Spread()
     spec = c.mapping(raw["spread"], "spread")
     c.unknown(spec, "spread", (*PER_BLOCK, "distribution", "seed"))
@@ -760,9 +791,32 @@ def _parse_spread(c, raw, blocks, lists, axes):
     d = Spread()
     dist = c.choice(spec.get("distribution", d.distribution), "spread.distribution", DISTRIBUTIONS)
     seed = c.integer(spec.get("seed", d.seed), "spread.seed", 0)
+    if seed_axis is not None and "seed" in spec:
+        c.add(f"spread.seed is also a sweep axis (sweep.{SEED_AXIS}); give it in one place only")
     if None in (dist, seed):  # a problem was recorded: the config is rejected
         return d
-    return Spread(tuple(sizes.items()), dist, seed)
+    spread = Spread(tuple(sizes.items()), dist, seed)
+    _check_seed_axis(c, seed_axis, spread, axes, blocks)
+    return spread
+
+
+def _check_seed_axis(c, seed_axis, spread, axes, blocks):
+    """A seed axis needs a spread to draw: more than one block and a spread size > 0,
+    fixed or swept (else every seed would run the same systems)."""
+    if seed_axis is None:
+        return
+    if blocks < 2:
+        c.add(f"sweep.{SEED_AXIS} (seeds of a spread between blocks) needs blocks >= 2")
+        return
+    sizes = [s for _, s in spread.sizes] + [
+        v for a in axes if a.name in SPREAD_AXES for v in a.values
+    ]
+    if not any(s > 0 for s in sizes):
+        c.add(
+            f"sweep.{SEED_AXIS} draws realisations of the spread's pattern, but no spread "
+            "size is above 0 (spread.<name> or sweep.spread_<name>, name one of "
+            f"{', '.join(PER_BLOCK)}): every seed would run the same systems"
+        )
 
 
 def _check_spread_values(c, params, spread, axes, blocks):
@@ -771,22 +825,29 @@ def _check_spread_values(c, params, spread, axes, blocks):
     The factor 1 + s ξ_i is checked at the largest spread size of the sweep, against
     the interval of the parameter (e.g. D0 in (0, inf)).
     """
-    xi = spread_pattern(blocks, spread.distribution, spread.seed)
     largest = dict(spread.sizes)
+    seeds = [spread.seed]
     for a in axes:
-        if a.name.startswith(SPREAD_PREFIX):
+        if a.name in SPREAD_AXES:
             largest[a.name[len(SPREAD_PREFIX) :]] = max(a.values)
-    for name, s in largest.items():
-        factors = 1.0 + s * xi[name]
-        i = int(np.argmin(factors))
-        info = PARAMETERS[name]
-        if factors[i] < 0.0 or (info.low_open and factors[i] <= 0.0):
-            where = f"sweep.spread_{name}" if name not in spread.sizes_dict else f"spread.{name}"
-            c.add(
-                f"{where} = {s:g} makes {name} of block {i} leave {interval_text(name)}: its "
-                f"factor 1 + s*xi = {factors[i]:.3g} (xi = {xi[name][i]:.3g}, {spread.distribution}"
-                f" pattern of seed {spread.seed}); use a smaller spread or another seed"
-            )
+        elif a.name == SEED_AXIS:
+            seeds = a.values
+    for seed in seeds:
+        xi = spread_pattern(blocks, spread.distribution, seed)
+        for name, s in largest.items():
+            factors = 1.0 + s * xi[name]
+            i = int(np.argmin(factors))
+            info = PARAMETERS[name]
+            if factors[i] < 0.0 or (info.low_open and factors[i] <= 0.0):
+                where = (
+                    f"sweep.spread_{name}" if name not in spread.sizes_dict else f"spread.{name}"
+                )
+                c.add(
+                    f"{where} = {s:g} makes {name} of block {i} leave {interval_text(name)}: its "
+                    f"factor 1 + s*xi = {factors[i]:.3g} (xi = {xi[name][i]:.3g}, "
+                    f"{spread.distribution} pattern of seed {seed}); use a smaller spread or "
+                    "another seed"
+                )
 
 
 def _check_mass(c, params, axes):
@@ -912,6 +973,12 @@ def _parse_refine(c, raw, axes, initial, blocks, model, features, output):
         runs = _n_runs(axes, initial.ensemble)
         if c.integer(max_runs, "refine.max_runs", runs) is None:
             c.problems[-1] += f" (the {runs} runs of the grid come first)"
+    if any(a.name == SEED_AXIS for a in axes):
+        c.add(
+            f"refine cannot split sweep.{SEED_AXIS}: seeds are realisations, not points of a "
+            "range; refine one realisation per config (spread.seed), or sweep the seeds "
+            "without refine"
+        )
     split = [a for a in axes if len(a.values) > 1]
     if axes and not split:
         c.add("refine needs a sweep axis with at least two values (cells to split)")

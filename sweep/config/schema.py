@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 
 from ..codes import LYAPUNOV_MODES, METHODS
-from ..model.heterogeneity import SPREAD_PREFIX
+from ..model.heterogeneity import SPREAD_AXES
 
 #: Default integrator per model where it is not dop853: the inertial model is stiff
 #: in stick phases (decay rate A e^(-ln v/V)/M̂ towards force balance). The explicit
@@ -113,7 +113,8 @@ class Spread:
     """Seeded relative spread of per-block values (``sweep/model/heterogeneity.py``).
 
     ``sizes``: ((name, s), ...) for fixed spread sizes (swept ones are axes
-    ``spread_<name>``); ``distribution``: uniform (ξ in (−1, 1)) or normal.
+    ``spread_<name>``); ``distribution``: uniform (ξ in (−1, 1)) or normal; ``seed``:
+    the pattern's seed (not used where the seeds are the axis ``spread_seed``).
     """
 
     sizes: tuple = ()
@@ -428,9 +429,7 @@ class Config:
 
 def blocks_may_differ(block_parameters, spread, axes):
     """Whether blocks may differ: per-block lists, or a fixed or swept spread."""
-    return bool(block_parameters or spread.sizes) or any(
-        a.name.startswith(SPREAD_PREFIX) for a in axes
-    )
+    return bool(block_parameters or spread.sizes) or any(a.name in SPREAD_AXES for a in axes)
 
 
 def output_features(blocks, heterogeneous, ensemble, events, catalogue=0, linear=False):

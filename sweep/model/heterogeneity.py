@@ -7,8 +7,15 @@ Each of A, B, D0 and K_W may differ between blocks. A config gives either a list
 
 The pattern ξ is drawn once from the seed, one row per parameter in the order of
 :data:`PER_BLOCK` (a spread on one parameter leaves the others' patterns alone), and
-is the same at every grid point: a swept spread size (axis ``spread_<name>``) scales
-one realisation, and no result depends on chunking or threads. ``x`` is the
+is the same at every grid point of that seed: a swept spread size (axis
+``spread_<name>``) scales one realisation. The seed is ``spread.seed``, or swept as the
+axis ``spread_seed`` (:data:`SEED_AXIS`): each of its values is one realisation of the
+disorder, the pattern :func:`spread_pattern` draws from it (a one-value axis gives the
+numbers of ``spread.seed`` with that value, bit for bit). A row's pattern depends on its
+seed only, so no result depends on chunking, threads or resuming. Seeds are categories,
+not points of a range: refinement does not split them (a config with ``refine`` and a
+seed axis is refused), and a seed axis needs a spread size above 0 (else every seed runs
+the same systems). ``x`` is the
 parameter's scalar or swept value; for a list it is the list's mean (the common
 value stored as the parameter's coordinate). A swept K_W with a K_W spread: the
 spread multiplies the swept value, so ``critical_K_W`` is that common K_W at onset.
@@ -26,6 +33,8 @@ DISTRIBUTIONS = ("uniform", "normal")
 SPREAD_PREFIX = "spread_"
 #: The sweep axes of relative spreads: spread_A, spread_B, spread_D0, spread_K_W.
 SPREAD_AXES = tuple(SPREAD_PREFIX + name for name in PER_BLOCK)
+#: The sweep axis of seeds of the pattern ξ: one realisation of the disorder per value.
+SEED_AXIS = SPREAD_PREFIX + "seed"
 
 
 def spread_pattern(n_blocks, distribution="uniform", seed=0):
@@ -53,25 +62,39 @@ def spread_sizes(config, phys, n):
     return sizes
 
 
+def spread_seeds(config, phys, n):
+    """Seed of the pattern ξ at each of ``n`` systems (int64 array): the swept
+    ``spread_seed`` where there is one, else ``spread.seed`` everywhere."""
+    if SEED_AXIS in phys:
+        return np.asarray(phys[SEED_AXIS]).astype(np.int64)
+    return np.full(n, config.spread.seed, np.int64)
+
+
 def block_factors(config, phys):
     """Per-block values relative to the common value: name → (n, blocks) array.
 
-    1 + s ξ_i for a spread (exactly 1 without one), list / mean for a list. They do
-    not depend on the common value, so rows that differ only in it (a swept K_W)
-    share them bit for bit.
+    1 + s ξ_i for a spread (exactly 1 without one), ξ the pattern of the row's seed;
+    list / mean for a list. They do not depend on the common value, so rows that differ
+    only in it (a swept K_W) share them bit for bit.
     """
     nb = config.blocks
     n = phys["A"].size
     lists = dict(config.block_parameters)
-    xi = spread_pattern(nb, config.spread.distribution, config.spread.seed)
     sizes = spread_sizes(config, phys, n)
+    seeds, row_seed = np.unique(spread_seeds(config, phys, n), return_inverse=True)
     out = {}
     for name in PER_BLOCK:
         if name in lists:
             values = np.asarray(lists[name], float)
             out[name] = np.broadcast_to(values / config.fixed[name], (n, nb)).copy()
         else:
-            out[name] = 1.0 + sizes[name][:, None] * xi[name][None, :]
+            out[name] = np.empty((n, nb))
+    for k, seed in enumerate(seeds.tolist()):
+        rows = row_seed == k
+        xi = spread_pattern(nb, config.spread.distribution, seed)
+        for name in PER_BLOCK:
+            if name not in lists:
+                out[name][rows] = 1.0 + sizes[name][rows, None] * xi[name][None, :]
     return out
 
 

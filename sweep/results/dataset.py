@@ -96,19 +96,33 @@ REFERENCES = (
 )
 
 
+#: What the coordinate ``spread_seed`` is (its long name and description).
+SEED_DESCRIPTION = "seed of the spread's pattern ξ; each value one realisation of the disorder"
+
+
 def parameter_attrs(name):
     """CF attributes (``units``, ``long_name``) of the coordinate of model parameter ``name``
-    or of a spread axis ``spread_<name>``."""
+    or of a spread axis ``spread_<name>`` or ``spread_seed``."""
+    if name == heterogeneity.SEED_AXIS:
+        return {"units": "1", "long_name": SEED_DESCRIPTION, "description": SEED_DESCRIPTION}
     if name.startswith(heterogeneity.SPREAD_PREFIX):
         of = name[len(heterogeneity.SPREAD_PREFIX) :]
         return {"units": "1", "long_name": f"relative spread of {of} between blocks"}
     return {"units": PARAMETERS[name].units, "long_name": PARAMETERS[name].long_name}
 
 
+def axis_coordinate(name, values):
+    """The values of sweep axis ``name`` as its coordinate: seeds as int32, else floats."""
+    return np.asarray(values, np.int32 if name == heterogeneity.SEED_AXIS else float)
+
+
 def parameter_coords(config):
     """Coordinates of a result: one per sweep axis (a dimension) and one scalar
     coordinate per fixed parameter, each with units and long name."""
-    coords = {a.name: (a.name, np.asarray(a.values), parameter_attrs(a.name)) for a in config.axes}
+    coords = {
+        a.name: (a.name, axis_coordinate(a.name, a.values), parameter_attrs(a.name))
+        for a in config.axes
+    }
     for name, value in config.parameters:
         coords[name] = ((), value, parameter_attrs(name))
     coords["block"] = (
@@ -285,7 +299,8 @@ def extra_provenance(config):
     attrs = {}
     if config.heterogeneous:
         attrs["spread_distribution"] = config.spread.distribution
-        attrs["spread_seed"] = np.int32(config.spread.seed)
+        if all(a.name != heterogeneity.SEED_AXIS for a in config.axes):
+            attrs["spread_seed"] = np.int32(config.spread.seed)  # else the coordinate
         for name, s in config.spread.sizes:
             attrs[f"spread_{name}"] = s
     if config.initial.ensemble:
