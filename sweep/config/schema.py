@@ -261,6 +261,25 @@ class Catalogue:
         "(0, inf)",
         default_text="classification.slip_v_over_V",
     )
+    system_wide_extent: float = setting(
+        0.9,
+        "an event is system-wide when its extent spans at least this fraction of the blocks",
+        "(0, 1]",
+    )
+    shear_modulus: float = setting(
+        None,
+        "shear modulus G of the seismic moment G a (summed slip); with block_area",
+        "(0, inf)",
+        "Pa",
+        default_text="none: no moment or moment magnitude",
+    )
+    block_area: float = setting(
+        None,
+        "slipping area a of one block, of the seismic moment; with shear_modulus",
+        "(0, inf)",
+        "m^2",
+        default_text="none: no moment or moment magnitude",
+    )
 
 
 #: Outputs whose change between neighbouring runs splits a cell, unless ``refine.outputs``
@@ -397,6 +416,7 @@ class Config:
             self.classification.events,
             self.catalogue.capacity,
             linear,
+            self.catalogue.shear_modulus is not None,
         )
 
     @property
@@ -432,11 +452,14 @@ def blocks_may_differ(block_parameters, spread, axes):
     )
 
 
-def output_features(blocks, heterogeneous, ensemble, events, catalogue=0, linear=False):
+def output_features(
+    blocks, heterogeneous, ensemble, events, catalogue=0, linear=False, moment=False
+):
     """The optional output groups (``variables.Variable.feature``) of a sweep of ``blocks``
     blocks, unequal or not, with an ``ensemble`` of starts, ``events`` kept per run, a
-    ``catalogue`` of that many slip events per run and ``linear`` verdicts (a refinement's
-    runs, ``refine.full_runs: false``)."""
+    ``catalogue`` of that many slip events per run, ``linear`` verdicts (a refinement's
+    runs, ``refine.full_runs: false``) and the catalogue's seismic ``moment`` (its
+    ``shear_modulus`` and ``block_area`` given)."""
     flags = (
         ("nblock", blocks > 1),
         ("heterogeneous", heterogeneous),
@@ -444,6 +467,7 @@ def output_features(blocks, heterogeneous, ensemble, events, catalogue=0, linear
         ("events", events > 0),
         ("catalogue", catalogue > 0),
         ("linear_verdicts", linear),
+        ("moment", catalogue > 0 and moment),
     )
     return tuple(name for name, on in flags if on)
 
