@@ -194,7 +194,7 @@ def _size_frequency(ax, ev, run):
                 label=f"{name}: b = {b:.2f} ± {err:.2f} (m ≥ {mc:.2f})",
             )
         else:
-            notes.append(f"no {name} fit: {_status_text(run, key)}")
+            notes.append(textwrap.fill(f"no {name} fit: {_status_text(run, key)}", 36))
     if np.isfinite(mc):
         ax.axvline(mc, color="#999999", lw=0.8)
     if notes:
