@@ -291,7 +291,8 @@ def test_catalogue_figures_and_cli(tmp_path, capsys):
     fig = sweep.plot_catalogue(ds, {"K_W": 0.021, "k2_W": 0.02})
     space, sizes = fig.axes[:2]
     assert len(space.patches) == min(int(ds.slip_event_count[0, 0]), 500) > 0
-    texts = [t.get_text() for t in sizes.get_legend().get_texts() + sizes.texts]
+    legend = sizes.get_legend()
+    texts = [t.get_text() for t in [*legend.get_texts(), legend.get_title()]]
     drawn = any("b = " in t for t in texts)
     assert drawn == bool(np.isfinite(ds.b_value[0, 0]))  # b only where the law holds
     assert drawn or any("no GR fit" in t for t in texts)

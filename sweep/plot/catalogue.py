@@ -197,14 +197,10 @@ def _size_frequency(ax, ev, run):
             notes.append(textwrap.fill(f"no {name} fit: {_status_text(run, key)}", 36))
     if np.isfinite(mc):
         ax.axvline(mc, color="#999999", lw=0.8)
-    if notes:
-        ax.text(
-            0.98, 0.98, "\n".join(notes), transform=ax.transAxes, ha="right", va="top", fontsize=7.5
-        )
     ax.set_yscale("log")
     ax.set_xlabel("magnitude m = (2/3) log10(slip/D0)")
     ax.set_ylabel("events with magnitude ≥ m")
-    ax.legend(loc="lower left", fontsize=7.5)
+    ax.legend(loc="lower left", fontsize=7.5, title="\n".join(notes) or None, title_fontsize=7.5)
 
 
 def _survival(m, mc, b, m_max=None):
