@@ -241,7 +241,10 @@ class Catalogue:
     threshold of ``slip_participation``, ``classification.slip_v_over_V``); each run
     keeps its first ``capacity`` events that start after ``after`` × t_end (0: the
     catalogue is off) and counts them all. In a long chain some block is nearly always
-    above a low threshold: events then never end, and the threshold must be raised."""
+    above a low threshold: events then never end, and the threshold must be raised.
+    ``system_wide_extent`` defines the system-wide events of the statistics;
+    ``shear_modulus`` and ``block_area`` (both or neither) add each event's seismic
+    moment and moment magnitude."""
 
     capacity: int = setting(
         0, "slip events each run keeps (0: no catalogue)", f"[0, {MAX_CATALOGUE}]"

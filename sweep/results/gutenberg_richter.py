@@ -149,16 +149,7 @@ def ks_p_value(m, mc, mc_from_sample, truncated, rng):
     beta0, span0 = beta0[0], None if span0 is None else span0[0]
     at_least, rows = 0, max(1, CHUNK // n)
     for done in range(0, N_BOOTSTRAP, rows):
-        q = rng.random((min(rows, N_BOOTSTRAP - done), n))
-        if truncated:  # inverse CDF of the truncated law
-            scale = np.expm1(-beta0 * span0)
-            x = (
-                mc0[0] - np.log1p(q * scale) / beta0
-                if abs(beta0 * span0) > 1e-9
-                else (mc0[0] + q * span0)
-            )
-        else:
-            x = mc0[0] - np.log1p(-q) / beta0
+        x = _draw(rng.random((min(rows, N_BOOTSTRAP - done), n)), mc0[0], beta0, span0)
         x.sort(axis=1)
         mc_s, beta_s, span_s = _fit(x, mc, mc_from_sample, truncated)
         d = ks_distance(x, mc_s[:, None], beta_s[:, None], _col(span_s))
@@ -166,7 +157,18 @@ def ks_p_value(m, mc, mc_from_sample, truncated, rng):
     return at_least / N_BOOTSTRAP
 
 
+def _draw(q, mc, beta, span):
+    """Magnitudes of the fitted law (truncated at mc + span unless span is None) at
+    uniform deviates ``q``: its inverse CDF."""
+    if span is None:
+        return mc - np.log1p(-q) / beta
+    if abs(beta * span) < 1e-9:  # uniform
+        return mc + q * span
+    return mc - np.log1p(q * np.expm1(-beta * span)) / beta
+
+
 def _col(a):
+    """``a`` as a column (None stays None)."""
     return None if a is None else a[:, None]
 
 
