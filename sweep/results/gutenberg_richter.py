@@ -26,9 +26,12 @@ its status says which condition failed first (in that order). The KS p-value is
 computed only where the first two hold. The bootstrap draws from a generator seeded
 with :data:`SEED` afresh for each run: a run's result does not depend on the others.
 
-No library fits this: ``scipy.stats.expon.fit`` gives the untruncated estimate and
-``scipy.stats.kstest`` the distance but no p-value for parameters fitted from the same
-data (its tables assume a law given in advance, which makes them far too lenient here);
+No library fits this over many runs: ``scipy.stats.expon.fit`` gives the untruncated
+estimate and ``scipy.stats.kstest`` the distance but no p-value for parameters fitted
+from the same data (its tables assume a law given in advance, far too lenient here);
+``scipy.stats.goodness_of_fit`` does this bootstrap for the untruncated law (the tests
+check the p-values agree) but refits one synthetic sample at a time and has no
+truncated law of negative b;
 ``powerlaw`` (Alstott et al. 2014) implements Clauset et al. for one continuous sample
 but without the truncated exponential, and would be a new dependency for a loop of
 numpy lines.
