@@ -14,8 +14,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..model.physics import PARAMETERS
 from ..results.checks import check_result
 from .common import (
+    TITLE_PARAMETERS,
     _suptitle,
     axis_label,
     colormap,
@@ -282,14 +284,20 @@ def catalogue_map(ds: xarray.Dataset, name: str, ax: Axes, ylabel: bool = True) 
 
 def catalogue_caption(ds: xarray.Dataset) -> list[str]:
     """Caption lines of a result with a catalogue: blocks, model, law, coupling and
-    fixed parameters; the spread (distribution, seed, size if fixed); the catalogue's
+    every fixed parameter; the spread (distribution, seed, size if fixed); the catalogue's
     threshold, transient, completeness and system-wide extent; the dimensionless mass
     M̂ = m V²/(W D0) (or damping η̂ = ηV/W) and the largest v_max/V of its runs."""
     from ..results.dataset import parameter_values
 
     a = ds.attrs
     fixed = parameter_values(ds)
-    lines = [f"{describe(ds)}; {a['coupling']}" if "coupling" in a else describe(ds)]
+    others = []  # the fixed parameters the dynamics do not depend on (TITLE_PARAMETERS)
+    for name, value in fixed.items():
+        if name not in TITLE_PARAMETERS:
+            units = unit_text(PARAMETERS[name].units)
+            others.append(f"{name} = {value:g}" + (f" {units}" if units else ""))
+    coupling = f"; {a['coupling']}" if "coupling" in a else ""
+    lines = [", ".join([describe(ds), *others]) + coupling]
     spread = []
     if "spread_distribution" in a:
         sizes = [
