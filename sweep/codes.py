@@ -3,10 +3,10 @@
 Each table lists the names a config uses (or a file writes, as CF ``flag_meanings``) in
 code order: a name's code is its place in the table. The config parser checks names
 against these tables, the grid builder turns them into the codes the kernels take
-(``kernels/layout.py`` names each code), and the Dataset writes the regime and
-attractor tables as ``flag_values``/``flag_meanings``. Plain Python: importing it loads
-no numba. The kernels compile these codes in as constants, so this file is part of
-the source their cache is keyed on (``accelerate.source_digest``).
+(``kernels/layout.py`` names each code), and the Dataset writes the regime,
+attractor and catalogue status tables as ``flag_values``/``flag_meanings``. Plain
+Python: importing it loads no numba. The kernels compile these codes in as constants,
+so this file is part of the source their cache is keyed on (``accelerate.source_digest``).
 """
 
 #: The models (``model:``).
@@ -34,6 +34,18 @@ METHODS = {
 REGIMES = ("steady", "stick_slip", "runaway", "undecided")
 #: What a run settled on (the ``attractor`` variable's flag meanings).
 ATTRACTORS = ("fixed_point", "periodic", "quasi_periodic", "chaotic", "unresolved", "unbounded")
+#: Why a run's Gutenberg-Richter b-value is given or not (the ``b_value_status`` and
+#: ``b_value_truncated_status`` variables' flag meanings; ``results/gutenberg_richter.py``).
+B_VALUE_STATUSES = (
+    "ok",
+    "no_events",
+    "too_few_events",
+    "span_below_one_unit",
+    "rejected_by_goodness_of_fit",
+)
+#: Why a run's recurrence statistics of system-wide events are given or not (the
+#: ``recurrence_status`` variable's flag meanings).
+RECURRENCE_STATUSES = ("ok", "no_system_wide_events", "too_few_intervals")
 
 
 def code(table, name):

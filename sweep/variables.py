@@ -18,9 +18,20 @@ empty: computed from several), ``scale`` its conversion to physical units
 
 from dataclasses import dataclass
 
+import numpy as np
+
 #: The regime and attractor names in code order (the flag_values / flag_meanings of
 #: ``regime`` and ``attractor``): the code tables of ``sweep/codes.py``.
-from .codes import ATTRACTORS, REGIMES  # noqa: F401
+from .codes import ATTRACTORS, B_VALUE_STATUSES, RECURRENCE_STATUSES, REGIMES
+
+#: The variables that are codes: each with its table (CF ``flag_values``/``flag_meanings``).
+FLAGS = {
+    "regime": REGIMES,
+    "attractor": ATTRACTORS,
+    "b_value_status": B_VALUE_STATUSES,
+    "b_value_truncated_status": B_VALUE_STATUSES,
+    "recurrence_status": RECURRENCE_STATUSES,
+}
 
 #: Conversions of a kernel column to physical units, given D0/V in s per system: as is,
 #: a time (× D0/V: s), a rate (÷ D0/V: s⁻¹).
@@ -210,24 +221,88 @@ VARIABLES = (
              feature="catalogue", dim="slip_event"),
     Variable("slip_event_v_peak", "float64", "um s-1", "peak slip velocity of the slip event",
              "largest v of any block during the event", feature="catalogue", dim="slip_event"),
+    Variable("slip_event_moment", "float64", "N m", "seismic moment of the slip event",
+             "M0 = G a S: catalogue_shear_modulus G x catalogue_block_area a x summed slip S "
+             "(in m), all blocks alike", feature="moment", dim="slip_event"),
+    Variable("slip_event_moment_magnitude", "float64", "1", "moment magnitude of the slip event",
+             "Mw = (2/3)(log10 M0 - 9.1), M0 in N m (Hanks & Kanamori 1979; the constant of "
+             "Kanamori 1977 and IASPEI 2005); Mw - slip_event_magnitude = "
+             "moment_magnitude_offset", feature="moment", dim="slip_event"),
+    Variable("moment_magnitude_offset", "float64", "1", "moment magnitude minus magnitude",
+             "Mw - m = (2/3)(log10(G a D0) - 9.1), D0 in m: the same for every event of a run, "
+             "so b-values do not depend on which is used", feature="moment"),
     Variable("b_value", "float64", "1", "Gutenberg-Richter b-value",
              "Aki-Utsu maximum-likelihood estimate log10(e) / (mean m - m_c) over the kept "
-             "events with magnitude m >= m_c; NaN with fewer than two", feature="catalogue"),
+             "events with magnitude m >= m_c (continuous magnitudes); NaN unless b_value_status "
+             "is ok: at least 200 events (Nava et al. 2017), m_max - m_c >= 1 and b_value_ks_p "
+             ">= 0.1 (Clauset et al. 2009)", feature="catalogue"),
     Variable("b_value_error", "float64", "1", "standard error of the b-value",
-             "Shi & Bolt (1982): 2.30 b^2 sqrt(sum (m - mean m)^2 / (n (n - 1)))",
+             "Shi & Bolt (1982): 2.30 b^2 sqrt(sum (m - mean m)^2 / (n (n - 1))); sampling error "
+             "only", feature="catalogue"),
+    Variable("b_value_ks_p", "float64", "1", "goodness-of-fit p-value of the b-value",
+             "share of 2500 synthetic samples of the fitted exponential law (same size, refitted) "
+             "whose Kolmogorov-Smirnov distance is at least the data's (Clauset, Shalizi & Newman "
+             "2009); the law is rejected below 0.1; NaN where not tested (too few events or span "
+             "below one unit)", feature="catalogue"),
+    Variable("b_value_status", "int8", "1", "why the b-value is given or not",
+             "ok, no_events, too_few_events (< 200 above m_c), span_below_one_unit "
+             "(m_max - m_c < 1) or rejected_by_goodness_of_fit (b_value_ks_p < 0.1); see "
+             "flag_values/flag_meanings", feature="catalogue"),
+    Variable("b_value_truncated", "float64", "1", "b-value of the truncated Gutenberg-Richter law",
+             "maximum-likelihood b of the exponential law truncated at m_c and "
+             "magnitude_max (Page 1968); negative where the density grows towards m_max; NaN "
+             "unless b_value_truncated_status is ok", feature="catalogue"),
+    Variable("b_value_truncated_error", "float64", "1", "standard error of b_value_truncated",
+             "1 / (ln 10 sqrt(n Var(m))) of the truncated law (Cramer-Rao, m_max held fixed)",
+             feature="catalogue"),
+    Variable("b_value_truncated_ks_p", "float64", "1", "p-value of the truncated fit",
+             "as b_value_ks_p, synthetic samples of the truncated law refitted with their own "
+             "largest magnitude as m_max", feature="catalogue"),
+    Variable("b_value_truncated_status", "int8", "1", "why the truncated b-value is given or not",
+             "as b_value_status, with b_value_truncated_ks_p; see flag_values/flag_meanings",
              feature="catalogue"),
     Variable("magnitude_completeness", "float64", "1", "completeness magnitude m_c",
              "catalogue_completeness, or the smallest magnitude of the run's kept events",
              feature="catalogue"),
+    Variable("magnitude_max", "float64", "1", "largest magnitude m_max",
+             "largest magnitude of the run's kept events: the truncated law's upper bound",
+             feature="catalogue"),
+    Variable("magnitude_events", "int32", "1", "events above the completeness magnitude",
+             "kept events with m >= m_c: the sample of the b-values", feature="catalogue"),
+    Variable("system_wide_fraction", "float64", "1", "fraction of system-wide events",
+             "fraction of the kept events whose extent spans at least catalogue_system_wide_extent "
+             "x blocks", feature="catalogue"),
+    Variable("system_wide_size_share", "float64", "1", "share of the size in system-wide events",
+             "summed slip (the moment, all blocks alike) of the system-wide events / that of all "
+             "kept events: near 1 where system-wide (characteristic) events carry the slip",
+             feature="catalogue"),
+    Variable("large_event_magnitude", "float64", "1", "magnitude of the large events m_L",
+             "smallest magnitude of the run's system-wide events (at least m_c); NaN without any",
+             feature="catalogue"),
+    Variable("large_event_excess", "float64", "1", "large events observed / Gutenberg-Richter",
+             "kept events with m >= m_L / the number the untruncated Aki-Utsu fit predicts, "
+             "n(m >= m_c) 10^(-b (m_L - m_c)), b estimated whatever b_value_status: > 1 where "
+             "large events are characteristic", feature="catalogue"),
     Variable("recurrence_mean", "float64", "s", "mean recurrence interval of system-wide events",
-             "mean interval between the starts of kept events in which every block slipped; "
-             "NaN with fewer than two intervals", feature="catalogue"),
+             "mean interval between the successive starts (sorted) of kept system-wide events; "
+             "NaN unless recurrence_status is ok (at least 10 intervals)", feature="catalogue"),
+    Variable("recurrence_mean_low", "float64", "s", "lower bound of recurrence_mean",
+             "95 % Student-t interval: mean - t(0.975, n-1) sd / sqrt(n)", feature="catalogue"),
+    Variable("recurrence_mean_high", "float64", "s", "upper bound of recurrence_mean",
+             "95 % Student-t interval: mean + t(0.975, n-1) sd / sqrt(n)", feature="catalogue"),
     Variable("recurrence_cv", "float64", "1", "coefficient of variation of the recurrence",
              "sample standard deviation / mean of those intervals: 0 periodic, 1 Poissonian",
              feature="catalogue"),
-    Variable("system_wide_fraction", "float64", "1", "fraction of system-wide events",
-             "fraction of the kept events in which every block slipped (the whole chain)",
-             feature="catalogue"),
+    Variable("recurrence_cv_low", "float64", "1", "lower bound of recurrence_cv",
+             "2.5th percentile of the CV of 2000 seeded bootstrap resamples of the intervals "
+             "(Efron & Tibshirani 1993; the intervals taken as independent)", feature="catalogue"),
+    Variable("recurrence_cv_high", "float64", "1", "upper bound of recurrence_cv",
+             "97.5th percentile of the same resamples", feature="catalogue"),
+    Variable("recurrence_intervals", "int32", "1", "intervals between system-wide events",
+             "the sample of the recurrence statistics", feature="catalogue"),
+    Variable("recurrence_status", "int8", "1", "why the recurrence statistics are given or not",
+             "ok, no_system_wide_events or too_few_intervals (< 10); see "
+             "flag_values/flag_meanings", feature="catalogue"),
     Variable("magnitude_count", "int32", "1", "slip events per magnitude bin",
              "kept events whose magnitude falls in each bin (size-frequency)",
              feature="catalogue", dim="magnitude"),
@@ -246,6 +321,19 @@ VARIABLES = (
 )  # fmt: skip
 
 BY_NAME = {v.name: v for v in VARIABLES}
+
+
+def variable_attrs(var):
+    """CF attributes of ``var``: units, long name, description; a code's
+    ``flag_values``/``flag_meanings`` (:data:`FLAGS`) in place of units."""
+    attrs = {"units": var.units, "long_name": var.long_name}
+    if var.description:
+        attrs["description"] = var.description
+    if var.name in FLAGS:
+        attrs["flag_values"] = np.arange(len(FLAGS[var.name]), dtype=np.int8)
+        attrs["flag_meanings"] = " ".join(FLAGS[var.name])
+        attrs.pop("units")
+    return attrs
 
 
 def variables_for(blocks, model="quasi-static", features=()):

@@ -12,12 +12,14 @@ from catalogue_reference import ChainModel, catalogue
 from conftest import make_config
 
 import sweep
+from sweep.codes import B_VALUE_STATUSES
 from sweep.config import ConfigError
 from sweep.engine import chunks, dispatch, grid, runner
 from sweep.io.netcdf import write_netcdf
 from sweep.kernels import integrate, layout
 from sweep.results.catalogue_statistics import MAGNITUDE_EDGES, catalogue_statistics, statistics
 from sweep.results.dataset import build_dataset
+from sweep.results.gutenberg_richter import aki_utsu
 
 A, B, V = 0.03, 0.08, 0.1
 N_CHAIN = 16
@@ -133,13 +135,14 @@ def test_chaotic_chain_statistics_agree_within_sampling_error():
     sol = model.run(grid.build_grid(config).y0[0], t_end, method="DOP853")
     ref = catalogue(model, sol, math.log(2.0), after=0.1 * t_end)
     mag = 2.0 / 3.0 * np.log10([e["slip"] for e in ref])
-    blocks = np.array([e["blocks"] for e in ref])
+    extent = np.array([e["blocks"] for e in ref])  # connected clusters: extent = blocks
     starts = np.array([e["start"] for e in ref]) * d0_ref / V
-    stats = statistics(mag[None], blocks[None], starts[None], N_CHAIN, completeness=0.5)
+    stats = statistics(mag[None], extent[None], starts[None], N_CHAIN, completeness=0.5)
     n_ref, n_got = len(ref), int(ds.slip_event_count)
     assert n_ref > 100 and abs(n_got - n_ref) < 3 * math.sqrt(n_got + n_ref)
-    b, b_ref = float(ds.b_value), stats["b_value"][0]
-    assert abs(b - b_ref) < 3 * math.hypot(float(ds.b_value_error), stats["b_value_error"][0])
+    got = ds.slip_event_magnitude.values
+    (b, err), (b_ref, err_ref) = (aki_utsu(m[m >= 0.5], 0.5) for m in (got, mag))
+    assert abs(b - b_ref) < 3 * math.hypot(err, err_ref)  # the estimates, whatever the status
     f, f_ref = float(ds.system_wide_fraction), stats["system_wide_fraction"][0]
     assert 0.0 < f_ref < 1.0
     assert abs(f - f_ref) < 3 * math.sqrt(f_ref * (1 - f_ref) * (1 / n_ref + 1 / n_got))
@@ -262,23 +265,26 @@ def test_catalogue_does_not_depend_on_the_split(tmp_path):
 
 
 def test_statistics_by_hand():
-    """The estimates on a hand-made catalogue: Aki-Utsu b = log10(e)/(mean m - m_c), its
-    Shi-Bolt error, the recurrence of system-wide events and the magnitude bins."""
+    """The estimates on a hand-made catalogue: Aki-Utsu b = log10(e)/(mean m - m_c) and
+    its Shi-Bolt error (not given for four events: too_few_events), system-wide events
+    by extent (>= 0.9 x 4 blocks: only those spanning all 4), too few intervals for a
+    recurrence, and the magnitude bins."""
     mag = np.array([[0.0, 0.5, 1.0, 1.5, np.nan]])
-    blocks = np.array([[4, 1, 4, 4, -1]])
+    extent = np.array([[4, 3, 4, 4, -1]])
     start = np.array([[0.0, 5.0, 10.0, 30.0, np.nan]])
-    s = statistics(mag, blocks, start, 4)
+    s = statistics(mag, extent, start, 4)
     b = math.log10(math.e) / 0.75
-    assert s["b_value"][0] == pytest.approx(b)
     spread = sum((m - 0.75) ** 2 for m in (0.0, 0.5, 1.0, 1.5))
-    assert s["b_value_error"][0] == pytest.approx(2.30 * b**2 * math.sqrt(spread / 12))
-    assert s["recurrence_mean"][0] == pytest.approx(15.0)
-    assert s["recurrence_cv"][0] == pytest.approx(np.std([10.0, 20.0], ddof=1) / 15.0)
+    assert aki_utsu(mag[0, :4], 0.0) == pytest.approx((b, 2.30 * b**2 * math.sqrt(spread / 12)))
+    assert np.isnan(s["b_value"][0]) and np.isnan(s["b_value_error"][0])
+    assert B_VALUE_STATUSES[s["b_value_status"][0]] == "too_few_events"
+    assert s["magnitude_completeness"][0] == 0.0 and s["magnitude_max"][0] == 1.5
+    assert np.isnan(s["recurrence_mean"][0]) and s["recurrence_intervals"][0] == 2
     assert s["system_wide_fraction"][0] == pytest.approx(0.75)
     assert s["magnitude_count"][0].sum() == 4
     assert s["magnitude_count"][0][np.searchsorted(MAGNITUDE_EDGES, 1.0, "right") - 1] == 1
-    above = statistics(mag, blocks, start, 4, completeness=0.5)
-    assert above["b_value"][0] == pytest.approx(math.log10(math.e) / 0.5)
+    above = statistics(mag, extent, start, 4, completeness=0.5)
+    assert above["magnitude_events"][0] == 3 and above["magnitude_completeness"][0] == 0.5
 
 
 @pytest.mark.parametrize("key, value, says", [
@@ -307,7 +313,11 @@ def test_catalogue_figures_and_cli(tmp_path, capsys):
     fig = sweep.plot_catalogue(ds, {"K_W": 0.021, "k2_W": 0.02})
     space, sizes = fig.axes[:2]
     assert len(space.patches) == min(int(ds.slip_event_count[0, 0]), 500) > 0
-    assert any("b = " in t.get_text() for t in sizes.get_legend().get_texts())
+    legend = sizes.get_legend()
+    texts = [t.get_text() for t in [*legend.get_texts(), legend.get_title()]]
+    drawn = any("b = " in t for t in texts)
+    assert drawn == bool(np.isfinite(ds.b_value[0, 0]))  # b only where the law holds
+    assert drawn or any("no GR fit" in t for t in texts)
     assert sweep.plot_variable(ds, "b_value").axes
     path = tmp_path / "cat.nc"
     write_netcdf(ds, path)

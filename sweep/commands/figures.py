@@ -282,25 +282,32 @@ def figure_refined(ds):
 
 
 #: The statistics mapped over a long chain's sweep, beside one run's catalogue.
-LONG_CHAIN_MAPS = ("system_wide_fraction", "b_value", "recurrence_cv")
+LONG_CHAIN_MAPS = ("system_wide_fraction", "b_value", "large_event_excess", "recurrence_cv")
 
 
 def figure_long_chain(ds, point=None):
     """A long chain's sweep ``ds`` (a result with a catalogue): maps of the fraction of
-    system-wide events, the b-value and the recurrence's coefficient of variation over
-    the sweep (``sweep.plot_variable``), above one run's events in space and time and
-    its size–frequency plot (``sweep.plot_catalogue`` at ``point``; default:
-    the run with the most events); returns the Figure."""
-    from ..plot import plot_catalogue, plot_variable
+    system-wide events, the b-value (blank where the Gutenberg–Richter law is
+    rejected), the excess of large events over its extrapolation and the recurrence's
+    coefficient of variation over the sweep, on even cells
+    (``sweep.plot.catalogue.catalogue_map``), above one run's events in space and time
+    and its size–frequency plot (``sweep.plot_catalogue`` at ``point``; default: the run
+    with the most events); titled with every fixed setting; returns the Figure."""
+    from ..plot import plot_catalogue
+    from ..plot.catalogue import catalogue_caption, catalogue_map
+    from ..plot.common import _suptitle
 
     if point is None:
         busiest = ds["slip_event_count"].argmax(...)
         point = {dim: float(ds[dim][i]) for dim, i in busiest.items()}
-    fig = new_figure(figsize=(13, 9.5))
+    fig = new_figure(figsize=(15, 10))
     top, bottom = fig.subfigures(2, 1, height_ratios=(1, 1.15))
-    for ax, name in zip(top.subplots(1, len(LONG_CHAIN_MAPS)), LONG_CHAIN_MAPS, strict=True):
-        plot_variable(ds, name, ax=ax)
-    plot_catalogue(ds, point, fig=bottom)
+    for i, (ax, name) in enumerate(
+        zip(top.subplots(1, len(LONG_CHAIN_MAPS)), LONG_CHAIN_MAPS, strict=True)
+    ):
+        catalogue_map(ds, name, ax, ylabel=i == 0)
+    plot_catalogue(ds, point, fig=bottom, caption=False)
+    _suptitle(fig, catalogue_caption(ds))
     return fig
 
 

@@ -402,7 +402,12 @@ def _validate(raw, text, source):
         output = f"results/{name}.nc"
     heterogeneous = blocks_may_differ(lists, spread, axes)
     features = output_features(
-        blocks, heterogeneous, initial.ensemble, classification.events, catalogue.capacity
+        blocks,
+        heterogeneous,
+        initial.ensemble,
+        classification.events,
+        catalogue.capacity,
+        moment=catalogue.shear_modulus is not None,
     )
     refine = _parse_refine(c, raw, axes, initial, blocks, model, features, output)
     if c.problems:
@@ -938,9 +943,20 @@ def _parse_catalogue(c, raw, axes, initial):
     spec = c.mapping(raw.get("catalogue", {}), "catalogue")
     d = Catalogue()
     c.unknown(spec, "catalogue", tuple(Catalogue.__dataclass_fields__))
-    given = {k: None for k in ("completeness", "slip_v_over_V") if spec.get(k) is None}
+    optional = ("completeness", "slip_v_over_V", "shear_modulus", "block_area")
+    given = {k: None for k in optional if spec.get(k) is None}
     values = c.section(spec, "catalogue.", Catalogue, d, given)
-    if None in (v for k, v in values.items() if k not in ("completeness", "slip_v_over_V")):
+    if None in (v for k, v in values.items() if k not in optional):
+        return d
+    moment = [k for k in ("shear_modulus", "block_area") if spec.get(k) is not None]
+    if len(moment) == 1:
+        other = "block_area" if moment == ["shear_modulus"] else "shear_modulus"
+        c.add(
+            f"catalogue.{moment[0]} needs catalogue.{other} too (the seismic moment is "
+            "shear_modulus x block_area x slip): give both or neither"
+        )
+        return d
+    if any(values[k] is None for k in moment):  # given, but refused above
         return d
     runs = _n_runs(axes, initial.ensemble)
     size = values["capacity"] * runs * N_EVENT_FIELDS * 8

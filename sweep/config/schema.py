@@ -243,7 +243,9 @@ class Catalogue:
     ``slip_participation``, ``classification.slip_v_over_V``), neighbours along the chain
     or ring, overlapping in time; each run keeps the first ``capacity`` events to end of
     those that start after ``after`` × t_end (0: the catalogue is off) and counts them
-    all."""
+    all. ``system_wide_extent`` defines the system-wide events of the statistics;
+    ``shear_modulus`` and ``block_area`` (both or neither) add each event's seismic
+    moment and moment magnitude."""
 
     capacity: int = setting(
         0, "slip events each run keeps (0: no catalogue)", f"[0, {MAX_CATALOGUE}]"
@@ -262,6 +264,25 @@ class Catalogue:
         "a block slips in an event while its v/V exceeds this",
         "(0, inf)",
         default_text="classification.slip_v_over_V",
+    )
+    system_wide_extent: float = setting(
+        0.9,
+        "an event is system-wide when its extent spans at least this fraction of the blocks",
+        "(0, 1]",
+    )
+    shear_modulus: float = setting(
+        None,
+        "shear modulus G of the seismic moment G a (summed slip); with block_area",
+        "(0, inf)",
+        "Pa",
+        default_text="none: no moment or moment magnitude",
+    )
+    block_area: float = setting(
+        None,
+        "slipping area a of one block, of the seismic moment; with shear_modulus",
+        "(0, inf)",
+        "m^2",
+        default_text="none: no moment or moment magnitude",
     )
 
 
@@ -399,6 +420,7 @@ class Config:
             self.classification.events,
             self.catalogue.capacity,
             linear,
+            self.catalogue.shear_modulus is not None,
         )
 
     @property
@@ -432,11 +454,14 @@ def blocks_may_differ(block_parameters, spread, axes):
     return bool(block_parameters or spread.sizes) or any(a.name in SPREAD_AXES for a in axes)
 
 
-def output_features(blocks, heterogeneous, ensemble, events, catalogue=0, linear=False):
+def output_features(
+    blocks, heterogeneous, ensemble, events, catalogue=0, linear=False, moment=False
+):
     """The optional output groups (``variables.Variable.feature``) of a sweep of ``blocks``
     blocks, unequal or not, with an ``ensemble`` of starts, ``events`` kept per run, a
-    ``catalogue`` of that many slip events per run and ``linear`` verdicts (a refinement's
-    runs, ``refine.full_runs: false``)."""
+    ``catalogue`` of that many slip events per run, ``linear`` verdicts (a refinement's
+    runs, ``refine.full_runs: false``) and the catalogue's seismic ``moment`` (its
+    ``shear_modulus`` and ``block_area`` given)."""
     flags = (
         ("nblock", blocks > 1),
         ("heterogeneous", heterogeneous),
@@ -444,6 +469,7 @@ def output_features(blocks, heterogeneous, ensemble, events, catalogue=0, linear
         ("events", events > 0),
         ("catalogue", catalogue > 0),
         ("linear_verdicts", linear),
+        ("moment", catalogue > 0 and moment),
     )
     return tuple(name for name, on in flags if on)
 

@@ -1,20 +1,46 @@
 """Figures of a run's slip-event catalogue: its events in space and time beside its
-size–frequency plot. Maps of the catalogue's statistics over a sweep are
-:func:`sweep.plot_variable` (e.g. ``"b_value"``, ``"recurrence_cv"``)."""
+size–frequency plot (:func:`plot_catalogue`), and maps of the catalogue's statistics
+over a sweep's two axes on even, categorical cells (:func:`catalogue_map`): a
+statistic that does not apply (its status not ``ok``) is left blank with the reason
+written in its cell, and no b-value is drawn or printed where the Gutenberg–Richter
+law was rejected. :func:`catalogue_caption` states every fixed setting a catalogue
+depends on."""
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..model.physics import PARAMETERS
 from ..results.checks import check_result
-from .common import colormap, describe, new_figure, parameter_text
+from .common import (
+    TITLE_PARAMETERS,
+    _suptitle,
+    axis_label,
+    colormap,
+    describe,
+    new_figure,
+    parameter_text,
+    unit_text,
+)
 
 if TYPE_CHECKING:
     import xarray
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
+
+#: The status variable that says whether each statistic applies.
+STATUS_OF = {
+    "b_value": "b_value_status",
+    "b_value_error": "b_value_status",
+    "b_value_truncated": "b_value_truncated_status",
+    "b_value_truncated_error": "b_value_truncated_status",
+    "recurrence_mean": "recurrence_status",
+    "recurrence_cv": "recurrence_status",
+}
 
 
 def catalogue_run(ds, point=None):
@@ -45,12 +71,18 @@ def catalogue_run(ds, point=None):
 
 
 def plot_catalogue(
-    ds: xarray.Dataset, point: Mapping[str, float] | None = None, fig: Figure | None = None
+    ds: xarray.Dataset,
+    point: Mapping[str, float] | None = None,
+    fig: Figure | None = None,
+    *,
+    caption: bool = True,
 ) -> Figure:
     """One run's slip events: block against time, each event a bar over the blocks it
     spanned from its start to its end, coloured by its magnitude, its first block
     marked; beside it the size–frequency plot (events with magnitude ≥ m) with the
-    Gutenberg–Richter line of the run's b-value above m_c.
+    Gutenberg–Richter line of the run's b-value above m_c and its truncated fit, each
+    only where it holds (else the reason); the title states every fixed setting
+    (:func:`catalogue_caption`).
 
     Parameters
     ----------
@@ -61,6 +93,9 @@ def plot_catalogue(
         axes not named at their first value.
     fig : matplotlib.figure.Figure or SubFigure, optional
         Draw there (default: a new figure).
+    caption : bool, default True
+        Title the figure with :func:`catalogue_caption` above the run's line (False:
+        the run's line only, for a figure whose own title carries the caption).
 
     Returns
     -------
@@ -91,7 +126,8 @@ def plot_catalogue(
         }
     )
     kept = f"{count} of {int(run['slip_event_count'])} events kept"
-    fig.suptitle(f"{describe(ds)}\n{where}; {kept}", fontsize=9.5)
+    lines = catalogue_caption(ds) if caption else []
+    _suptitle(fig, [*lines, f"run shown: {where}; {kept}" if where else kept])
     return fig
 
 
@@ -137,23 +173,159 @@ def _bar(start, end, lo, hi, colour):
 
 
 def _size_frequency(ax, ev, run):
-    """Events with magnitude ≥ m against m, and the run's Gutenberg–Richter fit."""
+    """Events with magnitude ≥ m against m; the run's Gutenberg–Richter fit where it
+    holds (``b_value_status`` ok) and its truncated fit where that holds, else the
+    reason in place of the fit."""
     mag = np.sort(ev["slip_event_magnitude"].values)
     mag = mag[np.isfinite(mag)]
     ax.step(mag, np.arange(mag.size, 0, -1), where="post", color="k", lw=1.2, label="events")
-    b, err, mc = (float(run[k]) for k in ("b_value", "b_value_error", "magnitude_completeness"))
-    if np.isfinite(b) and mag.size:
-        above = int((mag >= mc).sum())
-        m = np.linspace(mc, mag.max(), 50)
-        ax.plot(
-            m,
-            above * 10 ** (-b * (m - mc)),
-            "--",
-            color="#D55E00",
-            label=f"b = {b:.2f} ± {err:.2f} (m ≥ {mc:.2f})",
-        )
+    mc = float(run["magnitude_completeness"])
+    above = int((mag >= mc).sum()) if np.isfinite(mc) else 0
+    notes = []
+    for key, name, style in (("b_value", "GR", "--"), ("b_value_truncated", "truncated GR", ":")):
+        b, err = float(run[key]), float(run[f"{key}_error"])
+        if np.isfinite(b) and above:
+            m_max = float(run["magnitude_max"])
+            m = np.linspace(mc, m_max, 80)
+            ax.plot(
+                m,
+                above * _survival(m, mc, b, m_max if key == "b_value_truncated" else None),
+                style,
+                color="#D55E00" if key == "b_value" else "#0072B2",
+                lw=1.5,
+                label=f"{name}: b = {b:.2f} ± {err:.2f} (m ≥ {mc:.2f})",
+            )
+        else:
+            notes.append(textwrap.fill(f"no {name} fit: {_status_text(run, key)}", 36))
+    if np.isfinite(mc):
         ax.axvline(mc, color="#999999", lw=0.8)
     ax.set_yscale("log")
-    ax.set_xlabel("magnitude m")
+    ax.set_xlabel("magnitude m = (2/3) log10(slip/D0)")
     ax.set_ylabel("events with magnitude ≥ m")
-    ax.legend(loc="lower left", fontsize=8)
+    ax.legend(loc="lower left", fontsize=7.5, title="\n".join(notes) or None, title_fontsize=7.5)
+
+
+def _survival(m, mc, b, m_max=None):
+    """Share of a Gutenberg–Richter law of ``b`` above ``mc`` at or above ``m``
+    (truncated at ``m_max`` if given; Page 1968)."""
+    beta = b * np.log(10.0)
+    if m_max is None:
+        return np.exp(-beta * (m - mc))
+    if abs(beta * (m_max - mc)) < 1e-9:
+        return (m_max - m) / (m_max - mc)
+    return np.expm1(-beta * (m_max - m)) * np.exp(-beta * (m - mc)) / np.expm1(-beta * (m_max - mc))
+
+
+def _status_text(run, key):
+    """Why ``key`` (a b-value) of a run is not given: its status, with the KS p-value."""
+    status = run[f"{key}_status"]
+    names = status.attrs["flag_meanings"].split()
+    text = names[int(status)].replace("_", " ")
+    p = float(run[f"{key}_ks_p"])
+    n = int(run["magnitude_events"])
+    return f"{text} (n = {n}" + (f", KS p = {p:.2g})" if np.isfinite(p) else ")")
+
+
+def catalogue_map(ds: xarray.Dataset, name: str, ax: Axes, ylabel: bool = True) -> Axes:
+    """A statistic of a result with a catalogue over its two sweep axes (the others at
+    their first value), one equal cell per grid point whatever the axes' spacing, each
+    value written in its cell; blank, with the reason, where the statistic does not
+    apply (:data:`STATUS_OF`); the y axis labelled if ``ylabel``. Returns ``ax``."""
+    from matplotlib.colors import Normalize
+
+    var = ds[name]
+    dims = [d for d in var.dims if d in ds.coords and ds.sizes[d] > 1][:2]
+    var = var.isel({d: 0 for d in var.dims if d not in dims})
+    if len(dims) != 2:
+        raise ValueError(
+            f"a catalogue map needs two sweep axes with more than one value, got {dims}"
+        )
+    ydim, xdim = dims
+    values = var.transpose(ydim, xdim).values.astype(float)
+    status = None
+    if name in STATUS_OF:
+        sv = ds[STATUS_OF[name]].isel({d: 0 for d in ds[STATUS_OF[name]].dims if d not in dims})
+        status = sv.transpose(ydim, xdim).values
+        meanings = sv.attrs["flag_meanings"].split()
+    finite = values[np.isfinite(values)]
+    norm = Normalize(*(finite.min(), finite.max()) if finite.size else (0.0, 1.0))
+    cmap = colormap("viridis").with_extremes(bad="white")
+    mesh = ax.pcolormesh(
+        np.ma.masked_invalid(values), cmap=cmap, norm=norm, edgecolor="#BBBBBB", lw=0.5
+    )
+    for (j, i), v in np.ndenumerate(values):
+        if np.isfinite(v):
+            colour = "white" if norm(v) < 0.5 else "black"
+            ax.text(
+                i + 0.5, j + 0.5, f"{v:.2g}", ha="center", va="center", fontsize=8, color=colour
+            )
+        else:
+            why = meanings[int(status[j, i])] if status is not None else "not measured"
+            ax.text(
+                i + 0.5,
+                j + 0.5,
+                why.replace("_", "\n"),
+                ha="center",
+                va="center",
+                fontsize=6.5,
+                color="#555555",
+            )
+    ax.set_xticks(np.arange(ds.sizes[xdim]) + 0.5, [f"{x:g}" for x in ds[xdim].values])
+    ax.set_yticks(np.arange(ds.sizes[ydim]) + 0.5, [f"{y:g}" for y in ds[ydim].values])
+    ax.set_xlabel(axis_label(ds[xdim]))
+    if ylabel:
+        ax.set_ylabel(axis_label(ds[ydim]))
+    if finite.size:
+        ax.figure.colorbar(mesh, ax=ax, label=unit_text(var.attrs.get("units", "1")))
+    blank = " (blank: does not apply)" if status is not None else ""
+    ax.set_title(textwrap.fill(var.attrs.get("long_name", name) + blank, 32), fontsize=9)
+    return ax
+
+
+def catalogue_caption(ds: xarray.Dataset) -> list[str]:
+    """Caption lines of a result with a catalogue: blocks, model, law, coupling and
+    every fixed parameter; the spread (distribution, seed, size if fixed); the catalogue's
+    threshold, transient, completeness and system-wide extent; the dimensionless mass
+    M̂ = m V²/(W D0) (or damping η̂ = ηV/W) and the largest v_max/V of its runs."""
+    from ..results.dataset import parameter_values
+
+    a = ds.attrs
+    fixed = parameter_values(ds)
+    others = []  # the fixed parameters the dynamics do not depend on (TITLE_PARAMETERS)
+    for name, value in fixed.items():
+        if name not in TITLE_PARAMETERS:
+            units = unit_text(PARAMETERS[name].units)
+            others.append(f"{name} = {value:g}" + (f" {units}" if units else ""))
+    coupling = f"; {a['coupling']}" if "coupling" in a else ""
+    lines = [", ".join([describe(ds), *others]) + coupling]
+    spread = []
+    if "spread_distribution" in a:
+        sizes = [
+            f"{k[7:]} spread {a[k]:g}"
+            for k in a
+            if k.startswith("spread_") and k not in ("spread_distribution", "spread_seed")
+        ]
+        spread = [f"spread {a['spread_distribution']} (seed {a['spread_seed']})", *sizes]
+    mc = a.get("catalogue_completeness")
+    lines.append(
+        ", ".join(
+            [
+                *spread,
+                f"slip threshold v > {a['catalogue_slip_v_over_V']:g} V",
+                f"transient {a['catalogue_after']:g} t_end",
+                f"m_c = {mc:g}" if mc is not None else "m_c = each run's smallest magnitude",
+                f"system-wide: extent ≥ {a.get('catalogue_system_wide_extent', 0.9):g} × blocks",
+            ]
+        )
+    )
+    regime = []
+    d0 = fixed.get("D0")
+    if "m_W" in fixed and "V" in fixed and d0:
+        regime.append(f"M̂ = mV²/(W D0) = {fixed['m_W'] * fixed['V'] ** 2 / d0:.3g}")
+    if "eta_W" in fixed and "V" in fixed:
+        regime.append(f"η̂ = ηV/W = {fixed['eta_W'] * fixed['V']:.3g}")
+    if "v_max" in ds and "V" in fixed:
+        top = float(ds["v_max"].max()) / fixed["V"]
+        regime.append(f"largest v_max/V of the runs shown = {top:.3g}")
+    lines.append(", ".join(regime))
+    return lines

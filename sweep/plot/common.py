@@ -163,7 +163,9 @@ def _check_caption(caption):
 
 def _suptitle(fig, lines):
     """Figure title from non-empty ``lines``, each wrapped to the figure's width."""
-    width = int(12 * fig.get_figwidth())  # characters of 10-point text per line (100 dpi)
+    inches = fig.get_figwidth() if hasattr(fig, "get_figwidth") else fig.figure.get_figwidth()
+    width = int(12 * inches)  # characters of 10-point text per line (100 dpi; a subfigure:
+    # its figure's width)
     fig.suptitle("\n".join(textwrap.fill(line, width) for line in lines if line), fontsize=10)
 
 

@@ -7,29 +7,44 @@ event is, how its slip is integrated); here it becomes output variables along a
 - ``magnitude`` m = (2/3) log10(S/D0) of an event of summed slip S: the moment
   magnitude's scaling of a moment-like size (S × block area × shear modulus, all
   blocks alike), so that a Gutenberg–Richter b-value of 1 is a cumulative size
-  distribution N(≥ S) ∝ S^(−2/3);
-- the b-value by the Aki–Utsu maximum-likelihood estimate over the events with
-  m ≥ m_c, b = log10(e) / (mean(m) − m_c) (continuous magnitudes: no bin
-  correction), with the Shi & Bolt (1982) standard error
-  2.30 b² √(Σ(m − mean m)² / (n (n − 1)));
-- the mean and coefficient of variation (sample standard deviation / mean) of the
-  intervals between the starts of system-wide events (every block slipped), and the
-  fraction of events that are system-wide;
+  distribution N(≥ S) ∝ S^(−2/3). With ``catalogue.shear_modulus`` G and
+  ``catalogue.block_area`` a also the seismic moment M0 = G a S (N·m, S in m) and the
+  moment magnitude Mw = (2/3)(log10 M0 − 9.1) (Hanks & Kanamori 1979 with the constant
+  of Kanamori 1977 adopted by IASPEI 2005/2013 for M0 in N·m; Hanks & Kanamori's own
+  10.7 for dyne·cm gives 9.05); Mw − m = (2/3)(log10(G a D0) − 9.1), D0 in m, the same
+  for every event of a run, so b does not depend on which is used. The statistics use m.
+- the Gutenberg–Richter b-value (Aki–Utsu) and a truncated fit (Page 1968), each only
+  where the law holds: enough events, a span of at least one unit and a bootstrap
+  Kolmogorov–Smirnov test passed (``results/gutenberg_richter.py``), with a status
+  saying why not;
+- a characteristic-event diagnostic: the share of the summed size (the moment, all
+  blocks alike) in system-wide events, and the number of events at or above the
+  smallest system-wide magnitude m_L (at least m_c) against the number the
+  untruncated Aki–Utsu fit predicts there, n(m ≥ m_c) 10^(−b (m_L − m_c)), b the
+  estimate whatever its status;
+- the recurrence of system-wide events (extent ≥ ``catalogue.system_wide_extent`` ×
+  blocks): from at least :data:`MIN_INTERVALS` intervals between their starts (sorted:
+  events are stored in the order they end), the mean with its Student-t 95 % interval
+  and the coefficient of variation (sample standard deviation / mean) with a 95 %
+  bootstrap percentile interval (Efron & Tibshirani 1993, ch. 13: :data:`N_RESAMPLES`
+  resamples of the intervals, seeded: it treats the intervals as independent);
+  NaN below, with a status;
 - the number of events in each magnitude bin (:data:`MAGNITUDE_EDGES`).
 
 Statistics are over the events a run kept (its first ``catalogue.capacity`` after
-the transient). No library is used: the estimates are a few lines of numpy over
-every run at once (``powerlaw`` fits one sample at a time and answers a different
-question, the power law's range).
+the transient).
 """
 
 import math
 
 import numpy as np
+import scipy.stats
 import xarray as xr
 
+from ..codes import RECURRENCE_STATUSES, code
 from ..kernels import layout
 from .checks import check_result
+from .gutenberg_richter import fit_run
 
 #: Edges of the magnitude bins of ``magnitude_count``: −4 to 4 in steps of 0.2
 #: (events beyond them count in the end bins).
@@ -42,6 +57,23 @@ INTEGER_FIELDS = {
     "slip_event_block_low": layout.E_BLOCK_LO,
     "slip_event_block_high": layout.E_BLOCK_HI,
 }
+#: Fewest intervals between system-wide events for recurrence statistics.
+MIN_INTERVALS = 10
+#: Bootstrap resamples of the coefficient of variation's interval, and their seed.
+N_RESAMPLES = 2000
+SEED = 1993
+#: log10 M0 (N·m) at Mw = 0 (IASPEI 2005; Kanamori 1977).
+MW_CONSTANT = 9.1
+#: The conventions a result states in its attributes.
+MAGNITUDE_CONVENTION = (
+    "slip_event_magnitude m = (2/3) log10(S/D0), S the event's summed slip, D0 the common "
+    "D0: the moment magnitude's scaling of a dimensionless size"
+)
+MOMENT_MAGNITUDE_CONVENTION = (
+    "M0 = G a S (N m; G catalogue_shear_modulus, a catalogue_block_area, S in m); "
+    "Mw = (2/3)(log10 M0 - 9.1) (Hanks & Kanamori 1979; constant of Kanamori 1977, IASPEI "
+    "2005); Mw - m = (2/3)(log10(G a D0) - 9.1), D0 in m (moment_magnitude_offset)"
+)
 
 
 def magnitude(slip_over_d0):
@@ -49,6 +81,12 @@ def magnitude(slip_over_d0):
     where no event."""
     with np.errstate(divide="ignore", invalid="ignore"):
         return 2.0 / 3.0 * np.log10(slip_over_d0)
+
+
+def moment_magnitude(moment):
+    """Moment magnitude Mw = (2/3)(log10 M0 − 9.1) of moments M0 in N·m."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return 2.0 / 3.0 * (np.log10(moment) - MW_CONSTANT)
 
 
 def event_table(results, settings):
@@ -63,8 +101,8 @@ def event_table(results, settings):
 
 def catalogue_fields(grid, results):
     """The catalogue's output variables as flat arrays (per run, or per run × event),
-    in physical units: times in s from the run's start, slip in um, velocities in um/s
-    (``grid``: the :class:`~sweep.engine.grid.Grid` the kernels ran)."""
+    in physical units: times in s from the run's start, slip in um, velocities in um/s,
+    moments in N·m (``grid``: the :class:`~sweep.engine.grid.Grid` the kernels ran)."""
     count, ev = event_table(results, grid.settings)
     time_unit = grid.time_unit[:, None]
     d0 = grid.physical["D0"] * np.ones(len(results))
@@ -79,67 +117,103 @@ def catalogue_fields(grid, results):
     }
     for name, column in INTEGER_FIELDS.items():
         fields[name] = np.where(np.isnan(ev[..., column]), -1, ev[..., column])
-    completeness = grid.config.catalogue.completeness
+    cat = grid.config.catalogue
+    if cat.shear_modulus is not None:
+        ga = cat.shear_modulus * cat.block_area
+        fields["slip_event_moment"] = ga * fields["slip_event_slip"] * 1e-6  # um to m
+        fields["slip_event_moment_magnitude"] = moment_magnitude(fields["slip_event_moment"])
+        fields["moment_magnitude_offset"] = moment_magnitude(ga * d0 * 1e-6)
     fields |= statistics(
         fields["slip_event_magnitude"],
-        fields["slip_event_blocks"],
+        fields["slip_event_extent"],
         fields["slip_event_start"],
         grid.config.blocks,
-        completeness,
+        cat.completeness,
+        cat.system_wide_extent,
     )
     return fields
 
 
-def statistics(mag, blocks, start, nb, completeness=None):
+def statistics(mag, extent, start, nb, completeness=None, system_wide_extent=0.9):
     """The statistics of each run (module docstring) from its events' magnitudes,
-    blocks that slipped and start times (s), arrays (runs, events) with NaN / −1 where
-    none; ``nb`` blocks; ``completeness``: m_c (None: each run's smallest magnitude).
+    extents (blocks) and start times (s), arrays (runs, events) with NaN / −1 where
+    none; ``nb`` blocks; ``completeness``: m_c (None: each run's smallest magnitude);
+    ``system_wide_extent``: the fraction of ``nb`` a system-wide event spans at least.
     Returns flat arrays per run."""
-    kept = ~np.isnan(mag)
+    kept = np.isfinite(mag)
+    if completeness is None:
+        mc = np.min(np.where(kept, mag, np.inf), axis=1, initial=np.inf)
+        mc[~np.isfinite(mc)] = np.nan
+    else:
+        mc = np.full(len(mag), float(completeness))
+    fits = [fit_run(m[k], c, completeness is None) for m, k, c in zip(mag, kept, mc, strict=True)]
+    out = {
+        name: np.array([f[key] for f in fits])
+        for name, key in (
+            ("b_value", "b"),
+            ("b_value_error", "b_error"),
+            ("b_value_ks_p", "b_p"),
+            ("b_value_status", "b_status"),
+            ("b_value_truncated", "b_truncated"),
+            ("b_value_truncated_error", "b_truncated_error"),
+            ("b_value_truncated_ks_p", "b_truncated_p"),
+            ("b_value_truncated_status", "b_truncated_status"),
+            ("magnitude_max", "m_max"),
+            ("magnitude_events", "n"),
+        )
+    }
+    out["magnitude_completeness"] = mc
+    whole = kept & (extent >= system_wide_extent * nb)
     with np.errstate(invalid="ignore", divide="ignore"):
-        if completeness is None:
-            mc = np.min(np.where(kept, mag, np.inf), axis=1, initial=np.inf)
-            mc[~np.isfinite(mc)] = np.nan
-        else:
-            mc = np.full(len(mag), float(completeness))
-        above = kept & (mag >= mc[:, None])
-        n = above.sum(axis=1)
-        mean = np.where(above, mag, 0.0).sum(axis=1) / n
-        b = np.log10(np.e) / (mean - mc)
-        spread = np.where(above, (mag - mean[:, None]) ** 2, 0.0).sum(axis=1)
-        b_err = 2.30 * b**2 * np.sqrt(spread / (n * (n - 1.0)))
-        ok = n >= 2
-        whole = kept & (blocks == nb)
-        mean_int, cv = recurrence(np.where(whole, start, np.nan))
-        frac = whole.sum(axis=1) / kept.sum(axis=1)
+        size = np.where(kept, 10.0 ** (1.5 * np.where(kept, mag, 0.0)), 0.0)  # S/D0
+        out["system_wide_fraction"] = whole.sum(axis=1) / kept.sum(axis=1)
+        out["system_wide_size_share"] = np.where(whole, size, 0.0).sum(axis=1) / size.sum(axis=1)
+        m_large = np.maximum(np.min(np.where(whole, mag, np.inf), axis=1, initial=np.inf), mc)
+        m_large[~np.isfinite(m_large)] = np.nan
+        observed = (kept & (mag >= m_large[:, None])).sum(axis=1)
+        b_raw = np.array([f["b_raw"] for f in fits])
+        expected = out["magnitude_events"] * 10.0 ** (-b_raw * (m_large - mc))
+        out["large_event_magnitude"] = m_large
+        out["large_event_excess"] = observed / expected
+    out |= recurrence(np.where(whole, start, np.nan))
     lo, hi = MAGNITUDE_EDGES[0], MAGNITUDE_EDGES[-1]
     counts = [
         np.histogram(np.clip(m[k], lo, hi), MAGNITUDE_EDGES)[0]
         for m, k in zip(mag, kept, strict=True)
     ]
-    return {
-        "b_value": np.where(ok, b, np.nan),
-        "b_value_error": np.where(ok, b_err, np.nan),
-        "magnitude_completeness": mc,
-        "recurrence_mean": mean_int,
-        "recurrence_cv": cv,
-        "system_wide_fraction": frac,
-        "magnitude_count": np.reshape(counts, (len(mag), len(MAGNITUDE_EDGES) - 1)),
-    }
+    out["magnitude_count"] = np.reshape(counts, (len(mag), len(MAGNITUDE_EDGES) - 1))
+    return out
 
 
 def recurrence(starts):
-    """Mean and coefficient of variation (sample standard deviation / mean) of the
-    intervals between successive finite values of each row of ``starts`` (NaN: not an
-    event of interest); NaN with fewer than two intervals."""
-    means = np.full(len(starts), np.nan)
-    cvs = np.full(len(starts), np.nan)
+    """Recurrence statistics of the finite values of each row of ``starts`` (NaN: not a
+    system-wide event), in any order: the number of intervals between successive ones,
+    their mean with its 95 % Student-t interval, their coefficient of variation with
+    its 95 % bootstrap percentile interval, and a status (``codes.RECURRENCE_STATUSES``);
+    NaN with fewer than :data:`MIN_INTERVALS` intervals."""
+    names = ("mean", "mean_low", "mean_high", "cv", "cv_low", "cv_high")
+    out = {f"recurrence_{k}": np.full(len(starts), np.nan) for k in names}
+    n_int = np.zeros(len(starts), dtype=np.int64)
+    status = np.zeros(len(starts), dtype=np.int64)
     for r, row in enumerate(starts):
-        intervals = np.diff(row[np.isfinite(row)])
-        if intervals.size >= 2:
-            means[r] = intervals.mean()
-            cvs[r] = intervals.std(ddof=1) / means[r]
-    return means, cvs
+        intervals = np.diff(np.sort(row[np.isfinite(row)]))
+        n = n_int[r] = intervals.size
+        if n < MIN_INTERVALS:
+            why = "too_few_intervals" if np.isfinite(row).any() else "no_system_wide_events"
+            status[r] = code(RECURRENCE_STATUSES, why)
+            continue
+        mean, sd = intervals.mean(), intervals.std(ddof=1)
+        half = scipy.stats.t.ppf(0.975, n - 1) * sd / math.sqrt(n)
+        resampled = intervals[np.random.default_rng(SEED).integers(0, n, (N_RESAMPLES, n))]
+        cvs = resampled.std(axis=1, ddof=1) / resampled.mean(axis=1)
+        low, high = np.percentile(cvs, [2.5, 97.5])
+        for k, value in zip(
+            names, (mean, mean - half, mean + half, sd / mean, low, high), strict=True
+        ):
+            out[f"recurrence_{k}"][r] = value
+    out["recurrence_intervals"] = n_int
+    out["recurrence_status"] = status
+    return out
 
 
 def catalogue_statistics(ds: xr.Dataset, completeness: float | None = None) -> xr.Dataset:
@@ -150,17 +224,23 @@ def catalogue_statistics(ds: xr.Dataset, completeness: float | None = None) -> x
     ----------
     ds : xarray.Dataset
         A result with a catalogue (config key ``catalogue.capacity``), in memory or
-        opened from its file.
+        opened from its file. System-wide events span at least its
+        ``catalogue_system_wide_extent`` × blocks (0.9 where a file predates it).
     completeness : float, optional
-        The magnitude m_c above which the b-value is estimated (default: each run's
+        The magnitude m_c above which the b-values are estimated (default: each run's
         smallest magnitude).
 
     Returns
     -------
     xarray.Dataset
-        ``b_value``, ``b_value_error``, ``magnitude_completeness``, ``recurrence_mean``
-        (s), ``recurrence_cv``, ``system_wide_fraction`` and ``magnitude_count`` over the
-        result's sweep axes (and members).
+        Over the result's sweep axes (and members), with the attributes a result gives
+        them: ``b_value``, ``b_value_error``, ``b_value_ks_p``, ``b_value_status``, their
+        ``b_value_truncated*`` counterparts, ``magnitude_completeness``,
+        ``magnitude_max``, ``magnitude_events``, ``system_wide_fraction``,
+        ``system_wide_size_share``, ``large_event_magnitude``, ``large_event_excess``,
+        ``recurrence_mean`` (s) and its ``_low``/``_high`` bounds, ``recurrence_cv`` and
+        its bounds, ``recurrence_intervals``, ``recurrence_status`` and
+        ``magnitude_count``.
 
     Raises
     ------
@@ -170,32 +250,32 @@ def catalogue_statistics(ds: xr.Dataset, completeness: float | None = None) -> x
         ``ds`` is not a complete result, has no catalogue, or ``completeness`` is not
         finite.
     """
+    from ..variables import BY_NAME, variable_attrs
+
     check_result(ds)
     if "slip_event_magnitude" not in ds:
         raise ValueError("this result has no slip-event catalogue (config key catalogue.capacity)")
     if completeness is not None and not math.isfinite(completeness):
         raise ValueError(f"completeness must be a finite magnitude, got {completeness!r}")
-    mag = ds["slip_event_magnitude"]
-    dims = mag.dims[:-1]
+    dims = ds["slip_event_magnitude"].dims[:-1]
     flat = {
         name: ds[name].transpose(*dims, "slip_event").values.reshape(-1, ds.sizes["slip_event"])
-        for name in ("slip_event_magnitude", "slip_event_blocks", "slip_event_start")
+        for name in ("slip_event_magnitude", "slip_event_extent", "slip_event_start")
     }
-    blocks = np.where(
-        np.isnan(flat["slip_event_blocks"].astype(float)), -1, flat["slip_event_blocks"]
-    )
+    extent = flat["slip_event_extent"].astype(float)
     stats = statistics(
         flat["slip_event_magnitude"],
-        blocks,
+        np.where(np.isnan(extent), -1, extent),
         flat["slip_event_start"],
         int(ds.attrs["blocks"]),
         completeness,
+        float(ds.attrs.get("catalogue_system_wide_extent", 0.9)),
     )
     shape = tuple(ds.sizes[d] for d in dims)
     out = {}
     for name, values in stats.items():
-        if name == "magnitude_count":
-            out[name] = (dims + ("magnitude",), values.reshape(shape + (-1,)))
-        else:
-            out[name] = (dims, values.reshape(shape))
+        var = BY_NAME[name]
+        trailing = (var.dim,) if var.dim else ()
+        data = values.reshape(shape + ((-1,) if var.dim else ())).astype(var.dtype)
+        out[name] = (dims + trailing, data, variable_attrs(var))
     return xr.Dataset(out, coords={d: ds[d] for d in dims + ("magnitude",) if d in ds.coords})

@@ -21,8 +21,13 @@ from ..config import parse_stored_config
 from ..errors import ConfigError, InputError
 from ..model import heterogeneity
 from ..model.physics import PARAMETERS
-from ..variables import ATTRACTORS, REGIMES, SCALES, VARIABLES, variables_for
-from .catalogue_statistics import MAGNITUDE_EDGES, catalogue_fields
+from ..variables import REGIMES, SCALES, VARIABLES, variable_attrs, variables_for
+from .catalogue_statistics import (
+    MAGNITUDE_CONVENTION,
+    MAGNITUDE_EDGES,
+    MOMENT_MAGNITUDE_CONVENTION,
+    catalogue_fields,
+)
 
 
 def derived_fields(grid, results, y_final):
@@ -211,9 +216,7 @@ def data_variables(config, fields, shape=None, dims=None):
     run_dims = dims + (("member",) if ensemble else ())
     data_vars = {}
     for var in variables_for(config.blocks, config.model, config.features):
-        attrs = {"units": var.units, "long_name": var.long_name}
-        if var.description:
-            attrs["description"] = var.description
+        attrs = variable_attrs(var)
         if var.per_regime:
             regime = fields["regime"].reshape(run_shape)
             data, var_dims = regime_fractions(regime), dims + ("regime_name",)
@@ -231,11 +234,6 @@ def data_variables(config, fields, shape=None, dims=None):
         if var.feature == "catalogue" and var.dtype == "int32":
             attrs["_FillValue"] = np.int32(-1)  # no event
         data_vars[var.name] = (var_dims, data.astype(var.dtype), attrs)
-    for name, meanings in (("regime", REGIMES), ("attractor", ATTRACTORS)):
-        attrs = data_vars[name][2]
-        attrs["flag_values"] = np.arange(len(meanings), dtype=np.int8)
-        attrs["flag_meanings"] = " ".join(meanings)
-        attrs.pop("units")
     return data_vars
 
 
@@ -331,14 +329,19 @@ def settings_attrs(section, settings):
 def catalogue_attrs(config):
     """File attributes ``catalogue_<name>`` of the catalogue's settings, its threshold as
     the value it stands for (a completeness of None, each run's smallest magnitude, is
-    left out)."""
+    left out; so are a shear modulus and block area not given), and the magnitudes'
+    conventions."""
     cat = dataclasses.replace(config.catalogue, slip_v_over_V=config.catalogue_slip_v_over_V)
     values = dataclasses.asdict(cat).items()
-    return {
+    attrs = {
         f"catalogue_{k}": np.int32(v) if isinstance(v, int) else v
         for k, v in values
         if v is not None
     }
+    attrs["catalogue_magnitude_convention"] = MAGNITUDE_CONVENTION
+    if cat.shear_modulus is not None:
+        attrs["catalogue_moment_magnitude_convention"] = MOMENT_MAGNITUDE_CONVENTION
+    return attrs
 
 
 def utc_now():
