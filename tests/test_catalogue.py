@@ -225,6 +225,31 @@ def test_threshold_of_the_catalogue():
                                low.slip_event_v_peak.max("slip_event"), rtol=1e-8)  # fmt: skip
 
 
+def test_threshold_sensitivity_stacks_the_runs_of_each_threshold():
+    """``threshold_sensitivity`` gives, along ``slip_v_over_V``, what a run with each
+    threshold gives (here on one K/W of two), and refuses what it cannot run."""
+    from sweep.commands.sensitivity import threshold_sensitivity
+
+    config = one_block(catalogue={"capacity": 50, "after": 0.5})
+    ds = threshold_sensitivity(config, [2.0, 5.0], sweep={"K_W": [0.02]}, threads=1)
+    assert list(ds.slip_v_over_V.values) == [2.0, 5.0] and ds.sizes["K_W"] == 1
+    for value in (2.0, 5.0):
+        alone = sweep.run(
+            one_block(
+                catalogue={"capacity": 50, "after": 0.5, "slip_v_over_V": value},
+                sweep={"K_W": [0.02]},
+            ),
+            progress=False,
+        )
+        for name in ("slip_event_duration", "slip_event_slip", "system_wide_fraction"):
+            xr.testing.assert_identical(ds[name].sel(slip_v_over_V=value, drop=True), alone[name])
+    with pytest.raises(sweep.InputError, match="catalogue.capacity"):
+        threshold_sensitivity(one_block(), [2.0])
+    for bad in ([], [2.0, 2.0], [0.0]):
+        with pytest.raises(sweep.InputError, match="thresholds"):
+            threshold_sensitivity(config, bad)
+
+
 def test_capacity_transient_and_fill():
     """A run keeps its first ``capacity`` events after ``after`` × t_end and counts
     them all; the rest of the event dimension is NaN (−1 for integers); a run without

@@ -311,6 +311,12 @@ def figure_long_chain(ds, point=None):
     return fig
 
 
+#: Slip thresholds v/V of the long chain's sensitivity figure, and the part of its grid
+#: they are run on: the weakest and strongest coupling, the middle spread, one seed.
+THRESHOLDS = (2.0, 3.0, 5.0, 10.0, 20.0)
+THRESHOLD_SWEEP = {"k2_W": [0.1, 1.0], "spread_D0": [0.15], "spread_seed": [1]}
+
+
 def make_figures(
     paper="paper",
     twoblock="twoblock",
@@ -329,13 +335,16 @@ def make_figures(
     Configs are paths or names of packaged examples (``sweep/examples.py``), so
     this works from any folder; ``route``: the 1-D sweep whose orbit diagram is drawn;
     ``refined``: the refined sweep whose cells and boundaries are drawn; ``long_chain``:
-    the sweep with a catalogue whose statistics and busiest run are drawn.
-    ``suffix``: ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
+    the sweep with a catalogue whose statistics and busiest run are drawn, and whose
+    statistics are drawn against the slip threshold (:data:`THRESHOLDS` on
+    :data:`THRESHOLD_SWEEP`, ``catalogue_threshold``). ``suffix``: ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
     """
     from ..engine.dispatch import load_kernels
     from ..engine.grid import build_grid
     from ..engine.runner import compute
     from ..plot import plot_bifurcation, plot_orbit_diagram, plot_result
+    from ..plot.catalogue import plot_threshold_sensitivity
+    from .sensitivity import threshold_sensitivity
 
     out_dir = Path(out_dir)
     # every input and the output folder are checked before any work
@@ -384,4 +393,7 @@ def make_figures(
     paths.append(save_figure(fig, out_dir / f"refined_{refined_config.name}{suffix}", dpi))
     fig = figure_long_chain(compute(chain_config, threads=threads, show_progress=False))
     paths.append(save_figure(fig, out_dir / f"{chain_config.name}{suffix}", dpi))
+    sensitivity = threshold_sensitivity(chain_config, THRESHOLDS, THRESHOLD_SWEEP, threads)
+    fig = plot_threshold_sensitivity(sensitivity)
+    paths.append(save_figure(fig, out_dir / f"catalogue_threshold{suffix}", dpi))
     return paths
