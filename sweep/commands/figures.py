@@ -347,7 +347,7 @@ def figure_fast_events(config, points=8000):
     fixed = parameter_text({k: v for k, v in p.items() if k != "K_W"})
     fig.suptitle(
         f"one block, inertial, {config.state_law} law: {fixed}; Kc/W = {kc_w:.3g} µm⁻¹\n"
-        f"M̂ = mV²/(W D0) = {mass_hat:.2g} (a laboratory slider): fast events, "
+        f"M̂ = mV²/(W D0) = {mass_hat:.3g} (a laboratory slider): fast events, "
         f"v_max/V = {' and '.join(f'{v:.2g}' for v in peaks)}",
         fontsize=10,
     )
