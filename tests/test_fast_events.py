@@ -27,7 +27,7 @@ from sweep.config import parse_config
 from sweep.engine.runner import compute
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "fast_events.yaml"
-#: K/Kc of the two points checked (both on the config's grid) and the reference's run
+#: K/Kc of the two points checked (the config's first two, to 1e-6) and the reference's run
 #: length in D0/V: seven cycles or more (periods 66 and 41 D0/V), the last two intervals
 #: then agree to 1e-4 (checked), the engine's period being that of the settled cycle.
 POINTS = {0.5: 500.0, 0.7: 420.0}
@@ -38,6 +38,7 @@ PERIOD_RTOL = 1e-3
 
 
 def _raw():
+    """The shipped config as a mapping."""
     return yaml.safe_load(CONFIG.read_text())
 
 
@@ -50,6 +51,8 @@ def _dimensionless(raw):
 
 
 def _rhs(a, b, mass, kappa):
+    """The right-hand side in (ℓ, ψ, z) and its Jacobian, derived by hand (module docstring)."""
+
     def rhs(t, y):
         lnv, psi, z = y
         dlnv, dpsi = z * np.exp(-lnv) / mass, np.exp(-psi) - np.exp(lnv)
@@ -105,6 +108,7 @@ def reference(ratio):
 
 @pytest.fixture(scope="module")
 def engine():
+    """The engine's runs at the two points, and the time unit D0/V in s."""
     raw = _raw()
     kc_w = _dimensionless(raw)[3]
     raw["sweep"] = {"K_W": [r * kc_w for r in RATIOS]}
