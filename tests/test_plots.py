@@ -22,6 +22,7 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 PAPER_FIGURES = (
     "fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation", "nblock",
     "route_to_chaos", "refined_unequal_qd", "long_chain", "catalogue_threshold",
+    "fast_events",
 )  # fmt: skip
 
 

@@ -6,7 +6,9 @@ system, read with D0 = 1 µm: erratum 1) and integrated as a trace
 ordinary sweeps (``configs/twoblock.yaml``, ``configs/bifurcation_*.yaml``), the orbit
 diagram of two unequal inertial blocks from ``configs/route_to_chaos.yaml``, and the
 refined map of two unequal radiation-damped blocks from ``configs/unequal_qd.yaml``
-(:func:`figure_refined`).
+(:func:`figure_refined`), the long chain's statistics from ``configs/long_chain.yaml``
+and the fast events of a laboratory slider from ``configs/fast_events.yaml``
+(:func:`figure_fast_events`).
 
 Where the paper's quasi-static model runs away (K < Kc has no stick-slip limit
 cycle), the figures show the runaway and, beside it, the same system with a
@@ -24,6 +26,7 @@ import numpy as np
 from ..config import load_config, with_changes
 from ..errors import InputError
 from ..io.files import check_writable
+from ..model import physics
 from ..plot import draw_trace, save_figure
 from ..plot.common import DPI, initial_text, new_figure, parameter_text, power_text
 from ..plot.trace import BLOCK_STYLES
@@ -317,6 +320,53 @@ THRESHOLDS = (2.0, 3.0, 5.0, 10.0, 20.0)
 THRESHOLD_SWEEP = {"k2_W": [0.1, 1.0], "spread_D0": [0.15], "spread_seed": [1]}
 
 
+#: K/Kc of the two traces of the fast-events figure (points of ``configs/fast_events.yaml``)
+#: and their length in D0/V: past those runs' early exit (484 and 498 D0/V), so the
+#: classifier has decided, with nine events or more at the longer period (66 D0/V).
+FAST_RATIOS = (0.5, 0.9)
+FAST_T_END = 600.0
+
+
+def figure_fast_events(config, points=8000):
+    """Fast events of one inertial block (``configs/fast_events.yaml``): v on a log axis
+    at K/Kc = :data:`FAST_RATIOS` (K/W pinned to K/Kc × the config's Kc/W), captioned
+    with M̂ = mV²/(W D0) and each run's v_max/V (its peak from the solver's
+    interpolant: the plotted series samples a time grid and can fall short of it);
+    returns the Figure."""
+    from ..engine.grid import build_grid
+
+    if config.model != "inertial":
+        raise InputError(config.source, [f"model: the fast-events figure draws the inertial "
+                                         f"model (its M̂), not {config.model}"])  # fmt: skip
+    g = build_grid(pin_config(config, {a.name: a.values[0] for a in config.axes}))
+    D0, V = float(g.physical["D0"][0]), float(g.physical["V"][0])  # µm, µm/s
+    kc_w = float(g.linear["kappa_c"][0]) / D0  # µm⁻¹
+    t_end = FAST_T_END * (1.0 if config.integrator.t_unit == "D0/V" else D0 / V)
+    traces = [
+        compute_trace(pin_config(config, {"K_W": ratio * kc_w}, t_end), points)
+        for ratio in FAST_RATIOS
+    ]
+    fig = new_figure(figsize=(11.2, 4.4))
+    axes = fig.subplots(1, len(traces), sharey=True)
+    peaks = []
+    for ax, ds in zip(axes, traces, strict=True):
+        draw_trace(ax, ds, legend=ax is axes[0])
+        peaks.append(ds.attrs["v_max"] / V)
+        ax.set_title(f"K/Kc = {ds.attrs['K_over_Kc']:.3g}: v_max/V = {peaks[-1]:.2g}", fontsize=9)
+    p = parameter_values(traces[0])
+    mass_hat = float(
+        physics.dimensionless(p["A"], p["B"], D0, V, p["K_W"], m_W=p["m_W"])["mass_hat"]
+    )
+    fixed = parameter_text({k: v for k, v in p.items() if k != "K_W"})
+    fig.suptitle(
+        f"one block, inertial, {config.state_law} law: {fixed}; Kc/W = {kc_w:.3g} µm⁻¹\n"
+        f"M̂ = mV²/(W D0) = {mass_hat:.3g} (a laboratory slider): fast events, "
+        f"v_max/V = {' and '.join(f'{v:.2g}' for v in peaks)}",
+        fontsize=10,
+    )
+    return fig
+
+
 def make_figures(
     paper="paper",
     twoblock="twoblock",
@@ -329,6 +379,7 @@ def make_figures(
     dpi=DPI,
     refined="unequal_qd",
     long_chain="long_chain",
+    fast="fast_events",
 ):
     """Regenerate every paper figure into ``out_dir``; returns the file paths.
 
@@ -337,7 +388,9 @@ def make_figures(
     ``refined``: the refined sweep whose cells and boundaries are drawn; ``long_chain``:
     the sweep with a catalogue whose statistics and busiest run are drawn, and whose
     statistics are drawn against the slip threshold (:data:`THRESHOLDS` on
-    :data:`THRESHOLD_SWEEP`, ``catalogue_threshold``). ``suffix``: ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
+    :data:`THRESHOLD_SWEEP`, ``catalogue_threshold``); ``fast``: the inertial one-block
+    config whose fast events are traced (:func:`figure_fast_events`). ``suffix``:
+    ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
     """
     from ..engine.dispatch import load_kernels
     from ..engine.grid import build_grid
@@ -355,12 +408,13 @@ def make_figures(
     route_config = load_config(route)
     refined_config = load_config(refined)
     chain_config = load_config(long_chain)
+    fast_config = load_config(fast)
     stiffnesses(config)  # checked before any kernel is compiled
     check_writable(out_dir / f"fig1_one_block{suffix}", str(out_dir), "--out-dir", suffix)
     rows = (*ONE_BLOCK_ROWS, *((label, {**c, "k2_W": K2_W}) for label, c in TWO_BLOCK_ROWS))
     trace_configs = [variant(config, f"{config.name}_{r}", **c) for r, (_, c) in enumerate(rows)]
     every = [*trace_configs, phase_config, *bifurcation_configs, *nblock_configs, route_config,
-             refined_config, chain_config]  # fmt: skip
+             refined_config, chain_config, fast_config]  # fmt: skip
     # side by side; each variant here also has runs that need the tangent for λ1
     grids = [build_grid(c) for c in every]
     load_kernels([(g.params, g.settings, t) for g in grids for t in (None, True)], threads)
@@ -396,4 +450,6 @@ def make_figures(
     sensitivity = threshold_sensitivity(chain_config, THRESHOLDS, THRESHOLD_SWEEP, threads)
     fig = plot_threshold_sensitivity(sensitivity)
     paths.append(save_figure(fig, out_dir / f"catalogue_threshold{suffix}", dpi))
+    fig = figure_fast_events(fast_config)
+    paths.append(save_figure(fig, out_dir / f"{fast_config.name}{suffix}", dpi))
     return paths
