@@ -55,10 +55,11 @@ def threshold_sensitivity(
     """
     base = load_config(config)
     if base.catalogue.capacity <= 0:
-        raise InputError(f"{base.source}: catalogue.capacity is 0: no catalogue to test")
+        raise InputError(base.source, ["catalogue.capacity is 0: no catalogue to test"])
     values = [float(t) for t in thresholds]
     if not values or min(values) <= 0.0 or len(set(values)) != len(values):
-        raise InputError(f"thresholds must be distinct positive v/V values, got {thresholds!r}")
+        problem = f"thresholds must be distinct positive v/V values, got {thresholds!r}"
+        raise InputError("thresholds", [problem])
     results = []
     for value in values:
         changes = {"catalogue": {"slip_v_over_V": value}}

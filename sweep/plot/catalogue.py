@@ -364,7 +364,7 @@ SENSITIVITY_PANELS = (
 
 def plot_threshold_sensitivity(ds: xarray.Dataset) -> Figure:
     """How a catalogue's statistics move with its slip threshold: a result of
-    :func:`sweep.commands.sensitivity.threshold_sensitivity` (dimension
+    :func:`sweep.threshold_sensitivity` (dimension
     ``slip_v_over_V``); one line per point of its other axes (their mean and range over
     ``spread_seed`` if it has one): the number of events, the system-wide fraction, the
     recurrence's CV (with its interval, where it applies) and the goodness-of-fit p-value
