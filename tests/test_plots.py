@@ -616,3 +616,36 @@ def test_a_refined_map_names_every_class_and_its_kc(refined_unequal):
     assert kc and kc[0].startswith("Kc of the Jacobian")
     title = fig.get_suptitle()
     assert "D0 = 1, 0.6 µm" in title and "η̂ = ηV/W = 0.001" in title
+
+
+def test_a_refined_map_draws_no_boundary_inside_one_colour(refined_unequal):
+    """Cycles of 3 or more events share a colour, so a change from 4 to 5 events is not
+    drawn: the fixture's two-event cycles relabelled 4 events below k2/W = 0.006 um^-1
+    and 5 above; sweep.boundaries finds the 4|5 line, the map draws none of its inner
+    vertices, but still the lines to the one-event cycles."""
+    from sweep import boundaries
+
+    ds = refined_unequal
+    names = ds["attractor"].attrs["flag_meanings"].split()
+    two = (ds["attractor"] == names.index("periodic")) & (ds["cycle_events"] == 2)
+    relabelled = xr_where(two, np.where(ds["k2_W"].values < 0.006, 4, 5), ds["cycle_events"])
+    ds = ds.assign(cycle_events=relabelled)
+    inner = [
+        b.vertices[1:-1]
+        for b in boundaries(ds)
+        if {"4 events", "5 events"} <= {t.split(", ")[-1] for t in b.between}
+    ]
+    inner = np.concatenate(inner)
+    assert len(inner)
+    fig = plot_result(ds)
+    cells_ax = fig.axes[0]
+    drawn = np.concatenate([line.get_xydata() for line in cells_ax.get_lines()])
+    assert len(drawn)
+    assert not np.isclose(drawn[:, None, :], inner[None, :, :], rtol=1e-12).all(-1).any()
+    legend = [t.get_text() for t in cells_ax.get_legend().get_texts()]
+    assert any(t.startswith("periodic, 3 or more events a cycle") for t in legend)
+
+
+def xr_where(condition, yes, no):
+    """``yes`` where ``condition``, else ``no``, in the dtype and dimensions of ``no``."""
+    return no.copy(data=np.where(condition.values, yes, no.values).astype(no.dtype))
