@@ -52,6 +52,8 @@ FORMATS = {".png": "png", ".pdf": "pdf", ".svg": "svg"}
 #: Parameters shown in figure titles, in this order (mu0, V0, Phi0 do not change the dynamics).
 TITLE_PARAMETERS = ("A", "B", "D0", "V", "K_W", "k2_W", "eta_W", "m_W")
 SYMBOLS = {"D0": "D0", "K_W": "K/W", "k2_W": "k2/W", "eta_W": "η/W", "m_W": "m/W"}
+#: Most blocks whose per-block parameters a title lists.
+LISTED_BLOCKS = 4
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
 
@@ -110,8 +112,11 @@ def parameter_text(values):
 
 def fixed_block_values(ds):
     """Per-block parameters that differ between the blocks but are the same in every run
-    (e.g. ``D0: [1.0, 0.6]`` in a config): name → one value per block."""
+    (e.g. ``D0: [1.0, 0.6]`` in a config): name → one value per block; none for more than
+    :data:`LISTED_BLOCKS` blocks (a title cannot list them)."""
     out = {}
+    if ds.sizes.get("block", 0) > LISTED_BLOCKS:
+        return out
     for name in PER_BLOCK:
         if f"{name}_block" not in ds:
             continue
