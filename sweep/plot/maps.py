@@ -64,7 +64,7 @@ ATTRACTOR_MEASURES = (
 #: the other attractors keep theirs (Okabe–Ito palette, colour-blind safe).
 CYCLE_COLOURS = {1: "#009E73", 2: "#F0E442", 3: "#56B4E9"}
 #: Markers over a refined map for the attractors whose cells are too small to see.
-RARE_MARKERS = {"quasi_periodic": "o", "chaotic": "*", "unresolved": "x", "unbounded": "^"}
+RARE_MARKERS = {"quasi_periodic": "o", "chaotic": "*", "unresolved": "X", "unbounded": "^"}
 #: Colour of the line K/Kc = 1 over a refined map (on top of the black boundaries).
 KC_COLOUR = "#B2182B"
 #: Legend entry of the runs without an amplitude (runaway).
@@ -421,12 +421,12 @@ def plot_refined(ds, caption="", ax=None):
     counts = _refined_cells(panels[0], ds, lattice, "kind")
     if panels[1] is not None:
         _refined_cells(panels[1], ds, lattice, "level")
+    _draw_boundaries(panels[0], found)  # the levels' panel shows where they are by its cells
     for a in filter(None, panels):
-        _draw_boundaries(a, found)
         kc_drawn = _refined_axes(a, ds, lattice)
     rare = _rare_markers(panels[0], ds, lattice)
     below = {"loc": "upper left", "bbox_to_anchor": (0, -0.12), "fontsize": 8, "frameon": False}
-    _kind_legend(panels[0], counts, rare, ncol=3, **below)
+    _kind_legend(panels[0], counts, rare, ncol=2, **below)
     if panels[1] is not None:
         panels[1].legend(handles=_boundary_handles(ds, outputs, kc_drawn), **below)
         runs = ", ".join(str(int(r)) for r in ds.attrs["refine_runs"])
@@ -502,6 +502,7 @@ def _refined_cells(ax, ds, lattice, what):
             clim=(-0.5, lattice.levels + 0.5),
             edgecolors="face",
             linewidths=0.2,
+            antialiased=False,
         )
         ax.add_collection(cells)
         ax.figure.colorbar(
@@ -516,11 +517,18 @@ def _refined_cells(ax, ds, lattice, what):
     norm = BoundaryNorm(np.arange(len(kinds) + 1) - 0.5, len(kinds))
     ax.add_collection(
         PolyCollection(
-            verts, array=colours, cmap=cmap, norm=norm, edgecolors="face", linewidths=0.2
+            verts,
+            array=colours,
+            cmap=cmap,
+            norm=norm,
+            edgecolors="face",
+            linewidths=0.2,
+            antialiased=False,  # sharp cells, and a PNG a third smaller
         )
     )
     what = "regime of most members" if "regime_fraction" in ds else "attractor"
-    ax.set_title(f"{what}, by cell; boundaries between labels")
+    between = "labels" if "regime_fraction" in ds else "colours"
+    ax.set_title(f"{what}, by cell; boundaries between {between}")
     return {k: int(np.count_nonzero(kind == c)) for c, k in enumerate(kinds)}
 
 
@@ -572,7 +580,7 @@ def _rare_markers(ax, ds, lattice):
                 ds[x].values[sel],
                 ds[y].values[sel],
                 marker=marker,
-                s=12,
+                s=16,
                 lw=0.6,
                 color=ATTRACTOR_COLOURS[name],
                 edgecolors="k",
@@ -604,7 +612,7 @@ def _kind_legend(ax, counts, marked=(), **kwargs):
                     mec="k",
                     mew=0.6,
                     ms=7,
-                    label=f"{label}: cells and markers",
+                    label=f"{label}, marked",
                 )
             )
         else:
@@ -632,8 +640,8 @@ def _boundary_handles(ds, outputs, kc_drawn):
     else:
         solid, dashed = "the regime changes", "other labels change"
     handles = [
-        Line2D([], [], color="k", lw=0.9, label=f"boundary: {solid}"),
-        Line2D([], [], color="k", ls="--", lw=0.9, label=f"boundary: {dashed}"),
+        Line2D([], [], color="k", lw=0.9, label=f"boundary (left): {solid}"),
+        Line2D([], [], color="k", ls="--", lw=0.9, label=f"boundary (left): {dashed}"),
     ]
     if kc_drawn:
         handles.append(Line2D([], [], color=KC_COLOUR, ls="-.", lw=1.8, label=kc_label(ds)))
