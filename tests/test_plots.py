@@ -649,3 +649,29 @@ def test_a_refined_map_draws_no_boundary_inside_one_colour(refined_unequal):
 def xr_where(condition, yes, no):
     """``yes`` where ``condition``, else ``no``, in the dtype and dimensions of ``no``."""
     return no.copy(data=np.where(condition.values, yes, no.values).astype(no.dtype))
+
+
+def test_a_png_is_saved_without_alpha_and_without_loss(tmp_path):
+    """save_figure drops the alpha channel of an opaque figure: the pixels are those
+    matplotlib renders itself, and the file's resolution is the dpi asked for. (A figure
+    without constrained layout: that one moves by a pixel between draws.)"""
+    import io
+
+    import matplotlib.image
+    from matplotlib.figure import Figure
+    from PIL import Image
+
+    fig = Figure(figsize=(3, 2))
+    ax = fig.subplots()
+    ax.plot([0, 1, 2], [0, 1, 0.5], color="#D55E00")
+    ax.set_title("η̂ = 0.001")
+    path = save_figure(fig, tmp_path / "f.png", dpi=80)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, dpi=80, format="png")
+    buffer.seek(0)
+    reference = matplotlib.image.imread(buffer)
+    with Image.open(path) as image:
+        assert image.mode == "RGB"
+        assert image.info["dpi"] == pytest.approx((80, 80), abs=0.01)
+    assert reference.shape[-1] == 4 and (reference[..., 3] == 1).all()
+    np.testing.assert_array_equal(matplotlib.image.imread(path), reference[..., :3])
