@@ -497,3 +497,182 @@ def test_a_refined_axis_is_drawn_along_its_runs(tmp_path):
         assert len(ax.patches) >= 2  # a shaded cell per boundary
         points = np.concatenate([c.get_offsets() for c in ax.collections])
         assert len(points) == len(x) and np.isin(points[:, 0], x).all()
+
+
+# --- what a referee checks: runaway runs, captions, the classes of a refined map ---------------
+
+
+def test_no_amplitude_is_drawn_for_a_runaway_run(two_d):
+    """Runaway runs have no bounded attractor: the amplitude map leaves their cells out
+    of its data (they get the runaway colour, named in the legend)."""
+    fig = plot_result(two_d)
+    amplitude_ax = fig.axes[1]
+    mesh = amplitude_ax.collections[0]
+    drawn = np.ma.masked_invalid(mesh.get_array()).ravel()
+    runaway = (two_d["regime"] == REGIMES.index("runaway")).transpose("k2_W", "K_W").values.ravel()
+    assert runaway.any() and (~runaway).any()
+    # the twoblock config's runaways are the runs below Kc/W = (B - A)/D0 = 0.05 um^-1
+    below = np.broadcast_to(two_d["K_W"].values < 0.05, (two_d.sizes["k2_W"], two_d.sizes["K_W"]))
+    np.testing.assert_array_equal(runaway, below.ravel())
+    assert np.ma.getmaskarray(drawn)[runaway].all()
+    amplitudes = two_d["lnv_amplitude"].transpose("k2_W", "K_W").values.ravel()
+    assert not np.isin(amplitudes[runaway], drawn.compressed()).any()
+    legend = [t.get_text() for t in amplitude_ax.get_legend().get_texts()]
+    assert any(t.startswith("runaway: no amplitude") for t in legend)
+
+
+def test_bifurcation_marks_runaway_runs_off_the_amplitude_axis(one_d):
+    """The runaway runs of a quasi-static sweep (K < Kc) are triangles in a strip above
+    each panel, at their K/Kc = K D0/(B - A) (quick.yaml: D0 = 1 um, B - A = 0.05); no
+    point of theirs is on the amplitude axes."""
+    fig = plot_bifurcation([one_d])
+    strips = [ax for ax in fig.axes if [t.get_text() for t in ax.get_yticklabels()] == ["runaway"]]
+    assert len(strips) == 2
+    runaway = one_d["regime"].values == REGIMES.index("runaway")
+    assert runaway.any()
+    ratio = one_d["K_W"].values / 0.05
+    for strip in strips:
+        (markers,) = strip.collections
+        np.testing.assert_allclose(np.sort(markers.get_offsets()[:, 0]), np.sort(ratio[runaway]))
+    data_axes = [ax for ax in fig.axes if ax not in strips]
+    for ax in data_axes:
+        xs = np.concatenate([c.get_offsets()[:, 0] for c in ax.collections if len(c.get_offsets())])
+        xs = np.concatenate([xs, *(line.get_xdata() for line in ax.get_lines())])
+        assert not np.isclose(xs[:, None], ratio[runaway][None, :], rtol=1e-12).any()
+
+
+def test_captions_carry_the_dimensionless_number_and_the_largest_peak(two_d, quasi_dynamic):
+    """eta_hat = eta V/W (the quasi_dynamic fixture: eta/W = 0.01 and 0.1 s/um, V = 0.1 um/s);
+    the largest v_max/V of the runs drawn that do not run away, from the result's v_max.
+    The bifurcation diagram draws the K/Kc range both curves cover, 2 % of it either side,
+    with Kc/W = (B - A - eta_hat)/D0 = 0.049 and 0.040 um^-1 (physics brief, section 4)."""
+    title = plot_result(two_d).get_suptitle()
+    assert "M̂ = η̂ = 0" in title
+    fig = plot_bifurcation([quasi_dynamic])
+    assert "η̂ = ηV/W = 0.001, 0.01" in fig.get_suptitle()
+    k = quasi_dynamic["K_W"].values
+    kc = np.array([0.049, 0.04])[:, None]  # along eta_W, the fixture's first axis
+    low, high = max(k.min() / kc.ravel()), min(k.max() / kc.ravel())
+    pad = 0.02 * (high - low)
+    ratio = (k[None, :] / kc) * np.ones(quasi_dynamic["regime"].shape)
+    shown = (ratio >= low - pad) & (ratio <= high + pad)
+    kept = shown & (quasi_dynamic["regime"].values != REGIMES.index("runaway"))
+    assert quasi_dynamic["regime"].dims == ("eta_W", "K_W") and not shown.all()
+    peak = np.nanmax(quasi_dynamic["v_max"].values[kept]) / 0.1
+    assert peak > 10  # a stick-slip cycle of the fixture
+    assert f"largest v_max/V of the bounded runs {peak:.3g}" in fig.get_suptitle()
+
+
+def test_inertial_caption_names_the_dimensionless_mass():
+    """M-hat = m V^2/(W D0): m/W = 2e-3 s^2/um, V = 0.5 um/s, D0 = 2 um give 2.5e-4."""
+    import xarray as xr
+
+    from sweep.plot.common import dimensionless_text
+
+    ds = xr.Dataset(coords={"m_W": 2e-3, "V": 0.5, "D0": 2.0}, attrs={"model": "inertial"})
+    assert dimensionless_text(ds) == "M̂ = mV²/(W·D0) = 0.00025"
+    coords = {"m_W": ("m_W", [1e-3, 4e-3]), "V": 0.5, "D0": 2.0, "eta_W": 0.01}
+    swept = xr.Dataset(coords=coords, attrs={"model": "inertial"})
+    assert dimensionless_text(swept) == "M̂ = mV²/(W·D0) = 0.000125, 0.0005, η̂ = ηV/W = 0.005"
+
+
+@pytest.fixture(scope="module")
+def refined_unequal():
+    """configs/unequal_qd.yaml across its band of two-event cycles and its Kc, 3 levels."""
+    config = small(
+        CONFIGS / "unequal_qd.yaml",
+        "unequal_small",
+        sweep={"K_W": [0.05, 0.07], "k2_W": [0.0025, 0.0175]},
+        refine={"levels": 3},
+    )
+    return compute(config, show_progress=False)
+
+
+def test_a_refined_map_names_every_class_and_its_kc(refined_unequal):
+    """Every attractor present is in the legend, periodic cycles by their number of events
+    (1, 2, 3 or more: their own colours); unequal blocks' Kc is named the Jacobian's; the
+    title gives D0 per block and eta_hat = eta V/W = 0.001 s/um x 1 um/s."""
+    from matplotlib.colors import to_hex
+
+    ds = refined_unequal
+    fig = plot_result(ds)
+    cells_ax, levels_ax = fig.axes[:2]
+    names = ds["attractor"].attrs["flag_meanings"].split()
+    attractor = np.array([names[int(c)] for c in ds["attractor"].values])
+    events = ds["cycle_events"].values
+    expected = set(attractor[attractor != "periodic"])
+    for n, text in ((1, "1 event"), (2, "2 events"), (3, "3 or more events")):
+        if np.any((attractor == "periodic") & (np.minimum(events, 3) == n)):
+            expected.add(f"periodic, {text} a cycle")
+    assert {"periodic, 1 event a cycle", "periodic, 2 events a cycle"} <= expected
+    legend = cells_ax.get_legend()
+    labels = [t.get_text().split(" (")[0].replace("-", "_") for t in legend.get_texts()]
+    assert set(labels) == {e.replace("-", "_") for e in expected}
+    colours = [
+        to_hex(h.get_color() if hasattr(h, "get_marker") else h.get_facecolor())
+        for h in legend.legend_handles
+    ]
+    assert len(set(colours)) == len(colours)
+    kc = [t.get_text() for t in levels_ax.get_legend().get_texts() if "Kc" in t.get_text()]
+    assert kc and kc[0].startswith("Kc of the Jacobian")
+    title = fig.get_suptitle()
+    assert "D0 = 1, 0.6 µm" in title and "η̂ = ηV/W = 0.001" in title
+
+
+def test_a_refined_map_draws_no_boundary_inside_one_colour(refined_unequal):
+    """Cycles of 3 or more events share a colour, so a change from 4 to 5 events is not
+    drawn: the fixture's two-event cycles relabelled 4 events below k2/W = 0.006 um^-1
+    and 5 above; sweep.boundaries finds the 4|5 line, the map draws none of its inner
+    vertices, but still the lines to the one-event cycles."""
+    from sweep import boundaries
+
+    ds = refined_unequal
+    names = ds["attractor"].attrs["flag_meanings"].split()
+    two = (ds["attractor"] == names.index("periodic")) & (ds["cycle_events"] == 2)
+    relabelled = xr_where(two, np.where(ds["k2_W"].values < 0.006, 4, 5), ds["cycle_events"])
+    ds = ds.assign(cycle_events=relabelled)
+    inner = [
+        b.vertices[1:-1]
+        for b in boundaries(ds)
+        if {"4 events", "5 events"} <= {t.split(", ")[-1] for t in b.between}
+    ]
+    inner = np.concatenate(inner)
+    assert len(inner)
+    fig = plot_result(ds)
+    cells_ax = fig.axes[0]
+    drawn = np.concatenate([line.get_xydata() for line in cells_ax.get_lines()])
+    assert len(drawn)
+    assert not np.isclose(drawn[:, None, :], inner[None, :, :], rtol=1e-12).all(-1).any()
+    legend = [t.get_text() for t in cells_ax.get_legend().get_texts()]
+    assert any(t.startswith("periodic, 3 or more events a cycle") for t in legend)
+
+
+def xr_where(condition, yes, no):
+    """``yes`` where ``condition``, else ``no``, in the dtype and dimensions of ``no``."""
+    return no.copy(data=np.where(condition.values, yes, no.values).astype(no.dtype))
+
+
+def test_a_png_is_saved_without_alpha_and_without_loss(tmp_path):
+    """save_figure drops the alpha channel of an opaque figure: the pixels are those
+    matplotlib renders itself, and the file's resolution is the dpi asked for. (A figure
+    without constrained layout: that one moves by a pixel between draws.)"""
+    import io
+
+    import matplotlib.image
+    from matplotlib.figure import Figure
+    from PIL import Image
+
+    fig = Figure(figsize=(3, 2))
+    ax = fig.subplots()
+    ax.plot([0, 1, 2], [0, 1, 0.5], color="#D55E00")
+    ax.set_title("η̂ = 0.001")
+    path = save_figure(fig, tmp_path / "f.png", dpi=80)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, dpi=80, format="png")
+    buffer.seek(0)
+    reference = matplotlib.image.imread(buffer)
+    with Image.open(path) as image:
+        assert image.mode == "RGB"
+        assert image.info["dpi"] == pytest.approx((80, 80), abs=0.01)
+    assert reference.shape[-1] == 4 and (reference[..., 3] == 1).all()
+    np.testing.assert_array_equal(matplotlib.image.imread(path), reference[..., :3])

@@ -28,6 +28,7 @@ from .common import (
     parameter_text,
     regime_legend,
     regime_names,
+    scale_text,
 )
 
 if TYPE_CHECKING:
@@ -84,8 +85,10 @@ def plot_bifurcation(
     Amplitude of the attractor against K/Kc, one curve per model (and per value
     of any further sweep axis): (a) peak-to-peak ln v, (b) v_max/V and v_min/V.
     Steady runs are drawn at zero amplitude (v/V = 1: their attractor is steady
-    sliding, whatever transient they showed); runaway runs as triangles at the
-    top (no bounded attractor); marker colours are the regimes.
+    sliding, whatever transient they showed); runaway runs have no bounded attractor,
+    so no amplitude: they are marked as triangles in a strip above each panel, off its
+    axis; marker colours are the regimes. The title states each model's dimensionless
+    number and the largest v_max/V of the bounded runs (``plot.common.scale_text``).
 
     Parameters
     ----------
@@ -114,13 +117,22 @@ def plot_bifurcation(
     for k, ds in enumerate(datasets):
         check_result(ds, f"datasets[{k}]")
     _check_caption(caption)
-    fig = new_figure(figsize=(12, 5))
-    ax_a, ax_v = fig.subplots(1, 2)
-    model_handles = []
-    seen = set()
     curves = [c for ds in datasets for c in bifurcation_curves(ds) if c[1]["regime"].size]
     if not curves:
         raise ValueError("no point with an analytic Kc > 0 (no instability to show)")
+    runaway_code = REGIMES.index("runaway")
+    any_runaway = any((c["regime"].values == runaway_code).any() for _, c in curves)
+    fig = new_figure(figsize=(12, 5.4 if any_runaway else 5))
+    if any_runaway:  # a strip above each panel for the runs without an amplitude
+        (strip_a, strip_v), (ax_a, ax_v) = fig.subplots(
+            2, 2, sharex="col", height_ratios=(0.08, 1), gridspec_kw={"hspace": 0.0}
+        )
+        strips = {ax_a: strip_a, ax_v: strip_v}
+    else:
+        ax_a, ax_v = fig.subplots(1, 2)
+        strips = {}
+    model_handles = []
+    seen = set()
     for k, (label, curve) in enumerate(curves):
         marker = MODEL_MARKERS[curve.attrs["model"]]
         style, size = CURVE_STYLES[k % len(CURVE_STYLES)]
@@ -147,18 +159,16 @@ def plot_bifurcation(
                         linewidths=0.4,
                         zorder=3,
                     )
-            ax.scatter(
-                x[~bounded],
-                np.full((~bounded).sum(), 0.97),
-                marker="^",
-                s=30,
-                color=REGIME_COLOURS["runaway"],
-                edgecolors="k",
-                linewidths=0.4,
-                transform=ax.get_xaxis_transform(),
-                zorder=3,
-                clip_on=False,
-            )
+            if ax in strips:
+                strips[ax].scatter(
+                    x[~bounded],
+                    np.full((~bounded).sum(), 0.5),
+                    marker="^",
+                    s=30,
+                    color=REGIME_COLOURS["runaway"],
+                    edgecolors="k",
+                    linewidths=0.4,
+                )
         seen.update(regime)
         model_handles.append(
             Line2D([], [], color="k", ls=style, marker=marker, mfc="white", label=label)
@@ -166,11 +176,12 @@ def plot_bifurcation(
     low = max(c["K_over_Kc"].min() for _, c in curves)
     high = min(c["K_over_Kc"].max() for _, c in curves)
     pad = 0.02 * (high - low) if high > low else 0.05
-    for ax in (ax_a, ax_v):
+    for ax in (ax_a, ax_v, *strips.values()):
         ax.axvline(1.0, color="k", ls="--", lw=1.2)
-        ax.set_xlabel("K/Kc (each model's own analytic Kc)")
         if high > low:  # the K/Kc range every curve covers
             ax.set_xlim(float(low) - pad, float(high) + pad)
+    for ax in (ax_a, ax_v):
+        ax.set_xlabel("K/Kc (each model's own analytic Kc)")
     bounded_amplitudes = [
         c["lnv_amplitude"].values[
             [regime_names(c)[int(r)] != "runaway" for r in c["regime"].values]
@@ -183,12 +194,15 @@ def plot_bifurcation(
     ax_a.set_ylabel("attractor peak-to-peak ln(v/V)")
     ax_v.set_yscale("log")
     ax_v.set_ylabel("attractor v_max/V (above 1) and v_min/V (below 1)")
-    ax_a.set_title("(a) amplitude of ln v")
-    ax_v.set_title("(b) largest and smallest velocity")
-    low_v, high_v = ax_v.get_ylim()
-    if low_v <= 0:  # no bounded point at all: no data to set the log range
-        low_v, high_v = 0.1, 10.0
-    ax_v.set_ylim(low_v, high_v * 10.0)  # room for the runaway markers at the top
+    for ax, title in ((ax_a, "(a) amplitude of ln v"), (ax_v, "(b) largest and smallest velocity")):
+        top_axes = strips.get(ax, ax)
+        top_axes.set_title(title)
+    if "runaway" in seen and len(seen) == 1:  # no bounded point: no data for the log range
+        ax_v.set_ylim(0.1, 10.0)
+    for strip in strips.values():
+        strip.set_ylim(0, 1)
+        strip.set_yticks([0.5], ["runaway"], fontsize=8)
+        strip.tick_params(axis="x", labelbottom=False)
     runaway = Line2D(
         [],
         [],
@@ -196,10 +210,10 @@ def plot_bifurcation(
         marker="^",
         color=REGIME_COLOURS["runaway"],
         mec="k",
-        label="runaway (no bounded attractor)",
+        label="runaway: no bounded attractor, no amplitude (strip above)",
     )
     handles = [*model_handles, runaway] if "runaway" in seen else model_handles
-    ax_a.legend(handles=handles, loc="upper right", bbox_to_anchor=(1, 0.9), fontsize=8)
+    ax_a.legend(handles=handles, loc="upper right", fontsize=8)
     regime_legend(
         ax_v,
         [n for n in REGIMES if n in seen and n != "runaway"],
@@ -209,7 +223,12 @@ def plot_bifurcation(
         title_fontsize=8,
     )
     title = f"Bifurcation at K = Kc: {describe_common(datasets)}"
-    _suptitle(fig, [title, caption])
+    left, right = ax_a.get_xlim()
+    shown = [
+        c.isel({c["K_over_Kc"].dims[0]: (c["K_over_Kc"] >= left) & (c["K_over_Kc"] <= right)})
+        for _, c in curves
+    ]
+    _suptitle(fig, [title, scale_text(datasets, shown), caption])
     return fig
 
 
@@ -325,5 +344,6 @@ def plot_orbit_diagram(
         ax_lam.set_ylabel(axis_label(ds["lyapunov_exponent"]))
         ax.set_xlabel("")
         note = "; ".join(filter(None, [fixed and f"at {fixed}", initial_text(ds)]))
-        _suptitle(fig, [f"{ds.attrs.get('sweep_name', '')}: {describe(ds)}", note, caption])
+        title = f"{ds.attrs.get('sweep_name', '')}: {describe(ds)}"
+        _suptitle(fig, [title, note, scale_text(ds), caption])
     return fig

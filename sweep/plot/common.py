@@ -3,7 +3,9 @@ maps, labels with units, title lines (parameters, start, caption), grid-cell edg
 and :func:`save_figure` with its formats and default resolution.
 
 One table, :data:`REGIME_COLOURS`, colours each regime in every figure;
-:data:`ATTRACTOR_COLOURS` each attractor kind.
+:data:`ATTRACTOR_COLOURS` each attractor kind. Every caption states the model's
+dimensionless number and the largest v_max/V of its bounded runs (:func:`scale_text`), and
+names the critical stiffness for what it is (:func:`kc_label`).
 """
 
 from __future__ import annotations
@@ -15,8 +17,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..model.heterogeneity import PER_BLOCK
 from ..model.physics import PARAMETERS
 from ..results.dataset import parameter_values
+from ..variables import REGIMES
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -39,6 +43,8 @@ ATTRACTOR_COLOURS = {
     "unresolved": "#999999",
     "unbounded": "#D55E00",
 }
+#: Code of each regime in a result's ``regime`` variable.
+REGIME_CODES = {name: code for code, name in enumerate(REGIMES)}
 #: Default resolution of saved raster figures (dots per inch; ``--dpi`` changes it).
 DPI = 150
 #: File types :func:`save_figure` writes, by suffix.
@@ -46,6 +52,8 @@ FORMATS = {".png": "png", ".pdf": "pdf", ".svg": "svg"}
 #: Parameters shown in figure titles, in this order (mu0, V0, Phi0 do not change the dynamics).
 TITLE_PARAMETERS = ("A", "B", "D0", "V", "K_W", "k2_W", "eta_W", "m_W")
 SYMBOLS = {"D0": "D0", "K_W": "K/W", "k2_W": "k2/W", "eta_W": "η/W", "m_W": "m/W"}
+#: Most blocks whose per-block parameters a title lists.
+LISTED_BLOCKS = 4
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
 
@@ -91,23 +99,124 @@ def axis_label(var):
 
 
 def parameter_text(values):
-    """``"A = 0.03, B = 0.08, D0 = 1 µm"`` from a mapping of parameter name → value."""
+    """``"A = 0.03, B = 0.08, D0 = 1, 0.6 µm"`` from a mapping of parameter name → value
+    (a number, or one number per block)."""
     parts = []
     for name in TITLE_PARAMETERS:
         if name in values:
             units = unit_text(PARAMETERS[name].units)
-            parts.append(
-                f"{SYMBOLS.get(name, name)} = {float(values[name]):g}{' ' + units if units else ''}"
-            )
+            numbers = ", ".join(f"{float(v):g}" for v in np.atleast_1d(values[name]))
+            parts.append(f"{SYMBOLS.get(name, name)} = {numbers}{' ' + units if units else ''}")
     return ", ".join(parts)
 
 
+def fixed_block_values(ds):
+    """Per-block parameters that differ between the blocks but are the same in every run
+    (e.g. ``D0: [1.0, 0.6]`` in a config): name → one value per block; none for more than
+    :data:`LISTED_BLOCKS` blocks (a title cannot list them)."""
+    out = {}
+    if ds.sizes.get("block", 0) > LISTED_BLOCKS:
+        return out
+    for name in PER_BLOCK:
+        if f"{name}_block" not in ds:
+            continue
+        var = ds[f"{name}_block"]
+        rows = var.transpose(..., "block").values.reshape(-1, var.sizes["block"])
+        if np.all(rows == rows[:1]) and np.ptp(rows[0]) > 0:
+            out[name] = rows[0]
+    return out
+
+
+def unequal_blocks(ds):
+    """Whether the blocks of some run of a result differ (a ``*_block`` variable varies
+    along ``block``): their Kc is then the Jacobian's, not a closed form."""
+    return any(
+        f"{name}_block" in ds and bool((np.ptp(ds[f"{name}_block"].values, axis=-1) > 0).any())
+        for name in PER_BLOCK
+    )
+
+
+def kc_label(ds):
+    """Legend text of the line K/Kc = 1 of a result: for identical blocks Kc is the
+    analytic formula of the model; for unequal ones the stiffness where the Jacobian at
+    steady sliding gets an eigenvalue with Re λ = 0 (the engine's ``critical_K_W``)."""
+    if unequal_blocks(ds):
+        return "Kc of the Jacobian at steady sliding (unequal blocks): K/Kc = 1"
+    return "analytic Kc (K/Kc = 1)"
+
+
 def describe(ds):
-    """Title line of a result or trace: blocks, model, state law and fixed parameters."""
+    """Title line of a result or trace: blocks, model, state law and fixed parameters
+    (per block where the blocks differ by config)."""
     blocks = int(ds.attrs["blocks"])
     kind = "one block" if blocks == 1 else f"{blocks} blocks"
-    fixed = parameter_text(parameter_values(ds))
+    fixed = parameter_text(parameter_values(ds) | fixed_block_values(ds))
     return f"{kind}, {ds.attrs['model']}, {ds.attrs['state_law']} law: {fixed}"
+
+
+def _parameter(ds, name):
+    """Parameter ``name`` of a result: its sweep coordinate, or its one value (0 when the
+    config does not set it)."""
+    if name in ds.coords and ds[name].ndim:
+        return ds[name]
+    return parameter_values(ds).get(name, 0.0)
+
+
+def _values_text(values):
+    """The distinct values of an array for a caption: up to four listed, else the range."""
+    v = np.unique(np.asarray(values, float).ravel())
+    if v.size > 4:
+        return f"{v[0]:.3g} to {v[-1]:.3g}"
+    return ", ".join(f"{x:.3g}" for x in v)
+
+
+def dimensionless_text(ds):
+    """The dimensionless numbers of a result's model beyond the quasi-static one:
+    ``"M̂ = mV²/(W·D0) = 0.01"`` (inertial), ``"η̂ = ηV/W = 0.001"`` (radiation damping);
+    a quasi-static model has neither (``"M̂ = η̂ = 0"``)."""
+    V, eta = _parameter(ds, "V"), _parameter(ds, "eta_W")
+    parts = []
+    if ds.attrs["model"] == "inertial":
+        mass = _parameter(ds, "m_W") * V**2 / _parameter(ds, "D0")
+        parts.append(f"M̂ = mV²/(W·D0) = {_values_text(mass)}")
+    if ds.attrs["model"] == "quasi-dynamic" or np.any(np.asarray(eta) > 0):
+        parts.append(f"η̂ = ηV/W = {_values_text(eta * V)}")
+    return ", ".join(parts) or "M̂ = η̂ = 0"
+
+
+def bounded(ds):
+    """Boolean array over a result's runs: the run has a bounded attractor (not runaway,
+    and its attractor, where classified, not unbounded)."""
+    ok = ds["regime"] != REGIME_CODES["runaway"]
+    if "attractor" in ds:
+        names = ds["attractor"].attrs["flag_meanings"].split()
+        ok = ok & (ds["attractor"] != names.index("unbounded"))
+    return ok
+
+
+def largest_peak(ds):
+    """The largest v_max/V (in the final window) of a result's bounded runs; NaN if none."""
+    lnv = ds["lnv_max"].where(bounded(ds)).values
+    return float(np.exp(np.nanmax(lnv))) if np.isfinite(lnv).any() else np.nan
+
+
+def scale_text(datasets, shown=None):
+    """Caption line with each model's dimensionless number (:func:`dimensionless_text`)
+    and the largest v_max/V of the bounded runs of ``datasets`` (a result or a list), or of
+    ``shown`` (the parts of them a figure draws): slow slip while it is 10–10³, seismic
+    far above (physics brief, section 5c)."""
+    datasets = datasets if isinstance(datasets, (list, tuple)) else [datasets]
+    numbers = {}
+    for ds in datasets:
+        numbers.setdefault(ds.attrs["model"], []).append(dimensionless_text(ds))
+    if len(numbers) == 1:
+        (texts,) = numbers.values()
+        parts = list(dict.fromkeys(texts))
+    else:
+        parts = [f"{model}: {'; '.join(dict.fromkeys(t))}" for model, t in numbers.items()]
+    peaks = [p for p in map(largest_peak, datasets if shown is None else shown) if np.isfinite(p)]
+    peak = f"largest v_max/V of the bounded runs {max(peaks):.3g}" if peaks else "no bounded run"
+    return "; ".join([*parts, peak])
 
 
 def initial_text(ds):
@@ -244,5 +353,23 @@ def save_figure(fig: Figure, out: str | os.PathLike, dpi: float = DPI) -> Path:
         raise ValueError(f"{out}: figure files end in {', '.join(FORMATS)}")
     out.parent.mkdir(parents=True, exist_ok=True)
     with replaced_atomically(out) as tmp:
-        fig.savefig(tmp, dpi=dpi, format=FORMATS[out.suffix])
+        if out.suffix == ".png":
+            _save_png(fig, tmp, dpi)
+        else:
+            fig.savefig(tmp, dpi=dpi, format=FORMATS[out.suffix])
     return out
+
+
+def _save_png(fig, path, dpi):
+    """``fig`` as a PNG at ``dpi``: without its alpha channel where every pixel is opaque
+    (a figure on its white background; lossless, and the file about a tenth smaller)."""
+    import io
+
+    from PIL import Image
+
+    buffer = io.BytesIO()
+    fig.savefig(buffer, dpi=dpi, format="png")
+    image = Image.open(buffer)
+    if image.mode == "RGBA" and image.getchannel("A").getextrema() == (255, 255):
+        image = image.convert("RGB")
+    image.save(path, format="png", optimize=True, dpi=(dpi, dpi))

@@ -1,10 +1,13 @@
 """Maps of a sweep result over its sweep axes: the phase diagram (:func:`plot_result`:
 regimes beside the amplitude and growth rate) and any one variable
 (:func:`plot_variable`); along one axis, the values against it coloured by regime.
-The analytic Kc (K/Kc = 1) is drawn dashed on each. A refined result
-(``sweep/refine/lattice.py``, :func:`plot_refined`) is drawn as its cells at their
-level, coloured by the attractor (or regime) of their runs, with the boundaries
-between labels (``sweep.boundaries``) on top."""
+The Kc line (K/Kc = 1) is drawn dashed on each. Runaway runs have no bounded
+attractor: no amplitude of theirs is drawn (:data:`ATTRACTOR_MEASURES`), they get the
+runaway colour instead. A refined result (``sweep/refine/lattice.py``,
+:func:`plot_refined`) is drawn as its cells at their level, coloured by the attractor
+(periodic cycles by their number of events, :data:`CYCLE_COLOURS`) or regime of their
+runs, with the boundaries between those colours (``sweep.boundaries``) on top and its
+quasi-periodic, chaotic and unresolved runs marked."""
 
 from __future__ import annotations
 
@@ -16,6 +19,7 @@ from ..results.checks import check_result
 from ..variables import REGIMES
 from .common import (
     ATTRACTOR_COLOURS,
+    REGIME_CODES,
     REGIME_COLOURS,
     _as_grid,
     _check_caption,
@@ -26,12 +30,15 @@ from .common import (
     _squeeze,
     _suptitle,
     axis_label,
+    bounded,
     colormap,
     describe,
     initial_text,
+    kc_label,
     new_figure,
     regime_legend,
     regime_names,
+    scale_text,
     stiffness_ratio,
 )
 
@@ -42,6 +49,26 @@ if TYPE_CHECKING:
 
 #: Continuous measures shown beside the regimes in a phase diagram.
 MEASURES = ("lnv_amplitude", "growth_rate")
+#: Measures of the attractor, which a runaway run does not have: not drawn for those runs.
+ATTRACTOR_MEASURES = (
+    "lnv_amplitude",
+    "lnv_max",
+    "lnv_min",
+    "v_max",
+    "v_min",
+    "period",
+    "friction_drop",
+    "slip_per_event",
+)
+#: Colour of periodic cycles by their number of events (1, 2, 3 or more) in a refined map;
+#: the other attractors keep theirs (Okabe–Ito palette, colour-blind safe).
+CYCLE_COLOURS = {1: "#009E73", 2: "#F0E442", 3: "#56B4E9"}
+#: Markers over a refined map for the attractors whose cells are too small to see.
+RARE_MARKERS = {"quasi_periodic": "o", "chaotic": "*", "unresolved": "X", "unbounded": "^"}
+#: Colour of the line K/Kc = 1 over a refined map (on top of the black boundaries).
+KC_COLOUR = "#B2182B"
+#: Legend entry of the runs without an amplitude (runaway).
+RUNAWAY_TEXT = "runaway: no amplitude (no bounded attractor)"
 
 
 def plot_result(ds: xarray.Dataset, caption: str = "", ax: Axes | None = None) -> Figure:
@@ -97,14 +124,21 @@ def plot_result(ds: xarray.Dataset, caption: str = "", ax: Axes | None = None) -
     else:
         fig = _phase_line(ds)
     note = "; ".join(filter(None, [fixed_axes and f"at {fixed_axes}", initial_text(ds)]))
-    _suptitle(fig, [f"{ds.attrs.get('sweep_name', '')}: {describe(ds)}", note, caption])
+    title = f"{ds.attrs.get('sweep_name', '')}: {describe(ds)}"
+    _suptitle(fig, [title, note, scale_text(ds), caption])
     return fig
 
 
-def _kc_handle():
+def _kc_handle(ds):
     from matplotlib.lines import Line2D
 
-    return Line2D([], [], color="k", ls="--", lw=1.5, label="analytic Kc (K/Kc = 1)")
+    return Line2D([], [], color="k", ls="--", lw=1.5, label=kc_label(ds))
+
+
+def _runaway_handle():
+    from matplotlib.patches import Patch
+
+    return Patch(color=REGIME_COLOURS["runaway"], label=RUNAWAY_TEXT)
 
 
 def _phase_map(ds):
@@ -112,15 +146,15 @@ def _phase_map(ds):
     fig = new_figure(figsize=(14.5, 4.8))
     axes = fig.subplots(1, 1 + len(MEASURES), sharey=True)
     counts = _regime_map(axes[0], ds)
-    for ax, measure in zip(axes[1:], MEASURES, strict=True):
-        _measure_map(ax, ds, ds[measure])
+    masked = [_measure_map(ax, ds, ds[m]) for ax, m in zip(axes[1:], MEASURES, strict=True)]
     for ax in axes:
         _grid_axes(ax, ds)
     axes[0].set_ylabel(axis_label(ds[ydim]))
     present = [name for name in REGIMES if counts.get(name)]
     below = {"loc": "upper left", "bbox_to_anchor": (0, -0.15), "fontsize": 8, "frameon": False}
     regime_legend(axes[0], present, counts, ncol=2, **below)
-    axes[1].legend(handles=[_kc_handle()], **below)
+    handles = [_kc_handle(ds), *([_runaway_handle()] if any(masked) else [])]
+    axes[1].legend(handles=handles, **below)
     return fig
 
 
@@ -155,12 +189,18 @@ def _regime_map(ax, ds):
 def _measure_map(ax, ds, var):
     """One continuous variable of a 2-D result as a colour map on ``ax``: diverging
     about 0 if it changes sign, else logarithmic when it spans more than a decade;
-    grey where it was not measured (NaN). The colour bar names its units."""
-    from matplotlib.colors import LogNorm, Normalize, TwoSlopeNorm
+    grey where it was not measured (NaN). The colour bar names its units. A measure of
+    the attractor (:data:`ATTRACTOR_MEASURES`) is not drawn for runaway runs: their cells
+    get the runaway colour. Returns whether any cell did."""
+    from matplotlib.colors import ListedColormap, LogNorm, Normalize, TwoSlopeNorm
 
     xdim, ydim = ds["regime"].dims
     var = var.transpose(ydim, xdim)
     values = var.values.astype(float)
+    runaway = np.zeros(values.shape, bool)
+    if var.name in ATTRACTOR_MEASURES:
+        runaway = (ds["regime"] == REGIME_CODES["runaway"]).transpose(ydim, xdim).values
+        values[runaway] = np.nan
     finite = values[np.isfinite(values)]
     if finite.size == 0 or finite.min() < 0 < finite.max():
         top = np.abs(finite).max() if finite.size and finite.any() else 1.0
@@ -172,9 +212,13 @@ def _measure_map(ax, ds, var):
     cmap = cmap.with_extremes(bad="#DDDDDD")
     xe, ye = _edges(ds[xdim].values), _edges(ds[ydim].values)
     mesh = ax.pcolormesh(xe, ye, np.ma.masked_invalid(values), cmap=cmap, norm=norm)
-    grey = "\n(grey: not measured)" if finite.size < values.size else ""
+    if runaway.any():
+        colour = ListedColormap([REGIME_COLOURS["runaway"]])
+        ax.pcolormesh(xe, ye, np.ma.masked_where(~runaway, np.zeros(values.shape)), cmap=colour)
+    grey = "\n(grey: not measured)" if np.count_nonzero(~runaway) > finite.size else ""
     ax.figure.colorbar(mesh, ax=ax, label=axis_label(var) + grey)
     ax.set_title(var.attrs.get("long_name", var.name))
+    return bool(runaway.any())
 
 
 def _phase_line(ds):
@@ -184,19 +228,35 @@ def _phase_line(ds):
         _measure_line(ax, ds, measure, legend=i == 0)
         if i < len(axes) - 1:
             ax.set_xlabel("")
-    axes[-1].legend(handles=[*axes[-1].get_lines()[:1], _kc_handle()], loc="best", fontsize=8)
+    axes[-1].legend(handles=[*axes[-1].get_lines()[:1], _kc_handle(ds)], loc="best", fontsize=8)
     return fig
 
 
 def _measure_line(ax, ds, measure, legend=True):
     """One variable of a 1-D result against its sweep axis on ``ax``, points coloured by
-    regime (growth rate with the linear theory), the analytic Kc dashed."""
+    regime (growth rate with the linear theory), the Kc line dashed. A measure of the
+    attractor (:data:`ATTRACTOR_MEASURES`) is not drawn for runaway runs: they are marked
+    above the axes instead."""
     (xdim,) = ds["regime"].dims
     x = ds[xdim].values
     names = regime_names(ds)
     regime = ds["regime"].values
     counts = {name: int(np.count_nonzero(regime == code)) for code, name in names.items()}
     values = ds[measure].values.astype(float)
+    runaway = np.zeros(values.shape, bool)
+    if measure in ATTRACTOR_MEASURES:
+        runaway = ~bounded(ds).values
+        values[runaway] = np.nan
+        ax.scatter(
+            x[runaway],
+            np.full(runaway.sum(), 1.04),
+            marker="^",
+            s=18,
+            color=REGIME_COLOURS["runaway"],
+            transform=ax.get_xaxis_transform(),
+            clip_on=False,
+            zorder=3,
+        )
     if measure == "growth_rate":
         ax.plot(
             x,
@@ -209,7 +269,7 @@ def _measure_line(ax, ds, measure, legend=True):
     else:
         ax.plot(x, values, color="#BBBBBB", lw=1, zorder=1)
     for code, name in names.items():
-        sel = regime == code
+        sel = (regime == code) & ~runaway
         ax.scatter(x[sel], values[sel], color=REGIME_COLOURS[name], s=18, zorder=3)
     finite = values[np.isfinite(values)]
     if finite.size and finite.min() > 0 and finite.max() > 100 * finite.min():
@@ -322,11 +382,14 @@ def plot_variable(ds: xarray.Dataset, name: str, ax: Axes | None = None, block: 
 def plot_refined(ds, caption="", ax=None):
     """A refined result (``sweep/refine/lattice.py``); returns the Figure.
 
-    Over two refined axes: left, the cells at their level, each coloured by the regime
-    of its runs (a cell whose corners differ, by quarters: each its corner's), with the
-    boundaries between labels on top (``sweep.boundaries``: solid where the regime
-    changes, dashed where only the attractor or the number of events does) and the
-    analytic Kc (K/Kc = 1) dashed; right, the level of every cell. Over one refined axis:
+    Over two refined axes: left, the cells at their level, each coloured by the attractor
+    of its runs, periodic ones by their number of events (1, 2, 3 or more; with an
+    ensemble the regime of most members; a cell whose corners differ, by quarters: each
+    its corner's), the quasi-periodic, chaotic, unresolved and unbounded runs marked too
+    (:data:`RARE_MARKERS`: their cells are often too small to see), with the boundaries
+    between those colours on top (``sweep.boundaries``: solid where the attractor
+    changes, dashed where only the number of events does) and the Kc line (K/Kc = 1,
+    :func:`~sweep.plot.common.kc_label`); right, the level of every cell. Over one refined axis:
     the measures of :func:`plot_result` at every run, the boundaries' cells shaded.
     More axes: the grid of level 0 (:func:`plot_result`). With ``ax``: only the left
     panel, there. ``caption``: an extra title line.
@@ -340,37 +403,54 @@ def plot_refined(ds, caption="", ax=None):
     stopped = f"refined {len(ds.attrs['refine_runs']) - 1} levels, {ds['regime'].size} runs"
     if split > 2:
         return plot_result(to_grid(ds, 0), "; ".join(filter(None, [caption, stopped])), ax)
-    found = boundaries(ds)
     if split == 1:
+        found = boundaries(ds)
         fig = plot_result(along_axis(ds), "; ".join(filter(None, [stopped, caption])), ax)
         for a in fig.axes:
             for b in found:
                 x, width = b.vertices[0, 0], b.resolution[0, 0]
                 a.axvspan(x - width / 2, x + width / 2, color="k", alpha=0.15, lw=0)
         return fig
+    classes, outputs = _colour_classes(ds)
+    found = boundaries(classes, outputs)
     if ax is None:
-        fig = new_figure(figsize=(14.5, 5.6))
+        fig = new_figure(figsize=(14.5, 6.2))
         panels = fig.subplots(1, 2, sharex=True, sharey=True)
     else:
         fig, panels = ax.figure, (ax, None)
     counts = _refined_cells(panels[0], ds, lattice, "kind")
     if panels[1] is not None:
         _refined_cells(panels[1], ds, lattice, "level")
+    _draw_boundaries(panels[0], found)  # the levels' panel shows where they are by its cells
     for a in filter(None, panels):
-        _draw_boundaries(a, found)
-        _refined_axes(a, ds, lattice)
+        kc_drawn = _refined_axes(a, ds, lattice)
+    rare = _rare_markers(panels[0], ds, lattice)
     below = {"loc": "upper left", "bbox_to_anchor": (0, -0.12), "fontsize": 8, "frameon": False}
-    _kind_legend(panels[0], counts, ncol=3, **below)
+    _kind_legend(panels[0], counts, rare, ncol=2, **below)
     if panels[1] is not None:
-        panels[1].legend(handles=_boundary_handles(), **below)
+        panels[1].legend(handles=_boundary_handles(ds, outputs, kc_drawn), **below)
         runs = ", ".join(str(int(r)) for r in ds.attrs["refine_runs"])
         lines = [
             f"{ds.attrs.get('sweep_name', '')}: {describe(ds)}",
             f"{stopped}: {runs} runs per level; {initial_text(ds)}",
+            scale_text(ds),
             caption,
         ]
         _suptitle(fig, lines)
     return fig
+
+
+def _colour_classes(ds):
+    """``(ds, outputs)`` whose labels are the colours of a refined map's cells, for
+    ``sweep.boundaries``: the attractor and, of periodic runs, the number of events cut
+    at 3 (0 for the other attractors); with an ensemble ``ds`` and its own labels
+    (``outputs`` None)."""
+    if "regime_fraction" in ds or "cycle_events" not in ds:
+        return ds, None
+    periodic = ds["attractor"] == ds["attractor"].attrs["flag_meanings"].split().index("periodic")
+    top = max(CYCLE_COLOURS)
+    events = ds["cycle_events"].clip(1, top).where(periodic, 0).astype(ds["cycle_events"].dtype)
+    return ds.assign(cycle_events=events), ("attractor", "cycle_events")
 
 
 def _refined_cells(ax, ds, lattice, what):
@@ -422,6 +502,7 @@ def _refined_cells(ax, ds, lattice, what):
             clim=(-0.5, lattice.levels + 0.5),
             edgecolors="face",
             linewidths=0.2,
+            antialiased=False,
         )
         ax.add_collection(cells)
         ax.figure.colorbar(
@@ -436,11 +517,18 @@ def _refined_cells(ax, ds, lattice, what):
     norm = BoundaryNorm(np.arange(len(kinds) + 1) - 0.5, len(kinds))
     ax.add_collection(
         PolyCollection(
-            verts, array=colours, cmap=cmap, norm=norm, edgecolors="face", linewidths=0.2
+            verts,
+            array=colours,
+            cmap=cmap,
+            norm=norm,
+            edgecolors="face",
+            linewidths=0.2,
+            antialiased=False,  # sharp cells, and a PNG a third smaller
         )
     )
     what = "regime of most members" if "regime_fraction" in ds else "attractor"
-    ax.set_title(f"{what}, by cell; boundaries between labels")
+    between = "labels" if "regime_fraction" in ds else "colours"
+    ax.set_title(f"{what}, by cell; boundaries between {between}")
     return {k: int(np.count_nonzero(kind == c)) for c, k in enumerate(kinds)}
 
 
@@ -451,62 +539,134 @@ def _boxes(lows, size, x, y):
 
 def _cell_kinds(ds):
     """``(kinds, code per point)``: kinds are ``(colour, name)``; a point's code is its
-    attractor, or with an ensemble the regime of most members (the colours agree:
-    steady sliding and a fixed point are one blue, runaway and unbounded one red)."""
+    attractor, periodic ones split by their number of events (1, 2, 3 or more:
+    :data:`CYCLE_COLOURS`), or with an ensemble the regime of most members (the colours
+    agree: steady sliding and a fixed point are one blue, runaway and unbounded one red)."""
     if "regime_fraction" in ds:
         code = ds["regime_fraction"].transpose("point", "regime_name").values.argmax(axis=-1)
         return [(REGIME_COLOURS[name], name) for name in REGIMES], code
+    attractor = ds["attractor"].values
+    if "cycle_events" not in ds:
+        names = ds["attractor"].attrs["flag_meanings"].split()
+        return [(ATTRACTOR_COLOURS[name], name) for name in names], attractor
+    classes, _ = _colour_classes(ds)
+    events = classes["cycle_events"].values
+    kinds, code = [], np.empty(attractor.shape, int)
+    for c, name in enumerate(ds["attractor"].attrs["flag_meanings"].split()):
+        if name != "periodic":
+            code[attractor == c] = len(kinds)
+            kinds.append((ATTRACTOR_COLOURS[name], name))
+            continue
+        for n, colour in CYCLE_COLOURS.items():
+            code[(attractor == c) & (events == n)] = len(kinds)
+            more = " or more" if n == max(CYCLE_COLOURS) else ""
+            kinds.append((colour, f"periodic, {n}{more} event{'s' if n > 1 else ''} a cycle"))
+    return kinds, code
+
+
+def _rare_markers(ax, ds, lattice):
+    """Every run of a kind in :data:`RARE_MARKERS` marked at its point on ``ax``; returns
+    the kinds marked."""
+    if "regime_fraction" in ds:
+        return []
+    x, y = (lattice.axes[i].name for i in np.flatnonzero(lattice.split))
     names = ds["attractor"].attrs["flag_meanings"].split()
-    return [(ATTRACTOR_COLOURS[name], name) for name in names], ds["attractor"].values
+    attractor = ds["attractor"].values
+    marked = []
+    for name, marker in RARE_MARKERS.items():
+        sel = attractor == names.index(name)
+        if sel.any():
+            ax.scatter(
+                ds[x].values[sel],
+                ds[y].values[sel],
+                marker=marker,
+                s=16,
+                lw=0.6,
+                color=ATTRACTOR_COLOURS[name],
+                edgecolors="k",
+                zorder=4,
+            )
+            marked.append(name)
+    return marked
 
 
-def _kind_legend(ax, counts, **kwargs):
-    """A legend of the kinds present (``_refined_cells``' counts of runs)."""
+def _kind_legend(ax, counts, marked=(), **kwargs):
+    """A legend of the kinds present (``_refined_cells``' counts of runs); the kinds in
+    ``marked`` with their marker too."""
+    from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    handles = [
-        Patch(color=colour, label=f"{name.replace('_', '-')} ({n})")
-        for (colour, name), n in counts.items()
-        if n
-    ]
+    handles = []
+    for (colour, name), n in counts.items():
+        if not n:
+            continue
+        label = f"{name.replace('_', '-')} ({n})"
+        if name in marked:
+            handles.append(
+                Line2D(
+                    [],
+                    [],
+                    ls="",
+                    marker=RARE_MARKERS[name],
+                    color=colour,
+                    mec="k",
+                    mew=0.6,
+                    ms=7,
+                    label=f"{label}, marked",
+                )
+            )
+        else:
+            handles.append(Patch(color=colour, label=label))
     return ax.legend(handles=handles, **kwargs)
 
 
 def _draw_boundaries(ax, found):
-    """Boundary polylines on ``ax``: solid black where the regime changes, dashed where
-    only the attractor or the number of events does."""
+    """Boundary polylines on ``ax``: solid black where the first output of the labels
+    (the attractor, or with an ensemble the regime) changes, dashed where only the others
+    do."""
     for b in found:
-        regimes = [text.split(",")[0] for text in b.between]
-        style = "-" if regimes[0] != regimes[1] else "--"
+        first = [text.split(",")[0] for text in b.between]
+        style = "-" if first[0] != first[1] else "--"
         ax.plot(b.vertices[:, 0], b.vertices[:, 1], color="k", ls=style, lw=0.9)
 
 
-def _boundary_handles():
+def _boundary_handles(ds, outputs, kc_drawn):
+    """Legend entries of the boundaries (``outputs`` of :func:`_colour_classes`) and of
+    the Kc line if it is drawn."""
     from matplotlib.lines import Line2D
 
-    return [
-        Line2D([], [], color="k", lw=0.9, label="boundary: the regime changes"),
-        Line2D([], [], color="k", ls="--", lw=0.9, label="boundary: attractor or events change"),
-        Line2D([], [], color="k", ls=":", lw=1.5, label="analytic Kc (K/Kc = 1)"),
+    if outputs:
+        solid, dashed = "the attractor changes", "the number of events a cycle changes"
+    else:
+        solid, dashed = "the regime changes", "other labels change"
+    handles = [
+        Line2D([], [], color="k", lw=0.9, label=f"boundary (left): {solid}"),
+        Line2D([], [], color="k", ls="--", lw=0.9, label=f"boundary (left): {dashed}"),
     ]
+    if kc_drawn:
+        handles.append(Line2D([], [], color=KC_COLOUR, ls="-.", lw=1.8, label=kc_label(ds)))
+    return handles
 
 
 def _refined_axes(ax, ds, lattice):
-    """Limits, scales and labels of a map of a refined result, and the line K/Kc = 1."""
+    """Limits, scales and labels of a map of a refined result, and the line K/Kc = 1;
+    returns whether that line crosses the map."""
     from ..refine.dataset import to_grid
 
     x, y = (lattice.axes[i] for i in np.flatnonzero(lattice.split))
     coarse = to_grid(ds[["regime", "K_over_Kc", "critical_K_W"]], min(lattice.levels, 3))
     ratio = stiffness_ratio(coarse).transpose(y.name, x.name).values
-    if np.any(np.isfinite(ratio)):
+    crosses = bool(np.nanmin(ratio, initial=np.inf) < 1 < np.nanmax(ratio, initial=-np.inf))
+    if crosses:
         ax.contour(
             coarse[x.name].values,
             coarse[y.name].values,
             ratio,
             levels=[1.0],
-            colors="k",
-            linewidths=1.5,
-            linestyles=":",
+            colors=KC_COLOUR,
+            linewidths=1.8,
+            linestyles="-.",
+            zorder=5,
         )
     for axis, set_lim, set_scale, set_label in (
         (x, ax.set_xlim, ax.set_xscale, ax.set_xlabel),
@@ -516,3 +676,4 @@ def _refined_axes(ax, ds, lattice):
         set_lim(values.min(), values.max())
         set_scale("log" if axis.span and axis.span[0] == "log" else "linear")
         set_label(axis_label(ds[axis.name]))
+    return crosses

@@ -16,6 +16,7 @@ from .common import (
     axis_label,
     new_figure,
     parameter_text,
+    scale_text,
 )
 
 
@@ -68,7 +69,8 @@ def plot_nblock(sizes, spread, coupling, caption=""):
     ]
     axes[2].legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1))
     common = parameter_text({k: values[k] for k in ("A", "B", "D0", "V")})
-    _suptitle(fig, [f"{spread.attrs['model']}, {spread.attrs['state_law']} law: {common}", caption])
+    title = f"{spread.attrs['model']}, {spread.attrs['state_law']} law: {common}"
+    _suptitle(fig, [title, scale_text([spread, coupling]), caption])
     return fig
 
 
