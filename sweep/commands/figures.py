@@ -336,8 +336,8 @@ def figure_fast_events(config, points=8000):
     from ..engine.grid import build_grid
 
     if config.model != "inertial":
-        raise InputError(config.source, [f"model: the fast-events figure draws the inertial "
-                                         f"model (its M̂), not {config.model}"])  # fmt: skip
+        problem = f"model: the fast-events figure draws the inertial model, not {config.model}"
+        raise InputError(config.source, [problem])
     g = build_grid(pin_config(config, {a.name: a.values[0] for a in config.axes}))
     D0, V = float(g.physical["D0"][0]), float(g.physical["V"][0])  # µm, µm/s
     kc_w = float(g.linear["kappa_c"][0]) / D0  # µm⁻¹
