@@ -17,6 +17,7 @@ import numpy as np
 
 from ..model.physics import PARAMETERS
 from ..results.checks import check_result
+from ..results.gutenberg_richter import N_BOOTSTRAP
 from .common import (
     TITLE_PARAMETERS,
     _suptitle,
@@ -303,7 +304,8 @@ def catalogue_caption(ds: xarray.Dataset) -> list[str]:
     """Caption lines of a result with a catalogue: blocks, model, law, coupling and
     every fixed parameter; the spread (distribution, seed, size if fixed); the catalogue's
     threshold, transient, completeness and system-wide extent; the dimensionless mass
-    M̂ = m V²/(W D0) (or damping η̂ = ηV/W) and the largest v_max/V of its runs."""
+    M̂ = m V²/(W D0) (or damping η̂ = ηV/W) and the largest peak v/V of any block in
+    any slip event of its runs."""
     from ..results.dataset import parameter_values
 
     a = ds.attrs
@@ -346,9 +348,9 @@ def catalogue_caption(ds: xarray.Dataset) -> list[str]:
         regime.append(f"M̂ = mV²/(W D0) = {fixed['m_W'] * fixed['V'] ** 2 / d0:.3g}")
     if "eta_W" in fixed and "V" in fixed:
         regime.append(f"η̂ = ηV/W = {fixed['eta_W'] * fixed['V']:.3g}")
-    if "v_max" in ds and "V" in fixed:
-        top = float(ds["v_max"].max()) / fixed["V"]
-        regime.append(f"largest v_max/V of the runs shown = {top:.3g}")
+    if "slip_event_v_peak" in ds and "V" in fixed:  # any block's, not block 0's v_max
+        top = float(ds["slip_event_v_peak"].max()) / fixed["V"]
+        regime.append(f"largest v_max/V of the runs' slip events = {top:.3g}")
     lines.append(", ".join(regime))
     return lines
 
@@ -360,6 +362,10 @@ SENSITIVITY_PANELS = (
     ("recurrence_cv", ("recurrence_cv_low", "recurrence_cv_high")),
     ("b_value_ks_p", None),
 )
+
+
+#: Where a goodness-of-fit p-value of 0 (no synthetic sample as far as the data) is drawn.
+P_FLOOR = 1.0 / N_BOOTSTRAP
 
 
 def plot_threshold_sensitivity(ds: xarray.Dataset) -> Figure:
@@ -382,6 +388,8 @@ def plot_threshold_sensitivity(ds: xarray.Dataset) -> Figure:
             values = run[name]
             if name in STATUS_OF:
                 values = values.where(run[STATUS_OF[name]] == 0)
+            if name == "b_value_ks_p":  # p = 0: no synthetic sample was as far
+                values = values.clip(min=P_FLOOR)
             seeds = "spread_seed" in values.dims
             mid = values.mean("spread_seed") if seeds else values
             (line,) = ax.plot(thr, mid, "o-", label=label)
@@ -398,8 +406,11 @@ def plot_threshold_sensitivity(ds: xarray.Dataset) -> Figure:
         ax.set_xlabel(axis_label(ds["slip_v_over_V"]))
         ax.set_title(textwrap.fill(ds[name].attrs.get("long_name", name), 30), fontsize=9)
     axes[-1].set_yscale("log")
+    axes[-1].set_ylim(P_FLOOR / 2, 1.5)
     axes[-1].axhline(0.1, color="grey", ls=":", lw=1)
-    axes[0].legend(fontsize=8)
+    axes[-1].axhline(P_FLOOR, color="grey", lw=0.5)
+    axes[-1].text(thr[0], P_FLOOR * 1.2, f"p < 1/{N_BOOTSTRAP} drawn here", fontsize=7)
+    axes[0].legend(fontsize=8, loc="upper left")
     note = "shaded: range over the seeds" if "spread_seed" in ds.dims else "shaded: 95 % interval"
     lines = catalogue_caption(ds)  # the threshold is the x axis, not a fixed setting
     lines[1] = re.sub(r"slip threshold v > [^,]+ V(, )?", "", lines[1])
