@@ -8,18 +8,20 @@ along a ``slip_v_over_V`` dimension, statistics included, for ``plot_threshold_s
 (``make figures``: ``results/catalogue_threshold.png``).
 """
 
+import os
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 import xarray as xr
 
-from ..config import load_config, with_changes
+from ..config import Config, load_config, with_changes
 from ..engine.runner import compute
 from ..errors import InputError
 
 
 def threshold_sensitivity(
-    config,
+    config: str | os.PathLike | Mapping[str, Any] | Config,
     thresholds: Sequence[float],
     sweep: Mapping[str, Sequence[float]] | None = None,
     threads: int | None = None,

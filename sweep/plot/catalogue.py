@@ -369,13 +369,24 @@ P_FLOOR = 1.0 / N_BOOTSTRAP
 
 
 def plot_threshold_sensitivity(ds: xarray.Dataset) -> Figure:
-    """How a catalogue's statistics move with its slip threshold: a result of
-    :func:`sweep.threshold_sensitivity` (dimension
-    ``slip_v_over_V``); one line per point of its other axes (their mean and range over
+    """How a catalogue's statistics move with its slip threshold.
+
+    One line per point of the result's other axes (their mean and range over
     ``spread_seed`` if it has one): the number of events, the system-wide fraction, the
-    recurrence's CV (with its interval, where it applies) and the goodness-of-fit p-value
-    of the Gutenberg–Richter law (the b-value is given only above the dotted 0.1).
-    Returns the Figure."""
+    recurrence's CV (with its 95 % interval, where it applies) and the goodness-of-fit
+    p-value of the Gutenberg–Richter law (the b-value is given only above the dotted
+    0.1; p = 0 is drawn at :data:`P_FLOOR`). Statistics that do not apply are left out.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result of :func:`sweep.threshold_sensitivity` (dimension ``slip_v_over_V``).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Four panels against the threshold, titled with every fixed setting.
+    """
     fig = new_figure(figsize=(13, 4.8))
     axes = fig.subplots(1, len(SENSITIVITY_PANELS))
     thr = ds["slip_v_over_V"].values
