@@ -120,12 +120,12 @@ def plot_catalogue(
     space, sizes = fig.subplots(1, 2, width_ratios=(2.2, 1))
     _space_time(fig, space, ev, int(ds.attrs["blocks"]))
     _size_frequency(sizes, ev, run)
-    where = parameter_text(
-        {
-            k: float(run[k])
-            for k in ds["slip_event_start"].dims[:-1]
-            if k in run.coords and k != "member"
-        }
+    axes = {k: float(run[k]) for k in ds["slip_event_start"].dims[:-1] if k in run.coords}
+    spreads = [f"{k} = {v:g}" for k, v in axes.items() if k.startswith("spread_")]
+    where = ", ".join(
+        t
+        for t in (parameter_text({k: v for k, v in axes.items() if k in PARAMETERS}), *spreads)
+        if t
     )
     kept = f"{count} of {int(run['slip_event_count'])} events kept"
     lines = catalogue_caption(ds) if caption else []
