@@ -10,7 +10,7 @@ the law passes its goodness-of-fit test with enough events over a magnitude unit
 (else NaN, and ``b_value_status`` says why), the share and recurrence of the
 system-wide events (extent ≥ 0.9 of the chain; recurrence from ten intervals on).
 Here the packaged ``long_chain`` (100 inertial blocks, ``rosenbrock-structured``) is
-cut to 24 blocks and one coupling, two disorders and 1000 D0/V, so that the example
+cut to 24 blocks, one coupling, two disorders of one seed and 1000 D0/V, so that the example
 takes seconds: too few events for a b-value, as the status says.
 """
 
@@ -21,7 +21,7 @@ config = sweep.with_changes(
     {
         "blocks": 24,
         "initial": {"v_over_V": 1.0, "phi_over_phi_ss": 1.05},
-        "sweep": {"k2_W": [0.3], "spread_D0": [0.0, 0.3]},
+        "sweep": {"k2_W": [0.3], "spread_D0": [0.0, 0.3], "spread_seed": [1]},
         "integrator": {"t_end": 1000.0},
         "catalogue": {"after": 0.2},
     },

@@ -12,8 +12,10 @@ Importing the package compiles nothing; kernels compile on first use::
 Kernels: :func:`compile_kernels` (warm numba's cache before job arrays);
 configs: :func:`load_config`, :func:`with_changes`, :func:`examples.names`;
 figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
-:func:`plot_orbit_diagram`, :func:`plot_trace`, :func:`plot_catalogue` (``sweep/plot/``,
-one module per family); slip-event statistics: :func:`catalogue_statistics`;
+:func:`plot_orbit_diagram`, :func:`plot_trace`, :func:`plot_catalogue`,
+:func:`plot_threshold_sensitivity` (``sweep/plot/``, one module per family); slip-event
+statistics: :func:`catalogue_statistics`, against the slip threshold:
+:func:`threshold_sensitivity`;
 statistics over realisations of the disorder (seeds): :func:`over_realisations`;
 traces: :func:`compute_trace`; refined results: :func:`to_grid`, :func:`boundaries`;
 files: :func:`read_result`, :func:`write_netcdf`; runs with parts, shards and Dask:
@@ -35,6 +37,8 @@ _LAZY = {
     "plot_trace": "plot",
     "save_figure": "plot",
     "plot_catalogue": "plot",
+    "plot_threshold_sensitivity": "plot",
+    "threshold_sensitivity": "commands.sensitivity",
     "catalogue_statistics": "results.catalogue_statistics",
     "over_realisations": "results.realisations",
     "to_grid": "refine.dataset",
@@ -86,6 +90,7 @@ __all__ = [
     "plot_catalogue",
     "plot_orbit_diagram",
     "plot_result",
+    "plot_threshold_sensitivity",
     "plot_trace",
     "plot_variable",
     "run",
@@ -93,5 +98,6 @@ __all__ = [
     "SweepError",
     "boundaries",
     "to_grid",
+    "threshold_sensitivity",
     "with_changes",
 ]

@@ -194,33 +194,40 @@ VARIABLES = (
              "classification_slip_v_over_V)",
              feature="catalogue"),
     Variable("slip_event_start", "float64", "s", "start of the slip event",
-             "time from the run's start at which the first block's v rose through the slip "
-             "threshold; NaN beyond the events kept", feature="catalogue", dim="slip_event"),
+             "time from the run's start at which the event's first block's v rose through "
+             "the slip threshold (an event: a connected rupture, blocks slipping that are "
+             "neighbours and overlap in time); NaN beyond the events kept",
+             feature="catalogue", dim="slip_event"),
     Variable("slip_event_duration", "float64", "s", "duration of the slip event",
-             "from its start to where the last block's v fell through the threshold",
+             "from its start to where its last block's v fell through the threshold",
              feature="catalogue", dim="slip_event"),
     Variable("slip_event_first_block", "int32", "1", "block where the slip event began",
-             "-1: no event", feature="catalogue", dim="slip_event"),
+             "its hypocentre (where two events merged, the earlier one's); -1: no event",
+             feature="catalogue", dim="slip_event"),
     Variable("slip_event_blocks", "int32", "1", "blocks that slipped in the slip event",
-             "blocks whose v exceeded the threshold during the event; -1: no event",
+             "blocks whose v exceeded the threshold in the event; -1: no event",
              feature="catalogue", dim="slip_event"),
     Variable("slip_event_extent", "int32", "1", "extent of the slip event",
-             "blocks spanned by those that slipped: lowest to highest index (chain), the "
-             "shortest arc holding them (ring), their number (all); -1: no event",
+             "blocks spanned by the rupture along the chain or ring (connected: its blocks); "
+             "all-to-all coupling: the blocks that slipped; -1: no event",
              feature="catalogue", dim="slip_event"),
-    Variable("slip_event_block_low", "int32", "1", "lowest block that slipped", "-1: no event",
+    Variable("slip_event_block_low", "int32", "1", "first block of the slip event",
+             "going up the chain (ring: the arc's first, above block_high where it wraps "
+             "past block 0); -1: no event",
              feature="catalogue", dim="slip_event"),
-    Variable("slip_event_block_high", "int32", "1", "highest block that slipped", "-1: no event",
+    Variable("slip_event_block_high", "int32", "1", "last block of the slip event",
+             "going up the chain (ring: the arc's last); -1: no event",
              feature="catalogue", dim="slip_event"),
     Variable("slip_event_slip", "float64", "um", "slip of the slip event",
-             "sum over the blocks that slipped of each one's slip during the event (integral "
-             "of v over it, integrated with the solution): a moment-like size, the potency "
-             "per block area", feature="catalogue", dim="slip_event"),
+             "sum over its blocks of each one's slip while it slipped in the event (integral "
+             "of v over that time, integrated with the solution): a moment-like size, the "
+             "potency per block area", feature="catalogue", dim="slip_event"),
     Variable("slip_event_magnitude", "float64", "1", "magnitude of the slip event",
              "(2/3) log10(slip_event_slip / D0), the moment magnitude's scaling",
              feature="catalogue", dim="slip_event"),
     Variable("slip_event_v_peak", "float64", "um s-1", "peak slip velocity of the slip event",
-             "largest v of any block during the event", feature="catalogue", dim="slip_event"),
+             "largest v of its blocks while they slipped in the event",
+             feature="catalogue", dim="slip_event"),
     Variable("slip_event_moment", "float64", "N m", "seismic moment of the slip event",
              "M0 = G a S: catalogue_shear_modulus G x catalogue_block_area a x summed slip S "
              "(in m), all blocks alike", feature="moment", dim="slip_event"),

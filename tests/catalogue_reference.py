@@ -2,11 +2,12 @@
 block's slip as a state variable, and the events are cut from its dense output.
 
 Written from the physics brief (log form, ``shared/physics.md``) and the catalogue's
-definition (``sweep/kernels/slip_events.py`` docstring), not from the engine: an event
-lasts while some block's v/V exceeds the threshold; it begins where the first block
-rises through it and ends where the last one falls through it; a block slipped in it
-if its v exceeded the threshold; the event's slip is the sum of those blocks' slip
-s_i(t_end) − s_i(t_start), s_i' = v_i/V (in D0). Time in D0/V.
+definition (``sweep/kernels/slip_events.py`` docstring), not from the engine: a block
+slips while its v/V exceeds the threshold (an episode, from its rise through it to its
+fall); an event is a connected cluster of episodes, those of neighbouring blocks that
+overlap in time (cut here by union–find over every pair, not as the engine does it, in
+time order); it begins at its first rise and ends at its last fall, and its slip is the
+sum of its episodes' slip s_i(fall) − s_i(rise), s_i' = v_i/V (in D0). Time in D0/V.
 
 Models: quasi-dynamic (ℓ_i' = [load − B ψ_i'] / (A + η̂ e^ℓ_i)) and inertial
 (ℓ_i' = z_i e^(−ℓ_i)/M̂, z_i' = load − B ψ_i' − A ℓ_i'), aging law, identical A, B and
@@ -90,58 +91,76 @@ class ChainModel:
         return sol
 
 
-def catalogue(model, sol, threshold_lnv, after=0.0):
-    """The events of a run ``sol`` of ``model`` (:class:`ChainModel`) that began at or
-    after ``after``: a list of dicts with ``start``, ``end`` (D0/V), ``first``,
-    ``blocks`` (how many slipped), ``slip`` (summed, D0) and ``lnv_peak``."""
+def episodes(model, sol, threshold_lnv):
+    """Each block's slip episodes: ``(block, rise, fall)`` with v_i above the threshold
+    from ``rise`` to ``fall`` (D0/V; rise 0 for a block above it at the start, fall NaN
+    for one still above it at the end), crossings by Brent on the dense output."""
     n, t = model.n, sol.t
-    lnv = sol.y[:n]
-    crossings = []  # (time, block, rising)
-    for i in range(n):
-        above = lnv[i] > threshold_lnv
-        for k in np.flatnonzero(above[1:] != above[:-1]):
-            f = lambda s, i=i: sol.sol(s)[i] - threshold_lnv  # noqa: E731
-            crossings.append((brentq(f, t[k], t[k + 1], xtol=1e-14, rtol=1e-15), i, not above[k]))
-    crossings.sort()
-    events, up, current = [], set(), None
-    for time, block, rising in crossings:
-        if rising:
-            if not up:
-                current = {"start": time, "first": block, "slipped": set()}
-            up.add(block)
-            current["slipped"].add(block)
-        else:
-            up.discard(block)
-            if not up and current is not None:
-                current["end"] = time
-                events.append(current)
-                current = None
     out = []
-    for e in events:
-        if e["start"] < after:
-            continue
-        s0, s1 = sol.sol(e["start"])[-n:], sol.sol(e["end"])[-n:]
-        blocks = sorted(e["slipped"])
-        peak = _peak(sol, n, e["start"], e["end"], t)
-        out.append({"start": e["start"], "end": e["end"], "first": e["first"],
-                    "blocks": len(blocks), "slip": float((s1 - s0)[blocks].sum()),
-                    "lnv_peak": peak})  # fmt: skip
+    for i in range(n):
+        above = sol.y[i] > threshold_lnv
+        f = lambda s, i=i: sol.sol(s)[i] - threshold_lnv  # noqa: E731
+        times = [brentq(f, t[k], t[k + 1], xtol=1e-14, rtol=1e-15)
+                 for k in np.flatnonzero(above[1:] != above[:-1])]  # fmt: skip
+        if above[0]:
+            times.insert(0, t[0])
+        if above[-1]:
+            times.append(np.nan)
+        out += [(i, times[k], times[k + 1]) for k in range(0, len(times), 2)]
     return out
 
 
-def _peak(sol, n, start, end, t):
-    """The largest ℓ_i of any block over [start, end]: sampled on the solver's steps
-    (nine points each), then refined by bounded Brent on the dense output around each
-    block's three largest sampled local maxima."""
+def catalogue(model, sol, threshold_lnv, after=0.0):
+    """The events of a run ``sol`` of ``model`` (:class:`ChainModel`, an open chain) that
+    began at or after ``after``, in the order they ended: connected clusters of episodes
+    (:func:`episodes`), two episodes being connected when their blocks are neighbours and
+    their times overlap (union–find over every pair). A list of dicts with ``start``,
+    ``end`` (D0/V), ``first`` (the block that rose first), ``blocks`` (how many slipped),
+    ``slip`` (Σ of each episode's s_i(fall) − s_i(rise), D0) and ``lnv_peak``."""
+    eps = episodes(model, sol, threshold_lnv)
+    parent = list(range(len(eps)))
+
+    def root(k):
+        while parent[k] != k:
+            k = parent[k]
+        return k
+
+    for a, (i, r1, f1) in enumerate(eps):
+        for b, (j, r2, f2) in enumerate(eps[:a]):
+            ends_a, ends_b = (np.inf if np.isnan(f1) else f1), (np.inf if np.isnan(f2) else f2)
+            if abs(i - j) == 1 and r1 <= ends_b and r2 <= ends_a:
+                parent[root(a)] = root(b)
+    clusters = {}
+    for k in range(len(eps)):
+        clusters.setdefault(root(k), []).append(eps[k])
+    n, out = model.n, []
+    for members in clusters.values():
+        falls = [f for _, _, f in members]
+        if np.isnan(falls).any():
+            continue  # still going at the end of the run
+        first, start = min(((r, i) for i, r, _ in members))[::-1]
+        if start < after:
+            continue
+        slip = sum(sol.sol(f)[-n:][i] - sol.sol(r)[-n:][i] for i, r, f in members)
+        peak = max(_peak(sol, i, r, f, sol.t) for i, r, f in members)
+        out.append({"start": start, "end": max(falls), "first": first,
+                    "blocks": len({i for i, _, _ in members}), "slip": float(slip),
+                    "lnv_peak": peak})  # fmt: skip
+    return sorted(out, key=lambda e: e["end"])
+
+
+def _peak(sol, block, start, end, t):
+    """The largest ℓ of ``block`` over [start, end]: sampled on the solver's steps (nine
+    points each), then refined by bounded Brent on the dense output around its three
+    largest sampled local maxima."""
     inside = t[(t > start) & (t < end)]
     grid = np.concatenate([[start], inside, [end]])
     fine = np.unique(np.linspace(grid[:-1], grid[1:], 9, axis=1))
-    values = sol.sol(fine)[:n]
-    peak = float(values.max())
-    for block, row in enumerate(values):
-        humps = np.flatnonzero((row[1:-1] >= row[:-2]) & (row[1:-1] >= row[2:])) + 1
-        for k in humps[np.argsort(row[humps])[-3:]]:
-            best = minimize_scalar(lambda s, b=block: -sol.sol(s)[b], bounds=fine[[k - 1, k + 1]],
-                                   method="bounded", options={"xatol": 1e-12})  # fmt: skip
-            peak = max(peak, -float(best.fun))
+    row = sol.sol(fine)[block]
+    peak = float(row.max())
+    humps = np.flatnonzero((row[1:-1] >= row[:-2]) & (row[1:-1] >= row[2:])) + 1
+    for k in humps[np.argsort(row[humps])[-3:]]:
+        best = minimize_scalar(lambda s: -sol.sol(s)[block], bounds=fine[[k - 1, k + 1]],
+                               method="bounded", options={"xatol": 1e-12})  # fmt: skip
+        peak = max(peak, -float(best.fun))
     return peak

@@ -74,15 +74,15 @@ def engine_events(ds, d0_ref):
     }
 
 
-def compare_catalogues(config, K_W, k2_W, t_end, method, time_tol, slip_tol):
+def compare_catalogues(config, K_W, k2_W, t_end, method, time_tol, slip_tol, min_events=10):
     """The engine's catalogue of ``config`` against SciPy's (``method``, rtol 1e-10) of the
-    same chain from the same start: every event, in order."""
+    same chain from the same start: every event, in order (at least ``min_events``)."""
     ds = sweep.run(config)
     model, d0_ref = reference_model(config, K_W, k2_W)
     y0 = grid.build_grid(config).y0[0]
     ref = catalogue(model, model.run(y0, t_end, method=method), math.log(2.0))
     got = engine_events(ds, d0_ref)
-    assert len(ref) >= 10
+    assert len(ref) >= min_events
     assert len(got["start"]) == len(ref)
     for key in ("first", "blocks"):
         assert list(got[key]) == [e[key] for e in ref], key
@@ -148,6 +148,28 @@ def test_chaotic_chain_statistics_agree_within_sampling_error():
     assert abs(f - f_ref) < 3 * math.sqrt(f_ref * (1 - f_ref) * (1 / n_ref + 1 / n_got))
 
 
+@pytest.mark.slow
+def test_two_ruptures_apart_are_two_events():
+    """Blocks 2 and 11 of the chain start slipping (15 V and 10 V), steady sliding stable
+    (K/W = 0.08 um⁻¹ above every block's one-block Kc/W, at most 0.062): each drags its
+    neighbours over the threshold and dies out: two connected ruptures at once (blocks
+    0–3 and 10–12), not one window. Each matches SciPy's (DOP853, rtol 1e-10; clusters
+    cut by the reference's own union–find) in start, end, first block, blocks and slip."""
+    v0 = [1.0] * N_CHAIN
+    v0[2], v0[11] = 15.0, 10.0
+    config = chain_config("quasi-dynamic", 0.08, 0.3, 5.0,
+                          initial={"v_over_V": v0, "phi_over_phi_ss": 1.0})  # fmt: skip
+    got, ref = compare_catalogues(config, 0.08, 0.3, 5.0, "DOP853", 1e-6, 1e-6, min_events=2)
+    assert len(ref) == 2
+    ds = sweep.run(config).squeeze()
+    low, high = ds.slip_event_block_low.values[:2], ds.slip_event_block_high.values[:2]
+    spans = sorted(zip(low, high, strict=True))
+    assert spans[0][1] + 1 < spans[1][0]  # apart: a still block between them
+    assert {int(ds.slip_event_extent[k]) for k in range(2)} == {
+        int(ds.slip_event_blocks[k]) for k in range(2)
+    }  # connected: every block of the span slipped
+
+
 def one_block(**extra):
     """One quasi-dynamic block on its stick-slip cycle (K/W half its Kc/W)."""
     return make_config({
@@ -201,6 +223,31 @@ def test_threshold_of_the_catalogue():
     np.testing.assert_allclose(high.recurrence_mean, low.recurrence_mean, rtol=1e-7)
     np.testing.assert_allclose(high.slip_event_v_peak.max("slip_event"),
                                low.slip_event_v_peak.max("slip_event"), rtol=1e-8)  # fmt: skip
+
+
+def test_threshold_sensitivity_stacks_the_runs_of_each_threshold():
+    """``threshold_sensitivity`` gives, along ``slip_v_over_V``, what a run with each
+    threshold gives (here on one K/W of two), and refuses what it cannot run."""
+    from sweep.commands.sensitivity import threshold_sensitivity
+
+    config = one_block(catalogue={"capacity": 50, "after": 0.5})
+    ds = threshold_sensitivity(config, [2.0, 5.0], sweep={"K_W": [0.02]}, threads=1)
+    assert list(ds.slip_v_over_V.values) == [2.0, 5.0] and ds.sizes["K_W"] == 1
+    for value in (2.0, 5.0):
+        alone = sweep.run(
+            one_block(
+                catalogue={"capacity": 50, "after": 0.5, "slip_v_over_V": value},
+                sweep={"K_W": [0.02]},
+            ),
+            progress=False,
+        )
+        for name in ("slip_event_duration", "slip_event_slip", "system_wide_fraction"):
+            xr.testing.assert_identical(ds[name].sel(slip_v_over_V=value, drop=True), alone[name])
+    with pytest.raises(sweep.InputError, match="catalogue.capacity"):
+        threshold_sensitivity(one_block(), [2.0])
+    for bad in ([], [2.0, 2.0], [0.0]):
+        with pytest.raises(sweep.InputError, match="thresholds"):
+            threshold_sensitivity(config, bad)
 
 
 def test_capacity_transient_and_fill():

@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import xarray as xr
 from conftest import python_stdout
 
 from sweep.cli import main
@@ -21,7 +22,8 @@ CONFIGS = ROOT / "configs"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 PAPER_FIGURES = (
     "fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation", "nblock",
-    "route_to_chaos", "refined_unequal_qd", "long_chain", "fast_events",
+    "route_to_chaos", "refined_unequal_qd", "long_chain", "catalogue_threshold",
+    "fast_events",
 )  # fmt: skip
 
 
@@ -675,3 +677,36 @@ def test_a_png_is_saved_without_alpha_and_without_loss(tmp_path):
         assert image.info["dpi"] == pytest.approx((80, 80), abs=0.01)
     assert reference.shape[-1] == 4 and (reference[..., 3] == 1).all()
     np.testing.assert_array_equal(matplotlib.image.imread(path), reference[..., :3])
+
+
+def test_catalogue_map_over_seeds_means_where_the_statistic_applies():
+    """A catalogue map of a result with realisations (``spread_seed``): each cell is the
+    mean over the seeds where the statistic applies (status ok), written with their
+    standard deviation and count; a cell where it applies at no seed is blank with the
+    commonest reason."""
+    from sweep.codes import B_VALUE_STATUSES
+    from sweep.plot.catalogue import catalogue_map
+    from sweep.plot.common import new_figure
+
+    b = np.array([[[1.0, 1.2, 9.0], [0.5, 0.7, 0.9]], [[2.0, 3.0, 4.0], [0.8, 0.8, 0.8]]])
+    status = np.zeros(b.shape, int)
+    status[0, 0, 2] = 4  # rejected at one seed: the 9.0 is left out
+    status[1, 0, :] = [1, 3, 3]  # applies at no seed: blank, the commonest reason
+    coords = {"k2_W": [0.1, 1.0], "spread_D0": [0.0, 0.3], "spread_seed": [1, 2, 3]}
+    dims = ("k2_W", "spread_D0", "spread_seed")
+    ds = xr.Dataset(
+        {
+            "b_value": (dims, b, {"long_name": "b-value", "units": "1"}),
+            "b_value_status": (dims, status, {"flag_meanings": " ".join(B_VALUE_STATUSES)}),
+        },
+        coords,
+    )
+    ax = new_figure().subplots()
+    catalogue_map(ds, "b_value", ax)
+    cells = ax.collections[0].get_array()
+    expected = [[1.1, 0.7], [np.nan, 0.8]]  # rows k2_W, columns spread_D0
+    np.testing.assert_allclose(np.ma.filled(cells, np.nan).reshape(2, 2), expected)
+    texts = {t.get_text() for t in ax.texts}
+    assert "1.1 ± 0.1\n(2/3 seeds)" in texts and "0.7 ± 0.2\n(3/3 seeds)" in texts
+    assert B_VALUE_STATUSES[3].replace("_", "\n") in texts
+    assert "mean over 3 seeds" in ax.get_title().replace("\n", " ")

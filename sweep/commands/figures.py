@@ -314,6 +314,12 @@ def figure_long_chain(ds, point=None):
     return fig
 
 
+#: Slip thresholds v/V of the long chain's sensitivity figure, and the part of its grid
+#: they are run on: the weakest and strongest coupling, the middle spread, one seed.
+THRESHOLDS = (2.0, 3.0, 5.0, 10.0, 20.0)
+THRESHOLD_SWEEP = {"k2_W": [0.1, 1.0], "spread_D0": [0.15], "spread_seed": [1]}
+
+
 #: K/Kc of the two traces of the fast-events figure (points of ``configs/fast_events.yaml``)
 #: and their length in D0/V: past those runs' early exit (484 and 498 D0/V), so the
 #: classifier has decided, with nine events or more at the longer period (66 D0/V).
@@ -330,8 +336,8 @@ def figure_fast_events(config, points=8000):
     from ..engine.grid import build_grid
 
     if config.model != "inertial":
-        raise InputError(config.source, [f"model: the fast-events figure draws the inertial "
-                                         f"model (its M̂), not {config.model}"])  # fmt: skip
+        problem = f"model: the fast-events figure draws the inertial model, not {config.model}"
+        raise InputError(config.source, [problem])
     g = build_grid(pin_config(config, {a.name: a.values[0] for a in config.axes}))
     D0, V = float(g.physical["D0"][0]), float(g.physical["V"][0])  # µm, µm/s
     kc_w = float(g.linear["kappa_c"][0]) / D0  # µm⁻¹
@@ -380,14 +386,18 @@ def make_figures(
     Configs are paths or names of packaged examples (``sweep/examples.py``), so
     this works from any folder; ``route``: the 1-D sweep whose orbit diagram is drawn;
     ``refined``: the refined sweep whose cells and boundaries are drawn; ``long_chain``:
-    the sweep with a catalogue whose statistics and busiest run are drawn; ``fast``: the
-    inertial one-block config whose fast events are traced (:func:`figure_fast_events`).
-    ``suffix``: ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
+    the sweep with a catalogue whose statistics and busiest run are drawn, and whose
+    statistics are drawn against the slip threshold (:data:`THRESHOLDS` on
+    :data:`THRESHOLD_SWEEP`, ``catalogue_threshold``); ``fast``: the inertial one-block
+    config whose fast events are traced (:func:`figure_fast_events`). ``suffix``:
+    ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
     """
     from ..engine.dispatch import load_kernels
     from ..engine.grid import build_grid
     from ..engine.runner import compute
     from ..plot import plot_bifurcation, plot_orbit_diagram, plot_result
+    from ..plot.catalogue import plot_threshold_sensitivity
+    from .sensitivity import threshold_sensitivity
 
     out_dir = Path(out_dir)
     # every input and the output folder are checked before any work
@@ -437,6 +447,9 @@ def make_figures(
     paths.append(save_figure(fig, out_dir / f"refined_{refined_config.name}{suffix}", dpi))
     fig = figure_long_chain(compute(chain_config, threads=threads, show_progress=False))
     paths.append(save_figure(fig, out_dir / f"{chain_config.name}{suffix}", dpi))
+    sensitivity = threshold_sensitivity(chain_config, THRESHOLDS, THRESHOLD_SWEEP, threads)
+    fig = plot_threshold_sensitivity(sensitivity)
+    paths.append(save_figure(fig, out_dir / f"catalogue_threshold{suffix}", dpi))
     fig = figure_fast_events(fast_config)
     paths.append(save_figure(fig, out_dir / f"{fast_config.name}{suffix}", dpi))
     return paths

@@ -237,13 +237,13 @@ MAX_CATALOGUE_BYTES = 4 * 2**30
 
 @dataclass(frozen=True)
 class Catalogue:
-    """The catalogue of slip events of each run (``sweep/results/catalogue_statistics.py``). An
-    event lasts while any block slips (v/V above ``slip_v_over_V``, by default the
-    threshold of ``slip_participation``, ``classification.slip_v_over_V``); each run
-    keeps its first ``capacity`` events that start after ``after`` × t_end (0: the
-    catalogue is off) and counts them all. In a long chain some block is nearly always
-    above a low threshold: events then never end, and the threshold must be raised.
-    ``system_wide_extent`` defines the system-wide events of the statistics;
+    """The catalogue of slip events of each run (``sweep/kernels/slip_events.py``,
+    ``sweep/results/catalogue_statistics.py``). An event is a connected rupture: blocks
+    slipping (v/V above ``slip_v_over_V``, by default the threshold of
+    ``slip_participation``, ``classification.slip_v_over_V``), neighbours along the chain
+    or ring, overlapping in time; each run keeps the first ``capacity`` events to end of
+    those that start after ``after`` × t_end (0: the catalogue is off) and counts them
+    all. ``system_wide_extent`` defines the system-wide events of the statistics;
     ``shear_modulus`` and ``block_area`` (both or neither) add each event's seismic
     moment and moment magnitude."""
 

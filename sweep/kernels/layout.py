@@ -139,18 +139,18 @@ N_RESULTS = next(_r)
 
 
 # Then, with a catalogue (S_CATALOGUE > 0): the number of slip events the run had (all,
-# kept or not), then S_CATALOGUE events of N_EVENT_FIELDS columns each (E_*), NaN where
-# none (kernels/slip_events.py).
+# kept or not), then the first S_CATALOGUE to end of N_EVENT_FIELDS columns each (E_*),
+# NaN where none (kernels/slip_events.py: an event is a connected rupture).
 _e = itertools.count()
-E_T_START = next(_e)  # time the first block's v rose through the threshold (D0/V)
-E_T_END = next(_e)  # time the last block's v fell through it (D0/V)
-E_FIRST_BLOCK = next(_e)  # the block whose v rose through it first
-E_N_BLOCKS = next(_e)  # blocks whose v exceeded it during the event
-E_EXTENT = next(_e)  # blocks spanned by them along the chain (ring: the shortest arc; all: count)
-E_BLOCK_LO = next(_e)  # the lowest index of a block that slipped
-E_BLOCK_HI = next(_e)  # the highest
-E_SLIP = next(_e)  # Σ over those blocks of their slip during the event, ∫ v_i/V dτ (D0)
-E_LNV_PEAK = next(_e)  # the largest ln(v/V) of any block during the event
+E_T_START = next(_e)  # time the event's first block rose through the threshold (D0/V)
+E_T_END = next(_e)  # time its last one fell through it (D0/V)
+E_FIRST_BLOCK = next(_e)  # the block that rose through it first (the hypocentre)
+E_N_BLOCKS = next(_e)  # blocks that slipped in the event
+E_EXTENT = next(_e)  # blocks it spans: along the chain or ring (all-to-all: E_N_BLOCKS)
+E_BLOCK_LO = next(_e)  # its first block going up the chain (ring: the arc's, may exceed E_BLOCK_HI)
+E_BLOCK_HI = next(_e)  # its last
+E_SLIP = next(_e)  # Σ of its blocks' slip while they slipped in it, ∫ v_i/V dτ (D0)
+E_LNV_PEAK = next(_e)  # the largest ln(v/V) of its blocks while they slipped in it
 N_EVENT_FIELDS = next(_e)
 
 

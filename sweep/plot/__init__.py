@@ -12,7 +12,7 @@ they share (colours, labels, titles, saving).
 """
 
 from .bifurcation import plot_bifurcation, plot_orbit_diagram
-from .catalogue import plot_catalogue
+from .catalogue import plot_catalogue, plot_threshold_sensitivity
 from .common import save_figure
 from .maps import plot_refined, plot_result, plot_variable, plottable
 from .nblock import plot_nblock
@@ -26,6 +26,7 @@ __all__ = [
     "plot_orbit_diagram",
     "plot_refined",
     "plot_result",
+    "plot_threshold_sensitivity",
     "plot_trace",
     "plot_variable",
     "plottable",

@@ -8,6 +8,7 @@ depends on."""
 
 from __future__ import annotations
 
+import re
 import textwrap
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
@@ -16,6 +17,7 @@ import numpy as np
 
 from ..model.physics import PARAMETERS
 from ..results.checks import check_result
+from ..results.gutenberg_richter import N_BOOTSTRAP
 from .common import (
     TITLE_PARAMETERS,
     _suptitle,
@@ -118,12 +120,12 @@ def plot_catalogue(
     space, sizes = fig.subplots(1, 2, width_ratios=(2.2, 1))
     _space_time(fig, space, ev, int(ds.attrs["blocks"]))
     _size_frequency(sizes, ev, run)
-    where = parameter_text(
-        {
-            k: float(run[k])
-            for k in ds["slip_event_start"].dims[:-1]
-            if k in run.coords and k != "member"
-        }
+    axes = {k: float(run[k]) for k in ds["slip_event_start"].dims[:-1] if k in run.coords}
+    spreads = [f"{k} = {v:g}" for k, v in axes.items() if k.startswith("spread_")]
+    where = ", ".join(
+        t
+        for t in (parameter_text({k: v for k, v in axes.items() if k in PARAMETERS}), *spreads)
+        if t
     )
     kept = f"{count} of {int(run['slip_event_count'])} events kept"
     lines = catalogue_caption(ds) if caption else []
@@ -230,55 +232,71 @@ def catalogue_map(ds: xarray.Dataset, name: str, ax: Axes, ylabel: bool = True) 
     """A statistic of a result with a catalogue over its two sweep axes (the others at
     their first value), one equal cell per grid point whatever the axes' spacing, each
     value written in its cell; blank, with the reason, where the statistic does not
-    apply (:data:`STATUS_OF`); the y axis labelled if ``ylabel``. Returns ``ax``."""
+    apply (:data:`STATUS_OF`); the y axis labelled if ``ylabel``. With realisations of
+    the disorder (axis ``spread_seed``) a cell is the mean over the seeds where the
+    statistic applies, written with their standard deviation and how many seeds those
+    are; blank with the commonest reason where it applies at none. Returns ``ax``."""
     from matplotlib.colors import Normalize
 
     var = ds[name]
-    dims = [d for d in var.dims if d in ds.coords and ds.sizes[d] > 1][:2]
-    var = var.isel({d: 0 for d in var.dims if d not in dims})
+    attrs = var.attrs
+    seeds = "spread_seed" in var.dims
+    dims = [d for d in var.dims if d in ds.coords and ds.sizes[d] > 1 and d != "spread_seed"][:2]
     if len(dims) != 2:
         raise ValueError(
             f"a catalogue map needs two sweep axes with more than one value, got {dims}"
         )
+    keep = (*dims, "spread_seed") if seeds else tuple(dims)
     ydim, xdim = dims
-    values = var.transpose(ydim, xdim).values.astype(float)
+    var = var.isel({d: 0 for d in var.dims if d not in keep}).transpose(*keep)
     status = None
     if name in STATUS_OF:
-        sv = ds[STATUS_OF[name]].isel({d: 0 for d in ds[STATUS_OF[name]].dims if d not in dims})
-        status = sv.transpose(ydim, xdim).values
+        sv = ds[STATUS_OF[name]]
+        sv = sv.isel({d: 0 for d in sv.dims if d not in keep}).transpose(*keep)
         meanings = sv.attrs["flag_meanings"].split()
+        status = sv.values.astype(int)
+        var = var.where(sv == 0)
+    samples = var.values.astype(float)
+    if not seeds:
+        samples, status = samples[..., None], None if status is None else status[..., None]
+    applies = np.isfinite(samples)
+    count = applies.sum(axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        values = np.where(applies, samples, 0.0).sum(axis=-1) / count
+        squares = np.where(applies, (samples - values[..., None]) ** 2, 0.0).sum(axis=-1)
+        spread = np.sqrt(squares / (count - 1))
     finite = values[np.isfinite(values)]
     norm = Normalize(*(finite.min(), finite.max()) if finite.size else (0.0, 1.0))
     cmap = colormap("viridis").with_extremes(bad="white")
     mesh = ax.pcolormesh(
         np.ma.masked_invalid(values), cmap=cmap, norm=norm, edgecolor="#BBBBBB", lw=0.5
     )
+    n_seeds = samples.shape[-1]
     for (j, i), v in np.ndenumerate(values):
         if np.isfinite(v):
+            text = f"{v:.2g}"
+            if seeds:
+                text += (f" ± {spread[j, i]:.1g}" if count[j, i] > 1 else "") + (
+                    f"\n({count[j, i]}/{n_seeds} seeds)"
+                )
             colour = "white" if norm(v) < 0.5 else "black"
-            ax.text(
-                i + 0.5, j + 0.5, f"{v:.2g}", ha="center", va="center", fontsize=8, color=colour
-            )
+            ax.text(i + 0.5, j + 0.5, text, ha="center", va="center", fontsize=7.5, color=colour)
         else:
-            why = meanings[int(status[j, i])] if status is not None else "not measured"
-            ax.text(
-                i + 0.5,
-                j + 0.5,
-                why.replace("_", "\n"),
-                ha="center",
-                va="center",
-                fontsize=6.5,
-                color="#555555",
-            )
+            why = "not measured"
+            if status is not None:
+                why = meanings[np.bincount(status[j, i], minlength=len(meanings)).argmax()]
+            grey = {"ha": "center", "va": "center", "fontsize": 6.5, "color": "#555555"}
+            ax.text(i + 0.5, j + 0.5, why.replace("_", "\n"), **grey)
     ax.set_xticks(np.arange(ds.sizes[xdim]) + 0.5, [f"{x:g}" for x in ds[xdim].values])
     ax.set_yticks(np.arange(ds.sizes[ydim]) + 0.5, [f"{y:g}" for y in ds[ydim].values])
     ax.set_xlabel(axis_label(ds[xdim]))
     if ylabel:
         ax.set_ylabel(axis_label(ds[ydim]))
     if finite.size:
-        ax.figure.colorbar(mesh, ax=ax, label=unit_text(var.attrs.get("units", "1")))
-    blank = " (blank: does not apply)" if status is not None else ""
-    ax.set_title(textwrap.fill(var.attrs.get("long_name", name) + blank, 32), fontsize=9)
+        ax.figure.colorbar(mesh, ax=ax, label=unit_text(attrs.get("units", "1")))
+    blank = " (blank: does not apply)" if name in STATUS_OF else ""
+    over = f", mean over {n_seeds} seeds" if seeds else ""
+    ax.set_title(textwrap.fill(attrs.get("long_name", name) + over + blank, 32), fontsize=9)
     return ax
 
 
@@ -286,7 +304,8 @@ def catalogue_caption(ds: xarray.Dataset) -> list[str]:
     """Caption lines of a result with a catalogue: blocks, model, law, coupling and
     every fixed parameter; the spread (distribution, seed, size if fixed); the catalogue's
     threshold, transient, completeness and system-wide extent; the dimensionless mass
-    M̂ = m V²/(W D0) (or damping η̂ = ηV/W) and the largest v_max/V of its runs."""
+    M̂ = m V²/(W D0) (or damping η̂ = ηV/W) and the largest peak v/V of any block in
+    any slip event of its runs."""
     from ..results.dataset import parameter_values
 
     a = ds.attrs
@@ -305,7 +324,12 @@ def catalogue_caption(ds: xarray.Dataset) -> list[str]:
             for k in a
             if k.startswith("spread_") and k not in ("spread_distribution", "spread_seed")
         ]
-        spread = [f"spread {a['spread_distribution']} (seed {a['spread_seed']})", *sizes]
+        seeds = (
+            f"seeds {', '.join(str(int(x)) for x in ds['spread_seed'].values)}"
+            if "spread_seed" in ds.dims
+            else f"seed {a['spread_seed']}"
+        )
+        spread = [f"spread {a['spread_distribution']} ({seeds})", *sizes]
     mc = a.get("catalogue_completeness")
     lines.append(
         ", ".join(
@@ -324,8 +348,83 @@ def catalogue_caption(ds: xarray.Dataset) -> list[str]:
         regime.append(f"M̂ = mV²/(W D0) = {fixed['m_W'] * fixed['V'] ** 2 / d0:.3g}")
     if "eta_W" in fixed and "V" in fixed:
         regime.append(f"η̂ = ηV/W = {fixed['eta_W'] * fixed['V']:.3g}")
-    if "v_max" in ds and "V" in fixed:
-        top = float(ds["v_max"].max()) / fixed["V"]
-        regime.append(f"largest v_max/V of the runs shown = {top:.3g}")
+    if "slip_event_v_peak" in ds and "V" in fixed:  # any block's, not block 0's v_max
+        top = float(ds["slip_event_v_peak"].max()) / fixed["V"]
+        regime.append(f"largest v_max/V of the runs' slip events = {top:.3g}")
     lines.append(", ".join(regime))
     return lines
+
+
+#: Panels of :func:`plot_threshold_sensitivity`: variable, its interval's bounds (or None).
+SENSITIVITY_PANELS = (
+    ("slip_event_count", None),
+    ("system_wide_fraction", None),
+    ("recurrence_cv", ("recurrence_cv_low", "recurrence_cv_high")),
+    ("b_value_ks_p", None),
+)
+
+
+#: Where a goodness-of-fit p-value of 0 (no synthetic sample as far as the data) is drawn.
+P_FLOOR = 1.0 / N_BOOTSTRAP
+
+
+def plot_threshold_sensitivity(ds: xarray.Dataset) -> Figure:
+    """How a catalogue's statistics move with its slip threshold.
+
+    One line per point of the result's other axes (their mean and range over
+    ``spread_seed`` if it has one): the number of events, the system-wide fraction, the
+    recurrence's CV (with its 95 % interval, where it applies) and the goodness-of-fit
+    p-value of the Gutenberg–Richter law (the b-value is given only above the dotted
+    0.1; p = 0 is drawn at :data:`P_FLOOR`). Statistics that do not apply are left out.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result of :func:`sweep.threshold_sensitivity` (dimension ``slip_v_over_V``).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Four panels against the threshold, titled with every fixed setting.
+    """
+    fig = new_figure(figsize=(13, 4.8))
+    axes = fig.subplots(1, len(SENSITIVITY_PANELS))
+    thr = ds["slip_v_over_V"].values
+    others = [d for d in ds["slip_event_count"].dims if d not in ("slip_v_over_V", "spread_seed")]
+    stacked = ds.stack(point=others) if others else ds.expand_dims(point=[0])
+    for k in range(stacked.sizes["point"]):
+        run = stacked.isel(point=k)
+        label = ", ".join(f"{d} = {float(run[d]):g}" for d in others)
+        for ax, (name, bounds) in zip(axes, SENSITIVITY_PANELS, strict=True):
+            values = run[name]
+            if name in STATUS_OF:
+                values = values.where(run[STATUS_OF[name]] == 0)
+            if name == "b_value_ks_p":  # p = 0: no synthetic sample was as far
+                values = values.clip(min=P_FLOOR)
+            seeds = "spread_seed" in values.dims
+            mid = values.mean("spread_seed") if seeds else values
+            (line,) = ax.plot(thr, mid, "o-", label=label)
+            if seeds:
+                low, high = values.min("spread_seed"), values.max("spread_seed")
+                ax.fill_between(thr, low, high, color=line.get_color(), alpha=0.2)
+            elif bounds is not None:
+                low, high = (run[b].where(run[STATUS_OF[name]] == 0) for b in bounds)
+                ax.fill_between(thr, low, high, color=line.get_color(), alpha=0.2)
+    for ax, (name, _) in zip(axes, SENSITIVITY_PANELS, strict=True):
+        ax.set_xscale("log")
+        ax.set_xticks(thr, [f"{t:g}" for t in thr])
+        ax.minorticks_off()
+        ax.set_xlabel(axis_label(ds["slip_v_over_V"]))
+        ax.set_title(textwrap.fill(ds[name].attrs.get("long_name", name), 30), fontsize=9)
+    axes[-1].set_yscale("log")
+    axes[-1].set_ylim(P_FLOOR / 2, 1.5)
+    axes[-1].axhline(0.1, color="grey", ls=":", lw=1)
+    axes[-1].axhline(P_FLOOR, color="grey", lw=0.5)
+    axes[-1].text(thr[0], P_FLOOR * 1.2, f"p < 1/{N_BOOTSTRAP} drawn here", fontsize=7)
+    axes[0].legend(fontsize=8, loc="upper left")
+    note = "shaded: range over the seeds" if "spread_seed" in ds.dims else "shaded: 95 % interval"
+    lines = catalogue_caption(ds)  # the threshold is the x axis, not a fixed setting
+    lines[1] = re.sub(r"slip threshold v > [^,]+ V(, )?", "", lines[1])
+    lines[1] += f"; {note}; blank where a statistic does not apply"
+    _suptitle(fig, lines)
+    return fig
