@@ -18,6 +18,7 @@ import numpy as np
 from ..model.physics import PARAMETERS
 from ..results.checks import check_result
 from ..results.gutenberg_richter import N_BOOTSTRAP
+from ..results.realisations import over_realisations
 from .common import (
     TITLE_PARAMETERS,
     _suptitle,
@@ -256,22 +257,19 @@ def catalogue_map(ds: xarray.Dataset, name: str, ax: Axes, ylabel: bool = True) 
         meanings = sv.attrs["flag_meanings"].split()
         status = sv.values.astype(int)
         var = var.where(sv == 0)
-    samples = var.values.astype(float)
-    if not seeds:
-        samples, status = samples[..., None], None if status is None else status[..., None]
-    applies = np.isfinite(samples)
-    count = applies.sum(axis=-1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        values = np.where(applies, samples, 0.0).sum(axis=-1) / count
-        squares = np.where(applies, (samples - values[..., None]) ** 2, 0.0).sum(axis=-1)
-        spread = np.sqrt(squares / (count - 1))
+    if seeds:  # mean, spread and count over the seeds where the statistic applies
+        over = over_realisations(var.to_dataset(name=name))
+        values, spread, count = (over[f"{name}_{k}"].values for k in ("mean", "std", "count"))
+        n_seeds = var.sizes["spread_seed"]
+    else:
+        values = var.values.astype(float)
+        status = None if status is None else status[..., None]
     finite = values[np.isfinite(values)]
     norm = Normalize(*(finite.min(), finite.max()) if finite.size else (0.0, 1.0))
     cmap = colormap("viridis").with_extremes(bad="white")
     mesh = ax.pcolormesh(
         np.ma.masked_invalid(values), cmap=cmap, norm=norm, edgecolor="#BBBBBB", lw=0.5
     )
-    n_seeds = samples.shape[-1]
     for (j, i), v in np.ndenumerate(values):
         if np.isfinite(v):
             text = f"{v:.2g}"
