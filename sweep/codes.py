@@ -19,6 +19,10 @@ COUPLINGS = ("chain", "ring", "all")
 #: When the largest Lyapunov exponent is computed (``classification.lyapunov``): never;
 #: from t_end on, for runs not settled by then; or over every whole run.
 LYAPUNOV_MODES = ("never", "unsettled", "always")
+#: When a periodic run's Floquet multipliers are computed (``classification.floquet``):
+#: never; for runs labelled periodic whose state is small (``engine/floquet.py``); or for
+#: every run labelled periodic.
+FLOQUET_MODES = ("never", "auto", "always")
 #: The integration methods (``integrator.method``), each name with its module in
 #: ``sweep/kernels/methods``: the registry of the methods. Adding a method is its
 #: module and a line here.
@@ -46,6 +50,12 @@ B_VALUE_STATUSES = (
 #: Why a run's recurrence statistics of system-wide events are given or not (the
 #: ``recurrence_status`` variable's flag meanings).
 RECURRENCE_STATUSES = ("ok", "no_system_wide_events", "too_few_intervals")
+#: Why a run's Floquet multipliers are given or not (the ``floquet_status`` variable's flag
+#: meanings; ``engine/floquet.py``): not computed (not periodic, or not asked), computed,
+#: computed but the largest non-trivial modulus is below the matrix's round-off (the value
+#: given is that floor, an upper bound), no return to the section within the window, or the
+#: integration failed.
+FLOQUET_STATUSES = ("not_computed", "ok", "at_resolution", "no_return", "failed")
 
 
 def code(table, name):

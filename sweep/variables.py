@@ -22,7 +22,7 @@ import numpy as np
 
 #: The regime and attractor names in code order (the flag_values / flag_meanings of
 #: ``regime`` and ``attractor``): the code tables of ``sweep/codes.py``.
-from .codes import ATTRACTORS, B_VALUE_STATUSES, RECURRENCE_STATUSES, REGIMES
+from .codes import ATTRACTORS, B_VALUE_STATUSES, FLOQUET_STATUSES, RECURRENCE_STATUSES, REGIMES
 
 #: The variables that are codes: each with its table (CF ``flag_values``/``flag_meanings``).
 FLAGS = {
@@ -31,6 +31,7 @@ FLAGS = {
     "b_value_status": B_VALUE_STATUSES,
     "b_value_truncated_status": B_VALUE_STATUSES,
     "recurrence_status": RECURRENCE_STATUSES,
+    "floquet_status": FLOQUET_STATUSES,
 }
 
 #: Conversions of a kernel column to physical units, given D0/V in s per system: as is,
@@ -86,6 +87,30 @@ VARIABLES = (
     Variable("lyapunov_error", "float64", "s-1", "standard error of lyapunov_exponent",
              "standard error of the slopes of the fit's blocks (the window after the transient "
              "cut into 7 blocks)", column="R_LYAPUNOV_ERROR", scale="rate"),
+    Variable("floquet_modulus", "float64", "1", "largest non-trivial Floquet multiplier modulus",
+             "|mu| of the largest eigenvalue but the trivial one (along the flow) of the "
+             "monodromy matrix: the exact tangent of the run's step map carried once around "
+             "the cycle in every state direction (ln v, ln Phi/Phi_ss, inertial force per "
+             "block); < 1 stable; NaN where not computed (see floquet_status)",
+             column="R_FLOQUET_MODULUS"),
+    Variable("floquet_argument", "float64", "rad", "argument of that multiplier",
+             "in (-pi, pi]: 0 a real positive multiplier (its approach to +1: fold of cycles), "
+             "pi a real negative one (approach to -1: period doubling), else a complex pair "
+             "(approach to the unit circle: torus)", column="R_FLOQUET_ARGUMENT"),
+    Variable("floquet_trivial_error", "float64", "1", "|mu - 1| of the trivial multiplier",
+             "the multiplier along the flow is 1 on an exact cycle: its distance from 1 is the "
+             "accuracy of the matrix", column="R_FLOQUET_TRIVIAL"),
+    Variable("floquet_period", "float64", "s", "period of the monodromy matrix",
+             "return time to the section through the run's final state normal to the flow",
+             column="R_RETURN_TIME", scale="time"),
+    Variable("cycle_decay_rate", "float64", "s-1", "decay rate of perturbations of the cycle",
+             "-ln(floquet_modulus) / floquet_period: perturbations of the cycle shrink as "
+             "exp(-rate t); a lower bound where floquet_status is at_resolution"),
+    Variable("floquet_status", "int8", "1", "why the Floquet multipliers are given or not",
+             "not_computed (not periodic, or classification_floquet does not ask), ok, "
+             "at_resolution (the largest modulus is below the eigenvalues' round-off; the "
+             "floor is given), no_return or failed; see flag_values/flag_meanings",
+             column="R_FLOQUET_STATUS"),
     Variable("lnv_amplitude", "float64", "1", "peak-to-peak ln(v/V)",
              "max - min of ln(v/V) over all blocks in the final window: the last completed "
              "cycle of a periodic run (all its events), the last events kept (up to 128) of "

@@ -13,7 +13,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-from ..codes import LYAPUNOV_MODES, METHODS
+from ..codes import FLOQUET_MODES, LYAPUNOV_MODES, METHODS
 from ..model.heterogeneity import SPREAD_AXES
 
 #: Default integrator per model where it is not dop853: the inertial model is stiff
@@ -219,6 +219,13 @@ class Classification:
         "when lyapunov_exponent is computed: from t_end on for runs not settled by "
         "then, over every whole run (no run then stops before t_end), or never",
         LYAPUNOV_MODES,
+    )
+    floquet: str = setting(
+        "auto",
+        "when the Floquet multipliers of runs labelled periodic are computed: never, for "
+        "systems of at most 16 state values (auto), or always; each costs about (state "
+        "values + 1) x one period of the run",
+        FLOQUET_MODES,
     )
     events: int = setting(
         32,

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..kernels import layout
+from .floquet import floquet_pass
 
 log = logging.getLogger(__name__)
 
@@ -77,7 +78,8 @@ def integrate_grid(params, y0, settings, results, y_final, rec_dt=0.0, rec_t=Non
     unsettled at t_end that ask for λ1 there are redone by the kernel that carries
     the tangent, compiled the first time one needs it: a config whose runs all
     settle never compiles it. Once one has, later calls of the variant use that
-    kernel for every run (:func:`tangent_first`).
+    kernel for every run (:func:`tangent_first`). Then the Floquet multipliers of the
+    periodic runs (``floquet.floquet_pass``; its kernel, too, compiled on first need).
     """
     if rec_t is None:
         rec_t, rec_y = np.empty(0), np.empty((0, y0.shape[1]))
@@ -86,16 +88,17 @@ def integrate_grid(params, y0, settings, results, y_final, rec_dt=0.0, rec_t=Non
     with_tangent = _TANGENT_FIRST.get(kernel)
     if with_tangent is not None:
         with_tangent(params, y0, *args)
-        return
-    kernel(params, y0, *args)
-    redo = np.flatnonzero(results[:, layout.R_REGIME] == layout.TANGENT_NEEDED)
-    if redo.size:
-        with_tangent = ready_kernel(params, settings, tangent=True)
-        sub_results, sub_final = results[redo], y_final[redo]
-        with_tangent(params[redo], y0[redo], settings, sub_results, sub_final, *args[3:])
-        results[redo] = sub_results
-        y_final[redo] = sub_final
-        _TANGENT_FIRST[kernel] = with_tangent
+    else:
+        kernel(params, y0, *args)
+        redo = np.flatnonzero(results[:, layout.R_REGIME] == layout.TANGENT_NEEDED)
+        if redo.size:
+            with_tangent = ready_kernel(params, settings, tangent=True)
+            sub_results, sub_final = results[redo], y_final[redo]
+            with_tangent(params[redo], y0[redo], settings, sub_results, sub_final, *args[3:])
+            results[redo] = sub_results
+            y_final[redo] = sub_final
+            _TANGENT_FIRST[kernel] = with_tangent
+    floquet_pass(params, settings, results, y_final)
 
 
 #: Kernels without the tangent whose runs have needed it in this process, each with its

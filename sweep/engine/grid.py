@@ -71,6 +71,7 @@ def settings_array(config):
     s[layout.S_SLIP_LNV] = math.log(cls.slip_v_over_V)
     s[layout.S_COUPLING] = codes.code(codes.COUPLINGS, config.coupling)
     s[layout.S_LYAPUNOV] = codes.code(codes.LYAPUNOV_MODES, cls.lyapunov)
+    s[layout.S_FLOQUET] = codes.code(codes.FLOQUET_MODES, cls.floquet)
     s[layout.S_EVENTS] = cls.events
     s[layout.S_CATALOGUE] = config.catalogue.capacity
     s[layout.S_CATALOGUE_AFTER] = config.catalogue.after

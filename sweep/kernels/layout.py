@@ -14,6 +14,7 @@ import itertools
 from ..codes import (
     ATTRACTORS,
     COUPLINGS,
+    FLOQUET_MODES,
     LYAPUNOV_MODES,
     METHODS,
     MODELS,
@@ -39,6 +40,10 @@ ALL = code(COUPLINGS, "all")
 LYAP_NEVER = code(LYAPUNOV_MODES, "never")
 LYAP_UNSETTLED = code(LYAPUNOV_MODES, "unsettled")
 LYAP_ALWAYS = code(LYAPUNOV_MODES, "always")
+# when a periodic run's Floquet multipliers are computed (S_FLOQUET)
+FLOQUET_NEVER = code(FLOQUET_MODES, "never")
+FLOQUET_AUTO = code(FLOQUET_MODES, "auto")
+FLOQUET_ALWAYS = code(FLOQUET_MODES, "always")
 STEADY = code(REGIMES, "steady")
 STICK_SLIP = code(REGIMES, "stick_slip")
 RUNAWAY = code(REGIMES, "runaway")
@@ -106,6 +111,7 @@ S_CATALOGUE = next(_s)  # slip events each run's catalogue keeps (0: no catalogu
 S_CATALOGUE_AFTER = next(_s)  # events starting before this fraction of tau_end are not catalogued
 S_CATALOGUE_LNV = next(_s)  # a block slips in the catalogue's events while ℓ_i exceeds this
 S_LINEAR_VERDICTS = next(_s)  # 1: linear-regime verdicts on (classify/linear.py)
+S_FLOQUET = next(_s)  # FLOQUET_NEVER | FLOQUET_AUTO | FLOQUET_ALWAYS (engine/floquet.py)
 N_SETTINGS = next(_s)
 
 # --- columns of the per-system statistics array -----------------------------
@@ -133,6 +139,12 @@ R_CYCLE_EVENTS = next(_r)  # events (maxima of ℓ_0) per cycle of a periodic ru
 R_LYAPUNOV = next(_r)  # largest Lyapunov exponent (V/D0); NaN where the tangent was not carried
 R_LYAPUNOV_ERROR = next(_r)  # its standard error (V/D0)
 R_LINEAR_VERDICT = next(_r)  # 1: labelled by a linear-regime verdict (classify/linear.py), else 0
+# Floquet multipliers of a periodic run (engine/floquet.py, after the grid kernel; NaN else)
+R_FLOQUET_MODULUS = next(_r)  # largest modulus of the non-trivial multipliers
+R_FLOQUET_ARGUMENT = next(_r)  # its argument (rad, in (−π, π])
+R_FLOQUET_TRIVIAL = next(_r)  # |μ − 1| of the trivial multiplier (along the flow): the accuracy
+R_RETURN_TIME = next(_r)  # the period the matrix spans: return time to the section (D0/V)
+R_FLOQUET_STATUS = next(_r)  # code of FLOQUET_STATUSES (sweep/codes.py)
 N_RESULTS = next(_r)
 # After the R_* columns: the last S_EVENTS events' maxima of ℓ_0, then their intervals
 # from the event before (D0/V), oldest first, NaN before the first.
