@@ -4,7 +4,7 @@ Written from the physics brief (``shared/physics.md``, sections 2, 4 and 5b), no
 from ``sweep``: the engine's event maxima, cycle periods and Lyapunov exponents are
 checked against it.
 
-N blocks in an open chain (aging law), per-block A_i, B_i, D0_i, K_i; time
+N blocks in an open chain or a ring (aging law), per-block A_i, B_i, D0_i, K_i; time
 τ = t V/D0_ref (D0_ref in µm sets the time unit only); κ_i = K_i D0_ref/W,
 κ2 = k2 D0_ref/W, r_i = D0_ref/D0_i, M̂ = m V²/(W D0_ref), ψ_i = ln(VΦ_i/D0_i)::
 
@@ -35,11 +35,11 @@ RUN_CALL = {"method": "LSODA", "rtol": 1e-10, "atol": 1e-12}
 
 
 class Blocks:
-    """``n_blocks`` blocks in an open chain; ``model`` "quasi-static" or "inertial"; A,
+    """``n_blocks`` blocks in an open chain (``ring``: closed); ``model`` "quasi-static" or "inertial"; A,
     B, D0 (µm), K/W (µm⁻¹) scalars or per block; k2/W (µm⁻¹); m/W (s²/µm); V (µm/s);
     time unit D0_ref/V with D0_ref the mean D0 (the engine's reference D0)."""
 
-    def __init__(self, model, A, B, D0, K_W, k2_W=0.0, m_W=0.0, V=1.0, n_blocks=None):
+    def __init__(self, model, A, B, D0, K_W, k2_W=0.0, m_W=0.0, V=1.0, n_blocks=None, ring=False):
         sizes = {np.size(x) for x in (A, B, D0, K_W)} - {1}
         self.n = n_blocks or (sizes.pop() if sizes else 1)
         self.A, self.B, self.D0, self.K_W = (
@@ -56,6 +56,10 @@ class Blocks:
             lap[i, i] += 1
             lap[i + 1, i + 1] += 1
             lap[i, i + 1] = lap[i + 1, i] = -1
+        if ring and self.n > 2:
+            lap[0, 0] += 1
+            lap[-1, -1] += 1
+            lap[0, -1] = lap[-1, 0] = -1
         self.L = lap
 
     def rhs(self, t, y):

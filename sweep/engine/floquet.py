@@ -25,6 +25,11 @@ from ..kernels import layout
 #: that take tens of periods to settle.
 AUTO_STATE_MAX = 16
 
+#: Newton steps that put a run's final state on its cycle before the matrix is kept, and the
+#: gap |y(T) − y0| / (1 + |y0|) below which none is taken (:func:`floquet_pass`).
+NEWTON_STEPS = 3
+CLOSURE = 1e-9
+
 _COLUMNS = slice(layout.R_FLOQUET_MODULUS, layout.R_FLOQUET_STATUS + 1)
 _BUILD = threading.Lock()
 
@@ -32,43 +37,101 @@ _BUILD = threading.Lock()
 def floquet_pass(params, settings, results, y_final):
     """Write the ``R_FLOQUET_*`` columns of every run of a chunk (kernels' arrays, rows of
     ``results`` and ``y_final`` filled by the grid kernel): the multipliers of the runs
-    labelled periodic where ``settings[S_FLOQUET]`` asks, NaN and ``not_computed`` else."""
+    labelled periodic where ``settings[S_FLOQUET]`` asks, NaN and ``not_computed`` else.
+
+    The run's final state lies on its cycle only to the classifier's accuracy (~1e-3), and
+    in the stiff phases of a cycle the flow, and with it the matrix, changes fast off it
+    (a quasi-static ring: a trivial multiplier 0.2-1 from 1). So the start is first put on
+    the cycle by Newton's method for a periodic orbit (shooting with the matrix itself):
+    (M − I) Δ + f δT = y0 − y(T), f · Δ = 0, up to ``NEWTON_STEPS`` times while the gap
+    |y(T) − y0| exceeds ``CLOSURE`` (1 + |y0|); the pass with the smallest gap is kept."""
     results[:, _COLUMNS] = np.nan
     results[:, layout.R_FLOQUET_STATUS] = code(FLOQUET_STATUSES, "not_computed")
     rows = floquet_rows(settings, results, y_final.shape[1])
     if not rows.size:
         return
-    n = y_final.shape[1]
-    columns = np.empty((rows.size, n, n))
-    log_scale = np.empty((rows.size, n))
-    flows = np.empty((rows.size, n))
-    info = np.empty((rows.size, 3))
-    kernel = monodromy_kernel(params, settings)
-    kernel(
-        np.ascontiguousarray(params[rows]),
-        np.ascontiguousarray(y_final[rows]),
-        np.ascontiguousarray(results[rows, layout.R_PERIOD]),
-        np.ascontiguousarray(settings),
-        columns,
-        log_scale,
-        flows,
-        info,
-    )
     from ..kernels.monodromy import M_OK, M_RETURN_TIME, M_STATUS
 
+    kernel = monodromy_kernel(params, settings)
+    starts = np.array(y_final[rows])
+    periods = np.array(results[rows, layout.R_PERIOD])
+    best = [None] * rows.size
+    todo = np.arange(rows.size)
+    for attempt in range(NEWTON_STEPS + 1):
+        passes = _monodromy(
+            kernel, params[rows[todo]], starts, todo, periods[todo], settings, attempt == 0
+        )
+        closer = []
+        for r, (columns, log_scale, flow, end, info) in zip(todo, passes, strict=True):
+            gap = np.linalg.norm(end - starts[r]) if info[M_STATUS] == M_OK else np.inf
+            if best[r] is None or gap < best[r][0]:
+                best[r] = (gap, columns, log_scale, flow, info)
+            if gap <= CLOSURE * (1.0 + np.linalg.norm(starts[r])) or not np.isfinite(gap):
+                continue
+            step = _newton_step(columns, log_scale, flow, end - starts[r])
+            if step is not None and attempt < NEWTON_STEPS:
+                starts[r] += step
+                periods[r] = info[M_RETURN_TIME]
+                closer.append(r)
+        todo = np.array(closer, int)
+        if not todo.size:
+            break
     for r, row in enumerate(rows):
+        gap, columns, log_scale, flow, info = best[r]
         out = results[row]
-        if info[r, M_STATUS] != M_OK:
-            why = "no_return" if info[r, M_STATUS] == 1 else "failed"
+        if info[M_STATUS] != M_OK:
+            why = "no_return" if info[M_STATUS] == 1 else "failed"
             out[layout.R_FLOQUET_STATUS] = code(FLOQUET_STATUSES, why)
             continue
-        modulus, argument, trivial, resolved = multipliers(columns[r], log_scale[r], flows[r])
+        modulus, argument, trivial, resolved = multipliers(columns, log_scale, flow)
         out[layout.R_FLOQUET_MODULUS] = modulus
         out[layout.R_FLOQUET_ARGUMENT] = argument
         out[layout.R_FLOQUET_TRIVIAL] = trivial
-        out[layout.R_RETURN_TIME] = info[r, M_RETURN_TIME]
+        out[layout.R_RETURN_TIME] = info[M_RETURN_TIME]
         status = "ok" if resolved else "at_resolution"
         out[layout.R_FLOQUET_STATUS] = code(FLOQUET_STATUSES, status)
+
+
+def _monodromy(kernel, params, starts, todo, periods, settings, advance):
+    """One pass of the kernel over the rows ``todo`` of ``starts`` (updated in place where
+    ``advance`` moves them to the section): per row (columns, log_scale, flow, y(T), info)."""
+    m, n = todo.size, starts.shape[1]
+    columns, log_scale = np.empty((m, n, n)), np.empty((m, n))
+    flows, ends, info = np.empty((m, n)), np.empty((m, n)), np.empty((m, 3))
+    section = np.ascontiguousarray(starts[todo])
+    kernel(
+        np.ascontiguousarray(params),
+        section,
+        np.ascontiguousarray(periods),
+        np.ascontiguousarray(settings),
+        advance,
+        columns,
+        log_scale,
+        flows,
+        ends,
+        info,
+    )
+    starts[todo] = section
+    return list(zip(columns, log_scale, flows, ends, info, strict=True))
+
+
+def _newton_step(columns, log_scale, flow, gap):
+    """The change Δ of the start that closes the orbit to first order: (M − I) Δ + f δT =
+    −gap, f · Δ = 0; None where M overflows or the bordered matrix is singular."""
+    n = flow.size
+    with np.errstate(over="ignore"):
+        matrix = columns.T * np.exp(log_scale)
+    if not np.all(np.isfinite(matrix)):
+        return None
+    bordered = np.zeros((n + 1, n + 1))
+    bordered[:n, :n] = matrix - np.eye(n)
+    bordered[:n, n] = flow
+    bordered[n, :n] = flow
+    try:
+        solution = np.linalg.solve(bordered, np.append(-gap, 0.0))
+    except np.linalg.LinAlgError:
+        return None
+    return solution[:n] if np.all(np.isfinite(solution)) else None
 
 
 def floquet_rows(settings, results, n_state):

@@ -16,6 +16,8 @@
 - ``record``: the recorder of traces.
 - ``slip_events``: the catalogue of slip events of a run, written as it goes.
 - ``integrate``: the per-variant grid kernel, the integration loop.
+- ``monodromy``: the monodromy matrix of a periodic run (every tangent direction once
+  around its cycle), from which ``engine/floquet.py`` takes the Floquet multipliers.
 
 (``tests/test_docstrings.py`` checks that this list names every module and method.)
 
