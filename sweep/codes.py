@@ -51,3 +51,10 @@ RECURRENCE_STATUSES = ("ok", "no_system_wide_events", "too_few_intervals")
 def code(table, name):
     """The code of ``name`` in ``table`` (its place there; ValueError if absent)."""
     return list(table).index(name)
+
+
+#: What the steady state's loss of stability at Kc is (the ``hopf_criticality`` variable's
+#: flag meanings; ``model/hopf.py``): the sign of the first Lyapunov coefficient l1, zero
+#: within its tolerance, or why l1 is not given (the critical pair of eigenvalues is not
+#: simple; no pair crosses at any positive stiffness).
+HOPF_CRITICALITIES = ("supercritical", "subcritical", "degenerate", "not_simple", "no_hopf")
