@@ -92,30 +92,32 @@ def kuznetsov_l1(jac, second, third):
     return sum(terms).real / (2 * omega), sum(abs(t) for t in terms) / (2 * omega)
 
 
-def one_block_kc(model):
-    """κc of one block: B − A, B − A − η̂, (B − A)(1 + M̂/A) (physics brief §3–4)."""
-    return {
-        "quasi-static": B - A,
-        "quasi-dynamic": B - A - ETA_HAT,
-        "inertial": (B - A) * (1 + MASS_HAT / A),
-    }[model]
-
-
-MODELS = ["quasi-static", "quasi-dynamic", "inertial"]
+#: One block of each model: (model, η̂, M̂); inertia light enough to turn the aging law
+#: subcritical (M̂ = 1e-3) and heavy enough to make it supercritical (0.1).
+ONE_BLOCK = [("quasi-static", 0.0, 0.0), ("quasi-dynamic", ETA_HAT, 0.0),
+             ("inertial", 0.0, MASS_HAT), ("inertial", 0.0, 1e-3)]  # fmt: skip
 LAWS = ["aging", "slip"]
 
 
+def one_block_kc(model, eta_hat, mass_hat):
+    """κc of one block: B − A, B − A − η̂, (B − A)(1 + M̂/A) (physics brief §3–4)."""
+    return {
+        "quasi-static": B - A,
+        "quasi-dynamic": B - A - eta_hat,
+        "inertial": (B - A) * (1 + mass_hat / A),
+    }[model]
+
+
 @pytest.mark.parametrize("law", LAWS)
-@pytest.mark.parametrize("model", MODELS)
-def test_one_block_l1_is_kuznetsovs_formula_by_sympy(model, law):
-    kc = one_block_kc(model)
-    state, f = sympy_rhs(model, law, [A], [B], [kc], [1.0], 0.0, ETA_HAT, MASS_HAT)
+@pytest.mark.parametrize(("model", "eta_hat", "mass_hat"), ONE_BLOCK)
+def test_one_block_l1_is_kuznetsovs_formula_by_sympy(model, eta_hat, mass_hat, law):
+    kc = one_block_kc(model, eta_hat, mass_hat)
+    state, f = sympy_rhs(model, law, [A], [B], [kc], [1.0], 0.0, eta_hat, mass_hat)
     want, scale = kuznetsov_l1(*tensors(state, f))
-    got = hopf.one_block(model, law, A, B, ETA_HAT if model == "quasi-dynamic" else 0.0,
-                         MASS_HAT if model == "inertial" else 0.0)  # fmt: skip
+    got = hopf.one_block(model, law, A, B, eta_hat, mass_hat)
     assert got.l1 == pytest.approx(want, rel=1e-6, abs=1e-12 * scale)
-    assert got.omega == pytest.approx(np.sqrt((B - A) / A) if model != "quasi-dynamic" else
-                                      np.sqrt(kc / (A + ETA_HAT)), rel=1e-12)  # fmt: skip
+    omega = np.sqrt(kc / (A + eta_hat)) if model == "quasi-dynamic" else np.sqrt((B - A) / A)
+    assert got.omega == pytest.approx(omega, rel=1e-12)
 
 
 @pytest.mark.parametrize(
@@ -145,21 +147,25 @@ def test_two_unequal_blocks_l1_is_kuznetsovs_formula_by_sympy(model, law, d0):
 
 
 @pytest.mark.parametrize(
-    ("model", "law", "expected"),
-    [("quasi-static", "aging", "degenerate"), ("quasi-static", "slip", "degenerate"),
-     ("quasi-dynamic", "aging", "supercritical"), ("quasi-dynamic", "slip", "supercritical"),
-     ("inertial", "aging", "supercritical"), ("inertial", "slip", "supercritical")],
+    ("model", "eta_hat", "mass_hat", "law", "expected"),
+    [("quasi-static", 0.0, 0.0, "aging", "degenerate"),
+     ("quasi-static", 0.0, 0.0, "slip", "degenerate"),
+     ("quasi-dynamic", ETA_HAT, 0.0, "aging", "supercritical"),
+     ("quasi-dynamic", ETA_HAT, 0.0, "slip", "supercritical"),
+     ("inertial", 0.0, MASS_HAT, "aging", "supercritical"),
+     ("inertial", 0.0, MASS_HAT, "slip", "supercritical"),
+     ("inertial", 0.0, 1e-3, "aging", "subcritical"),
+     ("inertial", 0.0, 1e-3, "slip", "supercritical")],
 )  # fmt: skip
-def test_signs_of_one_block(model, law, expected):
+def test_signs_of_one_block(model, eta_hat, mass_hat, law, expected):
     """Quasi-static aging law: Ranjith & Rice's family of closed orbits at Kc, l1 = 0.
     Quasi-static slip law, in slip as time (dt' = e^ℓ dt): ℓ'' − (a1 g'(ℓ) + b2) ℓ' − D g(ℓ)
     = 0 with g = e^(−ℓ) − 1, a Liénard equation whose l1 ∝ f''(0) − f'(0) h''(0)/h'(0) =
     a1 − a1 = 0 (f = −a1 g' − b2, h = −D g): zero too, and Gu et al.'s (1984) conditional
     stability is decided beyond l1. Radiation damping: negative (the amplitude grows as
-    the square root of the distance to Kc, checked below)."""
-    got = hopf.one_block(model, law, A, B, ETA_HAT if model == "quasi-dynamic" else 0.0,
-                         MASS_HAT if model == "inertial" else 0.0)  # fmt: skip
-    assert got.status == status(expected)
+    the square root of the distance to Kc, checked below). Inertia: the sign of the SymPy
+    computation above (the aging law turns subcritical for light blocks)."""
+    assert hopf.one_block(model, law, A, B, eta_hat, mass_hat).status == status(expected)
 
 
 def test_identical_blocks_are_the_in_phase_mode():
@@ -243,3 +249,38 @@ def test_result_outputs():
     assert past.any() and not past.all()
     assert np.isfinite(coupled.hopf_lnv_amplitude.where(past, drop=True)).all()
     assert np.isnan(coupled.hopf_lnv_amplitude.where(~past, drop=True)).all()
+
+
+def test_subcritical_light_inertial_block_against_scipy():
+    """One inertial block, aging law, M̂ = 1e-3 (l1 > 0): at K/Kc = 1.002, where steady
+    sliding is stable, the normal form's unstable cycle separates a start at half its
+    amplitude, which decays, from one at twice it, which leaves |ln(v/V)| < 3 (SciPy
+    LSODA, rtol 1e-10)."""
+    mass = 1e-3
+    kappa = 1.002 * (B - A) * (1 + mass / A)
+    one = hopf.one_block("inertial", "aging", A, B, 0.0, mass)
+    assert one.status == status("subcritical")
+    lam = np.linalg.eigvals(
+        [[0, 0, 1 / mass], [-1, -1, 0], [B - kappa, B, -A / mass]]
+    )  # mode Jacobian (ℓ, ψ, z)
+    radius = np.sqrt(-lam.real.max() / (one.omega * one.l1))  # Re λ < 0 < l1
+    swing = 2 * one.lnv_weight * radius  # ℓ's half peak-to-peak on the unstable cycle
+
+    def rhs(t, y):
+        lnv, psi, z = y
+        v = np.exp(lnv)
+        dpsi = np.exp(-psi) - v
+        dlnv = z * np.exp(-lnv) / mass
+        return [dlnv, dpsi, kappa * (1 - v) - B * dpsi - A * dlnv]
+
+    def leaves(t, y):
+        return abs(y[0]) - 3.0
+
+    leaves.terminal = True
+    for factor, escapes in ((0.5, False), (2.0, True)):
+        sol = solve_ivp(rhs, (0, 1500), [factor * swing, 0, 0], method="LSODA", rtol=1e-10,
+                        atol=1e-12, events=leaves)  # fmt: skip
+        assert (sol.t_events[0].size > 0) == escapes
+        if not escapes:
+            late = np.abs(sol.y[0][sol.t > 1200]).max()
+            assert late < 0.5 * factor * swing
