@@ -22,7 +22,7 @@ from scipy.optimize import brentq
 from sweep.codes import HOPF_CRITICALITIES
 from sweep.engine.grid import build_grid
 from sweep.kernels import layout
-from sweep.model import hopf, linear
+from sweep.model import hopf, linear, physics
 from sweep.results.dataset import build_dataset
 
 A, B = PAPER_A, PAPER_B
@@ -284,3 +284,21 @@ def test_subcritical_light_inertial_block_against_scipy():
         if not escapes:
             late = np.abs(sol.y[0][sol.t > 1200]).max()
             assert late < 0.5 * factor * swing
+
+
+@pytest.mark.parametrize("law", LAWS)
+@pytest.mark.parametrize("eta_hat", [0.0, ETA_HAT])
+def test_rhs_is_the_log_form(law, eta_hat):
+    """hopf.rhs's value away from steady sliding: physics.log_form_rhs (an open chain of
+    three blocks), and its first derivative is the SymPy Jacobian there too."""
+    y = np.array([0.3, -0.2, 0.1, -0.4, 0.25, 0.05])
+    model = "quasi-dynamic" if eta_hat else "quasi-static"
+    one = np.ones(3)
+    blocks = hopf.Blocks(model, law, A * one, B * one, 0.045 * one, one, 0.02,
+                         linear.laplacian(3, "chain"), eta_hat)  # fmt: skip
+    jet = hopf.rhs(blocks, hopf.Jet.seed(y, [np.eye(6)[2]]))
+    want = physics.log_form_rhs(0.0, y, A, B, 0.045, 0.02, 3, law, eta_hat)
+    np.testing.assert_allclose(jet.c[0].real, want, rtol=1e-14, atol=1e-15)
+    state, f = sympy_rhs(model, law, [A] * 3, [B] * 3, [0.045] * 3, [1] * 3, 0.02, eta_hat, 0)
+    column = sp.Matrix(f).diff(state[2]).subs(dict(zip(state, y.tolist(), strict=True)))
+    np.testing.assert_allclose(jet.c[1].real, np.array(column, float).ravel(), rtol=1e-12)

@@ -39,11 +39,11 @@ from ..codes import HOPF_CRITICALITIES, code
 from . import heterogeneity, linear, physics
 
 #: l1 is called degenerate where |l1| ≤ DEGENERATE_TOLERANCE × the sum of the moduli
-#: of the formula's three terms (each / 2ω). The quasi-static aging law, l1 = 0 in
-#: exact arithmetic, gives |l1| below 1e-13 of that sum for one block and for chains
-#: of identical blocks up to 64 (round-off of the eigenvectors and of κc); an
-#: unfolding by heterogeneity grows as the spread squared and is 1e-8 of the sum at a
-#: relative spread of 1e-4 (``tests/test_hopf.py``): below the tolerance it is not
+#: of the formula's three terms (each / 2ω). Where l1 = 0 in exact arithmetic (the
+#: quasi-static model, either law) round-off (of the eigenvectors and of κc) leaves
+#: below 1e-14 of that sum, for one block and for chains of up to 64 identical blocks;
+#: an unfolding by unequal blocks grows as the square of their spread, 1e-9 of the sum
+#: at a relative D0 spread of 1e-4 in an 8-block chain: below the tolerance it is not
 #: told from round-off.
 DEGENERATE_TOLERANCE = 1e-9
 #: The critical pair is not simple where another eigenvalue's real part is within
@@ -115,8 +115,8 @@ class Jet:
         return Jet(self.c / other)
 
     def _series(self, f0, coefficients):
-        """f(c0) Σ_k coefficients[k] (self − c0)^k / c0-free: the Taylor series of a
-        function about the value part, which ends at the third power (ε_k² = 0)."""
+        """f0 Σ_k coefficients[k] n^k with n = self minus its value part: a function's
+        Taylor series about the value part, exact at the third power (n⁴ = 0)."""
         n = Jet(self.c.copy())
         n.c[0] = 0.0
         term = Jet(np.zeros_like(self.c))
