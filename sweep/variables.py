@@ -346,9 +346,11 @@ VARIABLES = (
              "at a positive stiffness); see flag_values/flag_meanings", per_member=False),
     Variable("hopf_lnv_amplitude", "float64", "1", "normal-form peak-to-peak ln(v/V)",
              "the cycle the normal form predicts near Kc, 4 |z| max_i |q_i| with "
-             "|z|^2 = -linear_growth_rate / (omega hopf_l1) (time unit D0/V; q_i: block i's "
-             "ln v entry of the critical eigenvector): to leading order the lnv_amplitude of "
-             "the settled cycle; NaN unless supercritical and K < Kc", per_member=False),
+             "|z|^2 = -Re(lambda) / (omega hopf_l1), Re(lambda) = linear_growth_rate D0/V and "
+             "omega = 2 pi / onset_period in units of V/D0, q_i block i's ln v entry of the "
+             "critical eigenvector: to leading order in K - Kc the lnv_amplitude of the "
+             "settled cycle (not far from Kc); NaN unless supercritical and K < Kc",
+             per_member=False),
 )  # fmt: skip
 
 BY_NAME = {v.name: v for v in VARIABLES}
