@@ -233,13 +233,20 @@ class Criticality:
     lnv_weight: float = np.nan
 
 
-def no_hopf(status="no_hopf"):
+def without_l1(status):
     """A :class:`Criticality` without l1, with the named status."""
     return Criticality(np.nan, code(HOPF_CRITICALITIES, status))
 
 
 def criticality(blocks):
-    """l1 (Kuznetsov's formula) of ``blocks`` at its κ, which must be κc."""
+    """l1 (Kuznetsov's formula) of ``blocks`` at its κ, which must be κc.
+
+    The critical pair is the eigenvalue with Im λ > 0 and the largest real part; no
+    pair if a real eigenvalue lies further right (``no_hopf``), not simple if another
+    eigenvalue is as far right within :data:`SIMPLE_TOLERANCE` ω (``not_simple``).
+    q is the right eigenvector of the pair, p the left one of Aᵀ at −iω (a second
+    eigendecomposition, matched by eigenvalue), scaled to ⟨q, q⟩ = ⟨p, q⟩ = 1.
+    """
     jac = blocks.jacobian()
     lam, vec = np.linalg.eig(jac)
     pair = np.where(lam.imag > 0.0, lam.real, -np.inf)
@@ -248,11 +255,11 @@ def criticality(blocks):
     if not omega > SIMPLE_TOLERANCE * np.abs(lam).max() or lam[c].real < lam.real.max() - (
         SIMPLE_TOLERANCE * omega
     ):
-        return no_hopf()
+        return without_l1("no_hopf")
     others = np.ones(lam.size, bool)
     others[[c, int(np.argmin(np.abs(lam - lam[c].conj())))]] = False
     if others.any() and lam[others].real.max() >= lam[c].real - SIMPLE_TOLERANCE * omega:
-        return no_hopf("not_simple")
+        return without_l1("not_simple")
     q = vec[:, c] / np.linalg.norm(vec[:, c])
     lam_t, vec_t = np.linalg.eig(jac.T)
     p = vec_t[:, int(np.argmin(np.abs(lam_t - lam[c].conj())))]
@@ -281,7 +288,7 @@ def one_block(model, law, A, B, eta_hat, mass_hat):
     """:class:`Criticality` of one block at its analytic κc (``physics.critical_kappa``)."""
     kc = float(physics.critical_kappa(model, A, B, eta_hat, mass_hat))
     if not kc > 0.0:
-        return no_hopf()
+        return without_l1("no_hopf")
     one = np.ones(1)
     lap = np.zeros((1, 1))
     return criticality(
@@ -295,7 +302,7 @@ def unequal_blocks(model, law, coupling, nb, key):
     whose ``key`` it takes: (A_i…, B_i…, K_i/K…, D0/D0_i…, κ2, η̂, M̂))."""
     kc, _ = linear._critical(model, coupling, nb, key)
     if not kc > 0.0:
-        return no_hopf()
+        return without_l1("no_hopf")
     k = np.array(key)
     A, B, ratio, rate = (k[i * nb : (i + 1) * nb] for i in range(4))
     kappa2, eta_hat, mass_hat = k[4 * nb :]
@@ -310,7 +317,7 @@ def identical_blocks(model, law, nb, A, B, kappa2, eta_hat, mass_hat):
     crosses at once: not simple."""
     one = one_block(model, law, A, B, eta_hat, mass_hat)
     if nb > 1 and kappa2 == 0.0 and one.status != code(HOPF_CRITICALITIES, "no_hopf"):
-        return no_hopf("not_simple")
+        return without_l1("not_simple")
     return Criticality(one.l1 / nb, one.status, one.omega, one.lnv_weight / np.sqrt(nb))
 
 
