@@ -161,8 +161,9 @@ def test_signs_of_one_block(model, eta_hat, mass_hat, law, expected):
     """Quasi-static aging law: Ranjith & Rice's family of closed orbits at Kc, l1 = 0.
     Quasi-static slip law, in slip as time (dt' = e^ℓ dt): ℓ'' − (a1 g'(ℓ) + b2) ℓ' − D g(ℓ)
     = 0 with g = e^(−ℓ) − 1, a Liénard equation whose l1 ∝ f''(0) − f'(0) h''(0)/h'(0) =
-    a1 − a1 = 0 (f = −a1 g' − b2, h = −D g): zero too, and Gu et al.'s (1984) conditional
-    stability is decided beyond l1. Radiation damping: negative (the amplitude grows as
+    a1 − a1 = 0 (f = −a1 g' − b2, h = −D g): zero too (f = c (h' − h'(0)), so ∫f is a
+    function of ∫h: a centre), and Gu et al.'s (1984) conditional stability is a finite
+    threshold, not a small unstable cycle. Radiation damping: negative (the amplitude grows as
     the square root of the distance to Kc, checked below). Inertia: the sign of the SymPy
     computation above (the aging law turns subcritical for light blocks)."""
     assert hopf.one_block(model, law, A, B, eta_hat, mass_hat).status == status(expected)
