@@ -61,3 +61,10 @@ FLOQUET_STATUSES = ("not_computed", "ok", "at_resolution", "no_return", "failed"
 def code(table, name):
     """The code of ``name`` in ``table`` (its place there; ValueError if absent)."""
     return list(table).index(name)
+
+
+#: What the steady state's loss of stability at Kc is (the ``hopf_criticality`` variable's
+#: flag meanings; ``model/hopf.py``): the sign of the first Lyapunov coefficient l1, zero
+#: within its tolerance, or why l1 is not given (the critical pair of eigenvalues is not
+#: simple; no pair crosses at any positive stiffness).
+HOPF_CRITICALITIES = ("supercritical", "subcritical", "degenerate", "not_simple", "no_hopf")

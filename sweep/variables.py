@@ -22,7 +22,14 @@ import numpy as np
 
 #: The regime and attractor names in code order (the flag_values / flag_meanings of
 #: ``regime`` and ``attractor``): the code tables of ``sweep/codes.py``.
-from .codes import ATTRACTORS, B_VALUE_STATUSES, FLOQUET_STATUSES, RECURRENCE_STATUSES, REGIMES
+from .codes import (
+    ATTRACTORS,
+    B_VALUE_STATUSES,
+    FLOQUET_STATUSES,
+    HOPF_CRITICALITIES,
+    RECURRENCE_STATUSES,
+    REGIMES,
+)
 
 #: The variables that are codes: each with its table (CF ``flag_values``/``flag_meanings``).
 FLAGS = {
@@ -32,6 +39,7 @@ FLAGS = {
     "b_value_truncated_status": B_VALUE_STATUSES,
     "recurrence_status": RECURRENCE_STATUSES,
     "floquet_status": FLOQUET_STATUSES,
+    "hopf_criticality": HOPF_CRITICALITIES,
 }
 
 #: Conversions of a kernel column to physical units, given D0/V in s per system: as is,
@@ -350,6 +358,25 @@ VARIABLES = (
              per_member=False),
     Variable("onset_period", "float64", "s", "period at onset",
              "2 pi / omega of the linear oscillation at K = Kc", per_member=False),
+    Variable("hopf_l1", "float64", "1", "first Lyapunov coefficient at Kc",
+             "l1 of the Hopf bifurcation of steady sliding at K = Kc (Kuznetsov 2004, sections "
+             "3.5 and 5.4): < 0 supercritical, > 0 subcritical; its sign is coordinate-free, "
+             "its size is in the engine's state variables (ln(v_i/V), ln(Phi_i/Phi_ss,i)[, "
+             "z_i]) and time unit D0/V, critical eigenvectors normalised <q, q> = <p, q> = 1; "
+             "NaN where hopf_criticality is not_simple or no_hopf", per_member=False),
+    Variable("hopf_criticality", "int8", "1", "kind of Hopf bifurcation at Kc",
+             "supercritical (hopf_l1 < 0), subcritical (> 0), degenerate (|hopf_l1| within "
+             "1e-9 of the sum of the moduli of its formula's three terms: zero to round-off, "
+             "as for one quasi-static block), not_simple (another eigenvalue crosses with the "
+             "pair: identical blocks without coupling springs) or no_hopf (no pair crosses "
+             "at a positive stiffness); see flag_values/flag_meanings", per_member=False),
+    Variable("hopf_lnv_amplitude", "float64", "1", "normal-form peak-to-peak ln(v/V)",
+             "the cycle the normal form predicts near Kc, 4 |z| max_i |q_i| with "
+             "|z|^2 = -Re(lambda) / (omega hopf_l1), Re(lambda) = linear_growth_rate D0/V and "
+             "omega = 2 pi / onset_period in units of V/D0, q_i block i's ln v entry of the "
+             "critical eigenvector: to leading order in K - Kc the lnv_amplitude of the "
+             "settled cycle (not far from Kc); NaN unless supercritical and K < Kc",
+             per_member=False),
 )  # fmt: skip
 
 BY_NAME = {v.name: v for v in VARIABLES}

@@ -37,7 +37,15 @@ from ..results.dataset import derived_fields, regime_fractions, stored_config, u
 from ..variables import variables_for
 
 #: Variables from linear theory, not from the run: never recomputed.
-LINEAR_THEORY = ("linear_growth_rate", "critical_K_W", "K_over_Kc", "onset_period")
+LINEAR_THEORY = (
+    "linear_growth_rate",
+    "critical_K_W",
+    "K_over_Kc",
+    "onset_period",
+    "hopf_l1",
+    "hopf_criticality",
+    "hopf_lnv_amplitude",
+)
 #: Times (s) of the continued run, shifted by the old t_final.
 SHIFTED = ("t_final", "t_runaway")
 #: Counts of the continued run, added to the old ones.

@@ -19,7 +19,7 @@ import xarray as xr
 from .._version import __version__
 from ..config import parse_stored_config
 from ..errors import ConfigError, InputError
-from ..model import heterogeneity
+from ..model import heterogeneity, hopf
 from ..model.physics import PARAMETERS
 from ..variables import REGIMES, SCALES, VARIABLES, variable_attrs, variables_for
 from .catalogue_statistics import (
@@ -66,6 +66,8 @@ def derived_fields(grid, results, y_final):
             "K_over_Kc": phys["K_W"] * phys["D0"] / kc,
             "onset_period": 2 * np.pi / omega * time_unit,
         }
+    hopf_point = hopf.theory(config, phys, grid.dimensionless, grid.blocks, growth)
+    fields |= {f"hopf_{name}": value for name, value in hopf_point.items()}
     m = config.classification.events
     if m:
         start = layout.N_RESULTS
