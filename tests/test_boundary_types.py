@@ -22,8 +22,17 @@ from test_refine import made_up, refine_config
 from sweep.codes import FLOQUET_STATUSES
 from sweep.config import load_config, with_changes
 from sweep.engine import runner
+from sweep.plot.bifurcation import plot_bifurcation
+from sweep.plot.common import KIND_TEXT, kind_text
+from sweep.plot.maps import plot_result
 from sweep.refine.boundaries import boundaries
-from sweep.refine.boundary_types import NEAR_UNIT, boundary_types_1d, classify, run_table
+from sweep.refine.boundary_types import (
+    KINDS,
+    NEAR_UNIT,
+    boundary_types_1d,
+    classify,
+    run_table,
+)
 from sweep.refine.lattice import Refinement
 from sweep.variables import ATTRACTORS, REGIMES
 
@@ -232,6 +241,16 @@ def test_an_ensemble_and_runs_that_differ_on_one_side_are_undetermined():
     assert kind == "undetermined" and "differ" in evidence
 
 
+def test_every_type_has_a_short_text_for_the_figures():
+    assert set(KIND_TEXT) == set(KINDS)
+    assert kind_text("hopf (supercritical)") == "Hopf (super)"
+
+
+def figure_texts(fig):
+    """Every text drawn on the axes of ``fig``."""
+    return {t.get_text() for ax in fig.axes for t in ax.texts}
+
+
 # --- engine runs ------------------------------------------------------------------------------
 
 
@@ -256,6 +275,8 @@ def test_route_to_chaos_simple_cycle_doubles_with_mu_near_minus_one():
     ]
     assert len(doubling) == 1, crossings
     assert doubling[0].kind == "period_doubling", doubling[0].evidence
+    fig = plot_bifurcation(ds)
+    assert "PD" in figure_texts(fig)
 
 
 @pytest.mark.slow
@@ -269,7 +290,7 @@ def test_a_damped_block_refined_across_kc_is_a_hopf_and_a_quasi_static_one_runs_
     ):
         config = make_config(
             {"model": model},
-            parameters={"eta_W": eta_w},
+            parameters={"eta_W": eta_w} if eta_w else {},
             sweep={"K_W": {"start": start, "stop": start + 0.008, "num": 3}},
             refine={"levels": 4},
         )
@@ -278,3 +299,4 @@ def test_a_damped_block_refined_across_kc_is_a_hopf_and_a_quasi_static_one_runs_
         edges = [b for b in found if "steady" in b.between]
         assert len(edges) == 1, [(b.between, b.kind) for b in found]
         assert edges[0].kind.startswith(kind), edges[0].evidence
+        assert kind_text(edges[0].kind) in figure_texts(plot_result(ds))

@@ -21,6 +21,7 @@ from .common import (
     ATTRACTOR_COLOURS,
     REGIME_CODES,
     REGIME_COLOURS,
+    TYPE_BOX,
     _as_grid,
     _check_caption,
     _edges,
@@ -35,6 +36,8 @@ from .common import (
     describe,
     initial_text,
     kc_label,
+    kind_text,
+    kinds_legend_text,
     new_figure,
     regime_legend,
     regime_names,
@@ -410,9 +413,11 @@ def plot_refined(ds, caption="", ax=None):
             for b in found:
                 x, width = b.vertices[0, 0], b.resolution[0, 0]
                 a.axvspan(x - width / 2, x + width / 2, color="k", alpha=0.15, lw=0)
+        if found:
+            _label_points(fig.axes[0], found)
         return fig
     classes, outputs = _colour_classes(ds)
-    found = boundaries(classes, outputs)
+    found = boundaries(classes, outputs, types_from=ds)  # typed by the runs' own events
     if ax is None:
         fig = new_figure(figsize=(14.5, 6.2))
         panels = fig.subplots(1, 2, sharex=True, sharey=True)
@@ -428,7 +433,8 @@ def plot_refined(ds, caption="", ax=None):
     below = {"loc": "upper left", "bbox_to_anchor": (0, -0.12), "fontsize": 8, "frameon": False}
     _kind_legend(panels[0], counts, rare, ncol=2, **below)
     if panels[1] is not None:
-        panels[1].legend(handles=_boundary_handles(ds, outputs, kc_drawn), **below)
+        kinds = [b.kind for b in found]
+        panels[1].legend(handles=_boundary_handles(ds, outputs, kc_drawn, kinds), **below)
         runs = ", ".join(str(int(r)) for r in ds.attrs["refine_runs"])
         lines = [
             f"{ds.attrs.get('sweep_name', '')}: {describe(ds)}",
@@ -628,11 +634,39 @@ def _draw_boundaries(ax, found):
         first = [text.split(",")[0] for text in b.between]
         style = "-" if first[0] != first[1] else "--"
         ax.plot(b.vertices[:, 0], b.vertices[:, 1], color="k", ls=style, lw=0.9)
+    longest = {}
+    for b in found:  # its type on the longest polyline of each pair of labels and type
+        key = (b.between, b.kind)
+        if key not in longest or len(b.vertices) > len(longest[key].vertices):
+            longest[key] = b
+    for b in longest.values():
+        x, y = b.vertices[len(b.vertices) // 2]
+        ax.text(
+            x, y, kind_text(b.kind), fontsize=7, ha="center", va="center", zorder=6, bbox=TYPE_BOX
+        )
 
 
-def _boundary_handles(ds, outputs, kc_drawn):
-    """Legend entries of the boundaries (``outputs`` of :func:`_colour_classes`) and of
-    the Kc line if it is drawn."""
+def _label_points(ax, found):
+    """The type of each boundary of one refined axis at its point, at the top of ``ax``."""
+    transform = ax.get_xaxis_transform()
+    for b in found:
+        ax.text(
+            b.vertices[0, 0],
+            0.98,
+            kind_text(b.kind),
+            transform=transform,
+            fontsize=7,
+            rotation=90,
+            ha="center",
+            va="top",
+            zorder=6,
+            bbox=TYPE_BOX,
+        )
+
+
+def _boundary_handles(ds, outputs, kc_drawn, kinds=()):
+    """Legend entries of the boundaries (``outputs`` of :func:`_colour_classes`), of their
+    types' short texts (``kinds`` present) and of the Kc line if it is drawn."""
     from matplotlib.lines import Line2D
 
     if outputs:
@@ -643,6 +677,8 @@ def _boundary_handles(ds, outputs, kc_drawn):
         Line2D([], [], color="k", lw=0.9, label=f"boundary (left): {solid}"),
         Line2D([], [], color="k", ls="--", lw=0.9, label=f"boundary (left): {dashed}"),
     ]
+    if kinds:
+        handles.append(Line2D([], [], ls="", label=kinds_legend_text(kinds)))
     if kc_drawn:
         handles.append(Line2D([], [], color=KC_COLOUR, ls="-.", lw=1.8, label=kc_label(ds)))
     return handles

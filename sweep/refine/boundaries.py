@@ -110,7 +110,9 @@ def _label_text(ds, labels, row):
     return ", ".join(parts) or "-"
 
 
-def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Boundary]:
+def boundaries(
+    ds: xr.Dataset, outputs: Sequence[str] | None = None, *, types_from: xr.Dataset | None = None
+) -> list[Boundary]:
     """The boundaries between the labels of a refined result.
 
     Parameters
@@ -121,6 +123,9 @@ def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Bou
     outputs : sequence of str, optional
         The outputs whose values make a label (default: the refine outputs compared
         exactly, e.g. regime, attractor and cycle_events).
+    types_from : xarray.Dataset, optional
+        The result whose runs' outputs type the boundaries (default ``ds``): the same
+        runs in the same order, e.g. ``ds`` before its labels were coarsened for a map.
 
     Returns
     -------
@@ -177,7 +182,9 @@ def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Bou
         mixed = np.any(labels != labels[:, :1], axis=1)
         found.append((level, leaves[mixed], labels[mixed], rows[mixed]))
     cut = _cut_cells_1d if len(axes) == 1 else _cut_cells_2d
-    table = run_table(ds)
+    if types_from is not None and types_from.sizes.get("point") != ds.sizes.get("point"):
+        raise ValueError("types_from must hold the same runs as ds")
+    table = run_table(ds if types_from is None else types_from)
     segments, verdicts = {}, {}
     for level, leaves, labels, rows in found:
         for cell, corner_labels, corner_rows in zip(leaves, labels, rows, strict=True):

@@ -1,25 +1,27 @@
 """The type of a boundary: the bifurcation the runs on its two sides name.
 
 A boundary separates two labels (regime, attractor, events a cycle). Its type is read from
-the runs next to it on each side, by these rules (the multiplier criteria of Kuznetsov,
-*Elements of Applied Bifurcation Theory*, 3rd ed. 2004, §3.5 and §7.3-7.5, for a cycle's
-non-trivial multipliers μ: fold of cycles μ → +1, period doubling μ → −1, torus a complex
-pair reaching |μ| = 1; §3.4-3.5 for the Hopf bifurcation):
+the runs next to it on each side, by these rules (Kuznetsov, *Elements of Applied
+Bifurcation Theory*, 3rd ed. 2004: ch. 3 for the Hopf bifurcation of an equilibrium; ch. 4,
+the fold, flip and Neimark-Sacker bifurcations of a map's fixed point, applied to a cycle's
+Poincaré map in ch. 5: of its non-trivial multipliers μ, one reaching +1 is a fold of
+cycles, −1 a period doubling, a complex pair reaching |μ| = 1 a torus):
 
 - ``hopf``: steady sliding on one side, stick-slip on the other, and the linear growth
-  rate at steady sliding negative on the steady side, positive on the other (an eigenpair
-  crosses the imaginary axis between them); ``hopf (supercritical)`` etc. where the result
+  rate at steady sliding negative on the steady side, positive (or zero, within
+  :data:`GROWTH_ZERO`: a run on the critical line) on the other (an eigenpair crosses the
+  imaginary axis between them); ``hopf (supercritical)`` etc. where the result
   has ``hopf_criticality`` and the runs agree on it;
 - ``runaway``: one side runs away (velocity past the cap), whatever is on the other;
-- ``period_doubling``: a cycle of n events beside one of 2n, or beside a non-periodic
-  attractor, with the n-event cycle's multiplier near −1;
+- ``period_doubling``: a cycle of n events beside one of 2n, or beside a quasi-periodic
+  or chaotic run, with the n-event cycle's multiplier near −1;
 - ``fold_of_cycles``: a cycle whose multiplier is near +1 beside steady sliding (with no
   sign change of the growth rate) or beside another cycle (events not doubled) or a
-  non-periodic attractor;
+  quasi-periodic or chaotic run;
 - ``torus``: a cycle with a complex pair near the unit circle beside a quasi-periodic run;
-- ``undetermined``, with the reason: no rule for the two labels, multipliers not computed,
-  none near the unit circle, or evidence against the labels (events double but μ is not
-  near −1).
+- ``undetermined``, with the reason: no rule for the two labels (e.g. a run on one side
+  unresolved, or undecided), multipliers not computed, none near the unit circle, or
+  evidence against the labels (events double but μ is not near −1).
 
 A multiplier is *near* the unit circle where the largest non-trivial modulus of the runs
 on that side next to the boundary is at least :data:`NEAR_UNIT`; it is real positive
@@ -44,8 +46,13 @@ KINDS = ("hopf", "runaway", "period_doubling", "fold_of_cycles", "torus", "undet
 NEAR_UNIT = 0.5
 #: Largest distance (rad) of a multiplier's argument from 0 or π for it to count as real.
 REAL_ANGLE = 0.1
-#: Attractors other than periodic and fixed point a cycle can turn into.
-NON_PERIODIC = ("quasi_periodic", "chaotic", "unresolved")
+#: Attractors other than periodic and fixed point a cycle can turn into (an unresolved run
+#: says nothing of what lies beyond: no type beside it).
+NON_PERIODIC = ("quasi_periodic", "chaotic")
+#: A growth rate within this fraction of the largest on either side counts as zero: a run
+#: on the critical line itself (e.g. at Kc, where the quasi-static aging law's family of
+#: closed orbits lies).
+GROWTH_ZERO = 1e-9
 
 
 def run_table(ds):
@@ -94,6 +101,9 @@ def classify(table, rows_a, rows_b):
             return "undetermined", side
         sides.append(side)
     a, b = sides
+    if "unresolved" in (a.attractor, b.attractor):
+        known = b if a.attractor == "unresolved" else a
+        return "undetermined", f"unresolved runs beside {known.text}: what lies beyond is unknown"
     if "runaway" in (a.regime, b.regime):
         other = b if a.regime == "runaway" else a
         if other.regime == "runaway":
@@ -123,7 +133,7 @@ def _side(table, rows):
             "the runs on one side differ: "
             f"{', '.join(regimes + attractors)}, events {', '.join(map(str, counts))}"
         )
-    return Side(regimes[0], attractors[0], counts[0], rows)
+    return Side(str(regimes[0]), str(attractors[0]), counts[0], rows)
 
 
 def _steady_edge(table, steady, moving):
@@ -135,8 +145,10 @@ def _steady_edge(table, steady, moving):
     high = table["linear_growth_rate"][moving.rows]
     if np.isnan(low).any() or np.isnan(high).any():
         return "undetermined", "linear_growth_rate not given beside the boundary"
+    zero = GROWTH_ZERO * max(np.abs(low).max(), np.abs(high).max())
+    low, high = np.where(np.abs(low) <= zero, 0.0, low), np.where(np.abs(high) <= zero, 0.0, high)
     rates = f"growth rate {low.max():.3g} s⁻¹ (steady), {high.min():.3g} s⁻¹ (stick-slip)"
-    if low.max() < 0 < high.min():
+    if low.max() < 0 <= high.min():
         return _hopf(table, steady, moving), f"{rates}: an eigenpair crosses"
     if high.max() < 0 and moving.attractor == "periodic":
         near, text = _multiplier(table, moving)
