@@ -118,6 +118,26 @@ def test_a_refined_hopf_line_where_the_hand_growth_rate_changes_sign():
     assert np.all(np.abs(k - (b - A)) <= edge.resolution.sum(axis=1).max() / 2 * (1 + 1e-9))
 
 
+def test_a_hopf_boundary_carries_the_criticality_its_runs_agree_on():
+    """With hopf_criticality in the result (a flag variable): "hopf (supercritical)"
+    where both sides say supercritical, plain hopf where they differ."""
+    criticality = ("supercritical", "subcritical", "degenerate", "not_simple", "no_hopf")
+    k = np.array([0.049, 0.051])
+    growth = np.array([qs_growth_rate(x) for x in k])
+    assert growth[0] > 0 > growth[1]
+    ds = line_result(
+        k,
+        regime=["stick_slip", "steady"],
+        attractor=["periodic", "fixed_point"],
+        events=[1, 0],
+        growth=growth,
+    )
+    for codes, kind in (([0, 0], "hopf (supercritical)"), ([0, 1], "hopf")):
+        ds["hopf_criticality"] = ("r", np.array(codes, np.int8), flags(criticality))
+        (crossing,) = boundary_types_1d(ds)
+        assert crossing.kind == kind, crossing.evidence
+
+
 def test_the_same_line_without_a_sign_change_is_a_fold_only_where_mu_is_near_plus_one():
     """Steady sliding beside a cycle with the growth rate negative on both sides (a
     bistable edge): a fold of cycles where the cycle's multiplier is real and above
