@@ -92,7 +92,9 @@ def plot_bifurcation(
     Steady runs are drawn at zero amplitude (v/V = 1: their attractor is steady
     sliding, whatever transient they showed); runaway runs have no bounded attractor,
     so no amplitude: they are marked as triangles in a strip above each panel, off its
-    axis; marker colours are the regimes. The title states each model's dimensionless
+    axis; marker colours are the regimes. Between neighbouring points of a curve whose
+    labels differ a dotted line marks the boundary, its type written low in panel (a)
+    (``refine.boundary_types.boundary_types_1d``). The title states each model's dimensionless
     number and the largest v_max/V of the bounded runs (``plot.common.scale_text``).
 
     Parameters

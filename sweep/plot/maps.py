@@ -391,9 +391,12 @@ def plot_refined(ds, caption="", ax=None):
     its corner's), the quasi-periodic, chaotic, unresolved and unbounded runs marked too
     (:data:`RARE_MARKERS`: their cells are often too small to see), with the boundaries
     between those colours on top (``sweep.boundaries``: solid where the attractor
-    changes, dashed where only the number of events does) and the Kc line (K/Kc = 1,
+    changes, dashed where only the number of events does; each pair of labels' longest
+    polyline of a type with that type's short text at its middle,
+    :data:`~sweep.plot.common.KIND_TEXT`) and the Kc line (K/Kc = 1,
     :func:`~sweep.plot.common.kc_label`); right, the level of every cell. Over one refined axis:
-    the measures of :func:`plot_result` at every run, the boundaries' cells shaded.
+    the measures of :func:`plot_result` at every run, the boundaries' cells shaded, their
+    types written at the top.
     More axes: the grid of level 0 (:func:`plot_result`). With ``ax``: only the left
     panel, there. ``caption``: an extra title line.
     """
