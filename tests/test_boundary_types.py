@@ -52,8 +52,11 @@ def flags(table):
     return {"flag_values": np.arange(len(table), dtype=np.int8), "flag_meanings": " ".join(table)}
 
 
-def line_result(x, regime, attractor, events, modulus=None, argument=None, growth=None):
-    """A made-up 1-D result along axis ``r`` with what the rules read."""
+def line_result(
+    x, regime, attractor, events, modulus=None, argument=None, growth=None, trivial_error=1e-6
+):
+    """A made-up 1-D result along axis ``r`` with what the rules read (the multipliers'
+    accuracy ``trivial_error``)."""
     n = len(x)
     periodic = np.array([a == "periodic" for a in attractor])
     data = {
@@ -71,6 +74,7 @@ def line_result(x, regime, attractor, events, modulus=None, argument=None, growt
         data["floquet_modulus"] = ("r", np.where(periodic, modulus, np.nan))
         data["floquet_argument"] = ("r", np.where(periodic, argument, np.nan))
         data["floquet_status"] = ("r", status, flags(FLOQUET_STATUSES))
+        data["floquet_trivial_error"] = ("r", np.where(periodic, trivial_error, np.nan))
     return xr.Dataset(data, coords={"r": x})
 
 
@@ -206,6 +210,34 @@ def test_events_that_double_while_mu_is_not_near_minus_one_are_undetermined():
     )
     (crossing,) = boundary_types_1d(ds)
     assert crossing.kind == "undetermined" and "not near −1" in crossing.evidence
+
+
+def test_a_neutral_or_unstable_cycle_names_no_bifurcation():
+    """A cycle with |μ| = 1 within ten times its accuracy (a family of closed orbits: no
+    fold however near +1) and one with |μ| = 1.06 (unstable, though labelled periodic):
+    undetermined, saying which."""
+    common = dict(regime=["stick_slip"] * 2, attractor=["periodic", "chaotic"], events=[1, 0])
+    for modulus, argument, error, word in (
+        (1 - 5e-7, 1e-7, 1e-7, "neutral"),
+        (1.06, np.pi, 1e-4, "unstable"),
+    ):
+        ds = line_result(
+            [0.0, 1.0],
+            modulus=[modulus, np.nan],
+            argument=[argument, np.nan],
+            trivial_error=error,
+            **common,
+        )
+        (crossing,) = boundary_types_1d(ds)
+        assert crossing.kind == "undetermined" and word in crossing.evidence, crossing.evidence
+    ds = line_result(
+        [0.0, 1.0],
+        modulus=[1 - 5e-7, np.nan],
+        argument=[1e-7, np.nan],
+        trivial_error=1e-8,
+        **common,
+    )
+    assert boundary_types_1d(ds)[0].kind == "fold_of_cycles"  # 50 times its accuracy from 1
 
 
 def test_the_delayed_logistic_map_loses_its_fixed_point_to_a_torus_at_two():

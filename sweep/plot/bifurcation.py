@@ -222,7 +222,9 @@ def plot_bifurcation(
     handles = [*model_handles, runaway] if "runaway" in seen else model_handles
     kinds = _draw_types((ax_a, ax_v), curves)
     if kinds:
-        handles.append(Line2D([], [], color=TYPE_COLOUR, ls=":", label=kinds_legend_text(kinds)))
+        line = "a boundary between neighbouring points, its type low in (a)"
+        handles.append(Line2D([], [], color=TYPE_COLOUR, ls=":", label=line))
+        handles += [Line2D([], [], ls="", label=text) for text in kinds_legend_text(kinds)]
     ax_a.legend(handles=handles, loc="upper right", fontsize=8)
     regime_legend(
         ax_v,

@@ -158,11 +158,11 @@ KIND_TEXT = {
 TYPE_BOX = {"boxstyle": "round,pad=0.15", "fc": "white", "ec": "k", "lw": 0.4, "alpha": 0.85}
 #: What each short text stands for, for a legend.
 KIND_MEANING = {
-    "hopf": "Hopf (growth rate changes sign)",
-    "runaway": "runaway beyond",
-    "period_doubling": "PD: period doubling (μ → −1)",
-    "fold_of_cycles": "fold of cycles (μ → +1)",
-    "torus": "torus (complex μ → unit circle)",
+    "hopf": "Hopf: the growth rate changes sign",
+    "runaway": "runaway: runaway beyond",
+    "period_doubling": "PD: period doubling, μ → −1",
+    "fold_of_cycles": "fold: fold of cycles, μ → +1",
+    "torus": "torus: a complex pair μ → the unit circle",
     "undetermined": "?: type undetermined",
 }
 
@@ -174,9 +174,9 @@ def kind_text(kind):
 
 
 def kinds_legend_text(kinds):
-    """One legend line naming the short texts of the boundary ``kinds`` present."""
+    """Legend lines naming the short texts of the boundary ``kinds`` present, one each."""
     present = dict.fromkeys(k.partition(" ")[0] for k in kinds)
-    return "boundary types: " + "; ".join(KIND_MEANING[k] for k in present)
+    return [f"boundary type {KIND_MEANING[k]}" for k in present]
 
 
 def describe(ds):

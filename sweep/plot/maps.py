@@ -432,6 +432,7 @@ def plot_refined(ds, caption="", ax=None):
     _draw_boundaries(panels[0], found)  # the levels' panel shows where they are by its cells
     for a in filter(None, panels):
         kc_drawn = _refined_axes(a, ds, lattice)
+    _label_boundaries(panels[0], found)
     rare = _rare_markers(panels[0], ds, lattice)
     below = {"loc": "upper left", "bbox_to_anchor": (0, -0.12), "fontsize": 8, "frameon": False}
     _kind_legend(panels[0], counts, rare, ncol=2, **below)
@@ -637,15 +638,41 @@ def _draw_boundaries(ax, found):
         first = [text.split(",")[0] for text in b.between]
         style = "-" if first[0] != first[1] else "--"
         ax.plot(b.vertices[:, 0], b.vertices[:, 1], color="k", ls=style, lw=0.9)
+
+
+#: Places tried along a polyline for its type's text (fractions of its vertices), and the
+#: least distance (fraction of the axes) between two such texts.
+LABEL_PLACES = (0.5, 0.25, 0.75, 0.125, 0.875, 0.375, 0.625)
+LABEL_SPACING = 0.08
+
+
+def _label_boundaries(ax, found):
+    """Each boundary type's short text (:data:`~sweep.plot.common.KIND_TEXT`) on the
+    longest polyline of its pair of labels, at the first of :data:`LABEL_PLACES` at least
+    :data:`LABEL_SPACING` from the texts already placed (longest polylines first; none
+    where no place is: a crowded type is named in the legend only). Call after the axes'
+    limits and scales are set."""
     longest = {}
-    for b in found:  # its type on the longest polyline of each pair of labels and type
+    for b in found:
         key = (b.between, b.kind)
         if key not in longest or len(b.vertices) > len(longest[key].vertices):
             longest[key] = b
-    for b in longest.values():
-        x, y = b.vertices[len(b.vertices) // 2]
+    to_axes = ax.transData + ax.transAxes.inverted()
+    placed = []
+    for b in sorted(longest.values(), key=lambda b: -len(b.vertices)):
+        n = len(b.vertices)
+        places = [b.vertices[min(int(f * n), n - 1)] for f in LABEL_PLACES]
+        free = [
+            point
+            for point in places
+            if all(np.hypot(*(to_axes.transform(point) - p)) >= LABEL_SPACING for p in placed)
+        ]
+        if not free:
+            continue
+        at = free[0]
+        placed.append(to_axes.transform(at))
         ax.text(
-            x, y, kind_text(b.kind), fontsize=7, ha="center", va="center", zorder=6, bbox=TYPE_BOX
+            *at, kind_text(b.kind), fontsize=7, ha="center", va="center", zorder=6, bbox=TYPE_BOX
         )
 
 
@@ -680,8 +707,7 @@ def _boundary_handles(ds, outputs, kc_drawn, kinds=()):
         Line2D([], [], color="k", lw=0.9, label=f"boundary (left): {solid}"),
         Line2D([], [], color="k", ls="--", lw=0.9, label=f"boundary (left): {dashed}"),
     ]
-    if kinds:
-        handles.append(Line2D([], [], ls="", label=kinds_legend_text(kinds)))
+    handles += [Line2D([], [], ls="", label=text) for text in kinds_legend_text(kinds)]
     if kc_drawn:
         handles.append(Line2D([], [], color=KC_COLOUR, ls="-.", lw=1.8, label=kc_label(ds)))
     return handles

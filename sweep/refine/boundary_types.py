@@ -25,7 +25,9 @@ cycles, −1 a period doubling, a complex pair reaching |μ| = 1 a torus):
 
 A multiplier is *near* the unit circle where the largest non-trivial modulus of the runs
 on that side next to the boundary is at least :data:`NEAR_UNIT`; it is real positive
-(negative) where its argument lies within :data:`REAL_ANGLE` of 0 (π). These are coarse
+(negative) where its argument lies within :data:`REAL_ANGLE` of 0 (π). A modulus of 1
+within :data:`NEUTRAL_FACTOR` times the matrix's accuracy is a neutral cycle, one above
+that an unstable one: neither names a bifurcation. These are coarse
 on purpose: a multiplier crosses the unit circle only at the boundary, which a run can
 approach no closer than its cell; a modulus of 0.5 at a corner of the cell says the cycle
 is losing stability there, not that it lost it. The rules read only the runs' own outputs;
@@ -46,6 +48,11 @@ KINDS = ("hopf", "runaway", "period_doubling", "fold_of_cycles", "torus", "undet
 NEAR_UNIT = 0.5
 #: Largest distance (rad) of a multiplier's argument from 0 or π for it to count as real.
 REAL_ANGLE = 0.1
+#: A multiplier whose modulus is 1 within this many times the trivial multiplier's distance
+#: from 1 (``floquet_trivial_error``, the matrix's accuracy) is on the unit circle: a
+#: neutral cycle (e.g. of the quasi-static aging law's family of closed orbits at Kc), no
+#: evidence of a bifurcation beside it.
+NEUTRAL_FACTOR = 10.0
 #: Attractors other than periodic and fixed point a cycle can turn into (an unresolved run
 #: says nothing of what lies beyond: no type beside it).
 NON_PERIODIC = ("quasi_periodic", "chaotic")
@@ -65,7 +72,8 @@ def run_table(ds):
         if name in ds:
             meanings = np.array(ds[name].attrs["flag_meanings"].split())
             table[name] = meanings[ds[name].values.ravel().astype(int)]
-    for name in ("cycle_events", "linear_growth_rate", "floquet_modulus", "floquet_argument"):
+    floquet = ("floquet_modulus", "floquet_argument", "floquet_trivial_error")
+    for name in ("cycle_events", "linear_growth_rate", *floquet):
         if name in ds:
             table[name] = ds[name].values.ravel()
     return table
@@ -203,7 +211,8 @@ def _cycle_lost(table, cycle, other):
 def _multiplier(table, side):
     """How a cycle's largest non-trivial multiplier stands next to the boundary: ``(near,
     text)``, ``near`` "minus", "plus", "complex" (near the unit circle), "inside" (not
-    near) or "missing" (not computed)."""
+    near), "neutral" (on it within the matrix's accuracy), "unstable" (outside it) or
+    "missing" (not computed)."""
     if "floquet_modulus" not in table:
         return "missing", "no Floquet multipliers in this result"
     status = table["floquet_status"][side.rows]
@@ -215,6 +224,11 @@ def _multiplier(table, side):
     at = int(np.argmax(modulus))
     mod, arg = float(modulus[at]), float(table["floquet_argument"][rows][at])
     text = f"|μ| = {mod:.3g}, arg μ = {arg:.3g} rad on the {side.text} side"
+    accuracy = NEUTRAL_FACTOR * float(table["floquet_trivial_error"][rows][at])
+    if abs(mod - 1) <= accuracy:
+        return "neutral", f"{text}: 1 within its accuracy, a neutral cycle (a family of orbits?)"
+    if mod > 1:
+        return "unstable", f"{text}: above 1, an unstable cycle though labelled periodic"
     if mod < NEAR_UNIT:
         return "inside", text
     if abs(arg) <= REAL_ANGLE:
