@@ -16,6 +16,7 @@ from ..variables import REGIMES
 from .common import (
     ATTRACTOR_COLOURS,
     REGIME_COLOURS,
+    TYPE_BOX,
     _as_grid,
     _check_caption,
     _log_spaced,
@@ -24,6 +25,8 @@ from .common import (
     axis_label,
     describe,
     initial_text,
+    kind_text,
+    kinds_legend_text,
     new_figure,
     parameter_text,
     regime_legend,
@@ -38,6 +41,8 @@ if TYPE_CHECKING:
 
 #: Marker of each model in a bifurcation diagram (lines in black; colours are regimes).
 MODEL_MARKERS = {"quasi-static": "o", "quasi-dynamic": "s", "inertial": "D"}
+#: Colour of the lines at the boundaries between neighbouring points, typed.
+TYPE_COLOUR = "#666666"
 #: Line style and marker area (pt²) of successive curves: later curves smaller, so
 #: curves that coincide (e.g. all steady at zero amplitude) stay visible.
 CURVE_STYLES = (("-", 46), ("--", 22), (":", 11), ("-.", 6))
@@ -87,7 +92,9 @@ def plot_bifurcation(
     Steady runs are drawn at zero amplitude (v/V = 1: their attractor is steady
     sliding, whatever transient they showed); runaway runs have no bounded attractor,
     so no amplitude: they are marked as triangles in a strip above each panel, off its
-    axis; marker colours are the regimes. The title states each model's dimensionless
+    axis; marker colours are the regimes. Between neighbouring points of a curve whose
+    labels differ a dotted line marks the boundary, its type written low in panel (a)
+    (``refine.boundary_types.boundary_types_1d``). The title states each model's dimensionless
     number and the largest v_max/V of the bounded runs (``plot.common.scale_text``).
 
     Parameters
@@ -213,6 +220,11 @@ def plot_bifurcation(
         label="runaway: no bounded attractor, no amplitude (strip above)",
     )
     handles = [*model_handles, runaway] if "runaway" in seen else model_handles
+    kinds = _draw_types((ax_a, ax_v), curves)
+    if kinds:
+        line = "a boundary between neighbouring points, its type low in (a)"
+        handles.append(Line2D([], [], color=TYPE_COLOUR, ls=":", label=line))
+        handles += [Line2D([], [], ls="", label=text) for text in kinds_legend_text(kinds)]
     ax_a.legend(handles=handles, loc="upper right", fontsize=8)
     regime_legend(
         ax_v,
@@ -230,6 +242,41 @@ def plot_bifurcation(
     ]
     _suptitle(fig, [title, scale_text(datasets, shown), caption])
     return fig
+
+
+def _draw_types(axes, curves):
+    """The boundaries between neighbouring points of each curve
+    (``refine.boundary_types.boundary_types_1d``) as vertical dotted lines on ``axes`` at
+    the middle of their K/Kc, their type's short text low in the first, beside the line
+    (left for the first curve, right for the second, and so on); returns the types
+    drawn."""
+    from ..refine.boundary_types import boundary_types_1d
+
+    kinds = []
+    for k, (_, curve) in enumerate(curves):
+        dims = curve["regime"].dims
+        if len(dims) != 1 or curve.sizes[dims[0]] < 2:  # an ensemble, or one point
+            continue
+        line = curve.sortby(dims[0])
+        ratio = line["K_over_Kc"].values
+        for crossing in boundary_types_1d(line, dims[0]):
+            x = float(ratio[crossing.index] + ratio[crossing.index + 1]) / 2
+            for ax in axes:
+                ax.axvline(x, color=TYPE_COLOUR, ls=":", lw=1.0, zorder=1)
+            axes[0].text(
+                x,
+                0.05,
+                kind_text(crossing.kind),
+                transform=axes[0].get_xaxis_transform(),
+                fontsize=7,
+                rotation=90,
+                ha=("right", "left")[k % 2],
+                va="bottom",
+                zorder=6,
+                bbox=TYPE_BOX,
+            )
+            kinds.append(crossing.kind)
+    return kinds
 
 
 def describe_common(datasets):

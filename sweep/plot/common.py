@@ -145,6 +145,40 @@ def kc_label(ds):
     return "analytic Kc (K/Kc = 1)"
 
 
+#: Short text of each boundary type (``sweep/refine/boundary_types.py``) on a figure.
+KIND_TEXT = {
+    "hopf": "Hopf",
+    "runaway": "runaway",
+    "period_doubling": "PD",
+    "fold_of_cycles": "fold",
+    "torus": "torus",
+    "undetermined": "?",
+}
+#: Box behind the short text of a boundary's type on a figure.
+TYPE_BOX = {"boxstyle": "round,pad=0.15", "fc": "white", "ec": "k", "lw": 0.4, "alpha": 0.85}
+#: What each short text stands for, for a legend.
+KIND_MEANING = {
+    "hopf": "Hopf: the growth rate changes sign",
+    "runaway": "runaway: runaway beyond",
+    "period_doubling": "PD: period doubling, μ → −1",
+    "fold_of_cycles": "fold: fold of cycles, μ → +1",
+    "torus": "torus: a complex pair μ → the unit circle",
+    "undetermined": "?: type undetermined",
+}
+
+
+def kind_text(kind):
+    """Short text of a boundary type, e.g. ``"hopf (supercritical)"`` → ``"Hopf (super)"``."""
+    base, _, rest = kind.partition(" ")
+    return KIND_TEXT[base] + (" " + rest.replace("critical", "") if rest else "")
+
+
+def kinds_legend_text(kinds):
+    """Legend lines naming the short texts of the boundary ``kinds`` present, one each."""
+    present = dict.fromkeys(k.partition(" ")[0] for k in kinds)
+    return [f"boundary type {KIND_MEANING[k]}" for k in present]
+
+
 def describe(ds):
     """Title line of a result or trace: blocks, model, state law and fixed parameters
     (per block where the blocks differ by config)."""

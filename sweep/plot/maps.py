@@ -21,6 +21,7 @@ from .common import (
     ATTRACTOR_COLOURS,
     REGIME_CODES,
     REGIME_COLOURS,
+    TYPE_BOX,
     _as_grid,
     _check_caption,
     _edges,
@@ -35,6 +36,8 @@ from .common import (
     describe,
     initial_text,
     kc_label,
+    kind_text,
+    kinds_legend_text,
     new_figure,
     regime_legend,
     regime_names,
@@ -388,9 +391,12 @@ def plot_refined(ds, caption="", ax=None):
     its corner's), the quasi-periodic, chaotic, unresolved and unbounded runs marked too
     (:data:`RARE_MARKERS`: their cells are often too small to see), with the boundaries
     between those colours on top (``sweep.boundaries``: solid where the attractor
-    changes, dashed where only the number of events does) and the Kc line (K/Kc = 1,
+    changes, dashed where only the number of events does; each pair of labels' longest
+    polyline of a type with that type's short text at its middle,
+    :data:`~sweep.plot.common.KIND_TEXT`) and the Kc line (K/Kc = 1,
     :func:`~sweep.plot.common.kc_label`); right, the level of every cell. Over one refined axis:
-    the measures of :func:`plot_result` at every run, the boundaries' cells shaded.
+    the measures of :func:`plot_result` at every run, the boundaries' cells shaded, their
+    types written at the top.
     More axes: the grid of level 0 (:func:`plot_result`). With ``ax``: only the left
     panel, there. ``caption``: an extra title line.
     """
@@ -410,9 +416,11 @@ def plot_refined(ds, caption="", ax=None):
             for b in found:
                 x, width = b.vertices[0, 0], b.resolution[0, 0]
                 a.axvspan(x - width / 2, x + width / 2, color="k", alpha=0.15, lw=0)
+        if found:
+            _label_points(fig.axes[0], found)
         return fig
     classes, outputs = _colour_classes(ds)
-    found = boundaries(classes, outputs)
+    found = boundaries(classes, outputs, types_from=ds)  # typed by the runs' own events
     if ax is None:
         fig = new_figure(figsize=(14.5, 6.2))
         panels = fig.subplots(1, 2, sharex=True, sharey=True)
@@ -424,11 +432,13 @@ def plot_refined(ds, caption="", ax=None):
     _draw_boundaries(panels[0], found)  # the levels' panel shows where they are by its cells
     for a in filter(None, panels):
         kc_drawn = _refined_axes(a, ds, lattice)
+    _label_boundaries(panels[0], found)
     rare = _rare_markers(panels[0], ds, lattice)
     below = {"loc": "upper left", "bbox_to_anchor": (0, -0.12), "fontsize": 8, "frameon": False}
     _kind_legend(panels[0], counts, rare, ncol=2, **below)
     if panels[1] is not None:
-        panels[1].legend(handles=_boundary_handles(ds, outputs, kc_drawn), **below)
+        kinds = [b.kind for b in found]
+        panels[1].legend(handles=_boundary_handles(ds, outputs, kc_drawn, kinds), **below)
         runs = ", ".join(str(int(r)) for r in ds.attrs["refine_runs"])
         lines = [
             f"{ds.attrs.get('sweep_name', '')}: {describe(ds)}",
@@ -630,9 +640,63 @@ def _draw_boundaries(ax, found):
         ax.plot(b.vertices[:, 0], b.vertices[:, 1], color="k", ls=style, lw=0.9)
 
 
-def _boundary_handles(ds, outputs, kc_drawn):
-    """Legend entries of the boundaries (``outputs`` of :func:`_colour_classes`) and of
-    the Kc line if it is drawn."""
+#: Places tried along a polyline for its type's text (fractions of its vertices), and the
+#: least distance (fraction of the axes) between two such texts.
+LABEL_PLACES = (0.5, 0.25, 0.75, 0.125, 0.875, 0.375, 0.625)
+LABEL_SPACING = 0.08
+
+
+def _label_boundaries(ax, found):
+    """Each boundary type's short text (:data:`~sweep.plot.common.KIND_TEXT`) on the
+    longest polyline of its pair of labels, at the first of :data:`LABEL_PLACES` at least
+    :data:`LABEL_SPACING` from the texts already placed (longest polylines first; none
+    where no place is: a crowded type is named in the legend only). Call after the axes'
+    limits and scales are set."""
+    longest = {}
+    for b in found:
+        key = (b.between, b.kind)
+        if key not in longest or len(b.vertices) > len(longest[key].vertices):
+            longest[key] = b
+    to_axes = ax.transData + ax.transAxes.inverted()
+    placed = []
+    for b in sorted(longest.values(), key=lambda b: -len(b.vertices)):
+        n = len(b.vertices)
+        places = [b.vertices[min(int(f * n), n - 1)] for f in LABEL_PLACES]
+        free = [
+            point
+            for point in places
+            if all(np.hypot(*(to_axes.transform(point) - p)) >= LABEL_SPACING for p in placed)
+        ]
+        if not free:
+            continue
+        at = free[0]
+        placed.append(to_axes.transform(at))
+        ax.text(
+            *at, kind_text(b.kind), fontsize=7, ha="center", va="center", zorder=6, bbox=TYPE_BOX
+        )
+
+
+def _label_points(ax, found):
+    """The type of each boundary of one refined axis at its point, at the top of ``ax``."""
+    transform = ax.get_xaxis_transform()
+    for b in found:
+        ax.text(
+            b.vertices[0, 0],
+            0.98,
+            kind_text(b.kind),
+            transform=transform,
+            fontsize=7,
+            rotation=90,
+            ha="center",
+            va="top",
+            zorder=6,
+            bbox=TYPE_BOX,
+        )
+
+
+def _boundary_handles(ds, outputs, kc_drawn, kinds=()):
+    """Legend entries of the boundaries (``outputs`` of :func:`_colour_classes`), of their
+    types' short texts (``kinds`` present) and of the Kc line if it is drawn."""
     from matplotlib.lines import Line2D
 
     if outputs:
@@ -643,6 +707,7 @@ def _boundary_handles(ds, outputs, kc_drawn):
         Line2D([], [], color="k", lw=0.9, label=f"boundary (left): {solid}"),
         Line2D([], [], color="k", ls="--", lw=0.9, label=f"boundary (left): {dashed}"),
     ]
+    handles += [Line2D([], [], ls="", label=text) for text in kinds_legend_text(kinds)]
     if kc_drawn:
         handles.append(Line2D([], [], color=KC_COLOUR, ls="-.", lw=1.8, label=kc_label(ds)))
     return handles

@@ -11,7 +11,8 @@ a boundary is a point, the middle of its cell.
 
 A label is a point's values of the refine outputs that are compared exactly (by
 default regime, attractor and cycle_events: "stick_slip, periodic, 2 events"; with an
-ensemble the regime fractions).
+ensemble the regime fractions). Each boundary carries its type, the bifurcation that the
+runs at its cells' corners name (``boundary_types.py``).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
+from .boundary_types import classify, combine, run_table
 from .dataset import lattice_index, refined_config
 from .lattice import Lattice, axis_values, cell_tree, point_labels
 
@@ -37,7 +39,10 @@ class Boundary:
     names of the vertices' columns; ``vertices`` (n, d): points in parameter space, in
     the axes' units; ``resolution`` (max(n - 1, 1), d): the size along each axis of the
     cell each segment crosses (over one axis: the cell holding the point), within which
-    the boundary is known; ``level`` (same rows): those cells' levels.
+    the boundary is known; ``level`` (same rows): those cells' levels; ``kind``: the
+    bifurcation the runs at those cells' corners name (``hopf``, ``runaway``,
+    ``period_doubling``, ``fold_of_cycles``, ``torus`` or ``undetermined``; rules in
+    ``sweep/refine/boundary_types.py``) and ``evidence``: why, in words.
     """
 
     between: tuple
@@ -45,6 +50,8 @@ class Boundary:
     vertices: np.ndarray
     resolution: np.ndarray
     level: np.ndarray
+    kind: str = "undetermined"
+    evidence: str = ""
 
 
 def point_label_codes(ds, config, outputs=None):
@@ -103,7 +110,9 @@ def _label_text(ds, labels, row):
     return ", ".join(parts) or "-"
 
 
-def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Boundary]:
+def boundaries(
+    ds: xr.Dataset, outputs: Sequence[str] | None = None, *, types_from: xr.Dataset | None = None
+) -> list[Boundary]:
     """The boundaries between the labels of a refined result.
 
     Parameters
@@ -114,13 +123,16 @@ def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Bou
     outputs : sequence of str, optional
         The outputs whose values make a label (default: the refine outputs compared
         exactly, e.g. regime, attractor and cycle_events).
+    types_from : xarray.Dataset, optional
+        The result whose runs' outputs type the boundaries (default ``ds``): the same
+        runs in the same order, e.g. ``ds`` before its labels were coarsened for a map.
 
     Returns
     -------
     list of Boundary
         One record per polyline (``between``, ``axes``, ``vertices``, ``resolution``,
-        ``level``; see :class:`~sweep.refine.boundaries.Boundary`), sorted by the labels
-        they separate, then by their first vertex.
+        ``level``, ``kind``, ``evidence``; see :class:`~sweep.refine.boundaries.Boundary`),
+        sorted by the labels they separate, then by their first vertex.
 
     Raises
     ------
@@ -168,19 +180,28 @@ def boundaries(ds: xr.Dataset, outputs: Sequence[str] | None = None) -> list[Bou
         rows = order[at]
         labels = codes[rows]  # (n, 2^d)
         mixed = np.any(labels != labels[:, :1], axis=1)
-        found.append((level, leaves[mixed], labels[mixed]))
+        found.append((level, leaves[mixed], labels[mixed], rows[mixed]))
     cut = _cut_cells_1d if len(axes) == 1 else _cut_cells_2d
-    segments = {}
-    for level, leaves, labels in found:
-        for cell, corner_labels in zip(leaves, labels, strict=True):
+    if types_from is not None and types_from.sizes.get("point") != ds.sizes.get("point"):
+        raise ValueError("types_from must hold the same runs as ds")
+    table = run_table(ds if types_from is None else types_from)
+    segments, verdicts = {}, {}
+    for level, leaves, labels, rows in found:
+        for cell, corner_labels, corner_rows in zip(leaves, labels, rows, strict=True):
             for pair, ends in cut(lattice, axes, cell, corner_labels, level):
                 segments.setdefault(pair, []).append((ends, cell, level))
+                key = (pair, tuple(cell), level)
+                if key not in verdicts:
+                    sides = [corner_rows[corner_labels == code] for code in pair]
+                    verdicts[key] = classify(table, *sides)
     out = []
     names = tuple(lattice.names[i] for i in axes)
     for pair, segs in segments.items():
         between = (texts[pair[0]], texts[pair[1]])
         for chain in _chains(segs):
-            out.append(_boundary(lattice, axes, names, between, chain))
+            cells = {(pair, tuple(c), lv): None for _, c, lv in chain}
+            kind = combine([verdicts[key] for key in cells])
+            out.append(_boundary(lattice, axes, names, between, chain, kind))
     out.sort(key=lambda b: (b.between, tuple(b.vertices[0])))
     return out
 
@@ -261,8 +282,9 @@ def _chains(segments):
     return chains
 
 
-def _boundary(lattice, axes, names, between, chain):
-    """A :class:`Boundary` from a chain of segments in half-index units."""
+def _boundary(lattice, axes, names, between, chain, kind):
+    """A :class:`Boundary` from a chain of segments in half-index units and its
+    ``(kind, evidence)``."""
     first = chain[0][0]
     points = [first[0], *(ends[-1] for ends, _, _ in chain)] if len(first) > 1 else [first[0]]
     half = np.array(points, np.int64).reshape(len(points), len(axes))
@@ -278,4 +300,4 @@ def _boundary(lattice, axes, names, between, chain):
         - axis_values(lattice.axes[i], cells[:, i], lattice.levels)
         for i in axes
     ]
-    return Boundary(between, names, vertices, np.abs(np.stack(size, axis=-1)), levels)
+    return Boundary(between, names, vertices, np.abs(np.stack(size, axis=-1)), levels, *kind)
