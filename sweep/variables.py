@@ -375,7 +375,8 @@ VARIABLES = (
              "|z|^2 = -Re(lambda) / (omega hopf_l1), Re(lambda) = linear_growth_rate D0/V and "
              "omega = 2 pi / onset_period in units of V/D0, q_i block i's ln v entry of the "
              "critical eigenvector: to leading order in K - Kc the lnv_amplitude of the "
-             "settled cycle (not far from Kc); NaN unless supercritical and K < Kc",
+             "settled cycle; NaN unless supercritical, K < Kc and near it (0 < Re(lambda) <= "
+             "0.1 omega)",
              per_member=False),
 )  # fmt: skip
 

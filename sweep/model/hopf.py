@@ -321,6 +321,12 @@ def identical_blocks(model, law, nb, A, B, kappa2, eta_hat, mass_hat):
     return Criticality(one.l1 / nb, one.status, one.omega, one.lnv_weight / np.sqrt(nb))
 
 
+#: The normal form's amplitude is given where the growth rate past κc is at most this
+#: fraction of the onset frequency (its small parameter): K/Kc ≳ 0.8 for one block with
+#: η̂ = 0.01; far past κc (an inertial chain at K/Kc 0.02 gave 4.98) it means nothing.
+NORMAL_FORM_RANGE = 0.1
+
+
 def predicted_lnv_amplitude(l1, omega, lnv_weight, growth):
     """Peak-to-peak ln(v/V) of the normal form's cycle, 4 |z| max_i |q_ℓi| with
     |z|² = −Re λ/(ω l1), Re c1 = ω l1: ``growth`` = Re λ at the system's κ (V/D0),
@@ -335,7 +341,8 @@ def theory(config, phys, dl, values, growth):
     Returns a dict of arrays: ``l1`` (dimensionless: the engine's state variables, time
     in D0/V, ⟨q, q⟩ = ⟨p, q⟩ = 1), ``criticality`` (codes of
     :data:`~sweep.codes.HOPF_CRITICALITIES`) and ``lnv_amplitude``
-    (:func:`predicted_lnv_amplitude` where supercritical and past κc, else NaN). Each
+    (:func:`predicted_lnv_amplitude` where supercritical, past κc and near it: 0 < Re λ ≤
+    ``NORMAL_FORM_RANGE`` ω, else NaN). Each
     distinct parameter set is computed once (cached).
     """
     n = growth.shape[0]
@@ -368,7 +375,8 @@ def theory(config, phys, dl, values, growth):
         np.array([getattr(f, k) for f in found]) for k in ("l1", "omega", "lnv_weight")
     )
     status = np.array([f.status for f in found], np.int8)
-    past = (status == code(HOPF_CRITICALITIES, "supercritical")) & (growth > 0.0)
+    near = (growth > 0.0) & (growth <= NORMAL_FORM_RANGE * omega)
+    past = (status == code(HOPF_CRITICALITIES, "supercritical")) & near
     with np.errstate(invalid="ignore"):
         amplitude = np.where(past, predicted_lnv_amplitude(l1, omega, weight, growth), np.nan)
     return {"l1": l1, "criticality": status, "lnv_amplitude": amplitude}
