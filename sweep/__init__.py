@@ -12,7 +12,7 @@ Importing the package compiles nothing; kernels compile on first use::
 Kernels: :func:`compile_kernels` (warm numba's cache before job arrays);
 configs: :func:`load_config`, :func:`with_changes`, :func:`examples.names`;
 figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
-:func:`plot_orbit_diagram`, :func:`plot_trace`, :func:`plot_catalogue`,
+:func:`plot_orbit_diagram`, :func:`plot_trace`, :func:`plot_catalogue`, :func:`plot_floquet`,
 :func:`plot_threshold_sensitivity` (``sweep/plot/``, one module per family); slip-event
 statistics: :func:`catalogue_statistics`, against the slip threshold:
 :func:`threshold_sensitivity`;
@@ -37,6 +37,7 @@ _LAZY = {
     "plot_trace": "plot",
     "save_figure": "plot",
     "plot_catalogue": "plot",
+    "plot_floquet": "plot",
     "plot_threshold_sensitivity": "plot",
     "threshold_sensitivity": "commands.sensitivity",
     "catalogue_statistics": "results.catalogue_statistics",
@@ -88,6 +89,7 @@ __all__ = [
     "parse_config",
     "plot_bifurcation",
     "plot_catalogue",
+    "plot_floquet",
     "plot_orbit_diagram",
     "plot_result",
     "plot_threshold_sensitivity",

@@ -53,9 +53,10 @@ RECURRENCE_STATUSES = ("ok", "no_system_wide_events", "too_few_intervals")
 #: Why a run's Floquet multipliers are given or not (the ``floquet_status`` variable's flag
 #: meanings; ``engine/floquet.py``): not computed (not periodic, or not asked), computed,
 #: computed but the largest non-trivial modulus is below the matrix's round-off (the value
-#: given is that floor, an upper bound), no return to the section within the window, or the
-#: integration failed.
-FLOQUET_STATUSES = ("not_computed", "ok", "at_resolution", "no_return", "failed")
+#: given is that floor, an upper bound), no return to the section within the window, the
+#: integration failed, or the trivial multiplier is too far from 1 for the others to be
+#: trusted (``engine/floquet.py``, ``TRIVIAL_TOLERANCE``).
+FLOQUET_STATUSES = ("not_computed", "ok", "at_resolution", "no_return", "failed", "inaccurate")
 
 
 def code(table, name):

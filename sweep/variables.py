@@ -117,7 +117,9 @@ VARIABLES = (
     Variable("floquet_status", "int8", "1", "why the Floquet multipliers are given or not",
              "not_computed (not periodic, or classification_floquet does not ask), ok, "
              "at_resolution (the largest modulus is below the eigenvalues' round-off; the "
-             "floor is given), no_return or failed; see flag_values/flag_meanings",
+             "floor is given), no_return, failed or inaccurate (the trivial multiplier more "
+             "than 0.01 from 1: modulus and argument not given); see "
+             "flag_values/flag_meanings",
              column="R_FLOQUET_STATUS"),
     Variable("lnv_amplitude", "float64", "1", "peak-to-peak ln(v/V)",
              "max - min of ln(v/V) over all blocks in the final window: the last completed "

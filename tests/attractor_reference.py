@@ -35,9 +35,9 @@ RUN_CALL = {"method": "LSODA", "rtol": 1e-10, "atol": 1e-12}
 
 
 class Blocks:
-    """``n_blocks`` blocks in an open chain (``ring``: closed); ``model`` "quasi-static" or "inertial"; A,
-    B, D0 (µm), K/W (µm⁻¹) scalars or per block; k2/W (µm⁻¹); m/W (s²/µm); V (µm/s);
-    time unit D0_ref/V with D0_ref the mean D0 (the engine's reference D0)."""
+    """``n_blocks`` blocks in an open chain (``ring``: closed); ``model`` "quasi-static" or
+    "inertial"; A, B, D0 (µm), K/W (µm⁻¹) scalars or per block; k2/W (µm⁻¹); m/W (s²/µm);
+    V (µm/s); time unit D0_ref/V with D0_ref the mean D0 (the engine's reference D0)."""
 
     def __init__(self, model, A, B, D0, K_W, k2_W=0.0, m_W=0.0, V=1.0, n_blocks=None, ring=False):
         sizes = {np.size(x) for x in (A, B, D0, K_W)} - {1}

@@ -9,11 +9,13 @@ import math
 import numpy as np
 import pytest
 import yaml
+from attractor_reference import Blocks
 from floquet_reference import (
     DampedBlock,
     liouville_multiplier,
     on_section,
     poincare_multipliers,
+    return_map,
     settle,
 )
 
@@ -110,21 +112,80 @@ def test_decay_rate_is_the_cycle_to_cycle_convergence_of_the_run():
 @pytest.mark.slow
 def test_multiplier_reaches_minus_one_where_the_cycle_doubles():
     """The inertial pair of configs/route_to_chaos.yaml (k2/W = 0.005 µm⁻¹): as K/W falls
-    toward 0.00413 µm⁻¹ the simple cycle's largest multiplier is real and negative (argument
-    π) with |μ| rising toward 1, and |μ| extrapolated linearly to 1 falls within one cell
-    (1e-5 µm⁻¹) of where the runs' events per cycle double; on the doubled side the new
-    cycle's multiplier starts near +1 (the square of −1)."""
+    toward the doubling the simple cycle's largest multiplier is real and negative with |μ|
+    rising toward 1, and |μ| extrapolated linearly to 1 falls within 1e-5 µm⁻¹ (a cell of
+    the config's grid refined once) of where the runs' events per cycle double; on the
+    doubled side the new cycle's multiplier is near +1 (the square of −1). Runs of 30000
+    time units: near −1 a cycle takes ~100 periods to settle."""
     from test_attractors import inertial_pair
     from test_attractors import run as run_pair
 
-    k_values = [0.00416, 0.00414, 0.00413, 0.00412]
-    ds = run_pair(inertial_pair({"K_W": k_values}))
+    k_values = [0.00413, 0.004126, 0.004125, 0.004124, 0.004123]
+    raw = inertial_pair({"K_W": k_values}, max_t_end=60000.0)
+    raw["integrator"]["t_end"] = 30000.0
+    ds = run_pair(raw)
     events = ds["cycle_events"].values
     modulus, argument = ds["floquet_modulus"].values, ds["floquet_argument"].values
-    assert list(events) == [1, 1, 1, 2]
-    assert np.all(np.abs(argument[:3]) > 3.0)  # the approach toward −1
-    assert np.all(np.diff(modulus[:3]) > 0) and modulus[2] < 1.0
-    slope = (modulus[2] - modulus[1]) / (k_values[2] - k_values[1])
-    k_unit = k_values[2] + (1.0 - modulus[2]) / slope
-    assert k_values[3] - 1e-5 <= k_unit <= k_values[2] + 1e-5
-    assert abs(argument[3]) < 0.1 and modulus[3] > 0.9  # the doubled cycle, born at +1
+    assert list(events) == [1, 1, 1, 1, 2]
+    assert np.all(np.abs(argument[:4]) > np.pi - 0.02)  # real, negative (or nearly)
+    assert np.all(np.diff(modulus[:4]) > 0) and modulus[3] < 1.0
+    slope = (modulus[3] - modulus[2]) / (k_values[3] - k_values[2])
+    k_unit = k_values[3] + (1.0 - modulus[3]) / slope
+    doubling = 0.5 * (k_values[3] + k_values[4])
+    assert abs(k_unit - doubling) <= 1e-5
+    assert abs(argument[4]) < 0.1 and modulus[4] > 0.95  # the doubled cycle, born at +1
+
+
+def scipy_largest_multiplier(blocks, start, level, t_settle, returns=1):
+    """SciPy's largest non-trivial multiplier of ``blocks`` (``attractor_reference.Blocks``):
+    settled by LSODA (rtol 1e-11) and 60 returns to ℓ_0 = ``level``, then the return map
+    differentiated by forward differences of Radau runs (rtol 1e-11)."""
+    lsoda = {"method": "LSODA", "rtol": 1e-11, "atol": 1e-13}
+    y = settle(blocks.rhs, start, t_settle, lsoda)
+    y = on_section(blocks.rhs, y, level, 2000.0, lsoda)
+    for _ in range(60):
+        y = return_map(blocks.rhs, y, level, returns, 2000.0, lsoda)[0]
+    mu = poincare_multipliers(blocks.rhs, y, level, returns, 2000.0)
+    return mu[np.argmax(np.abs(mu))]
+
+
+@pytest.mark.slow
+def test_two_event_cycle_multiplier_is_scipys_return_map():
+    """The cycle of two events of configs/route_to_chaos.yaml's two inertial blocks at
+    K/W = k2/W = 0.005 µm⁻¹ (a state of six values): the engine's largest multiplier
+    (rosenbrock, rtol 1e-10) against SciPy's return map to ln(v_0/V) = 1 (crossed once a
+    cycle), within 1e-3 in modulus and argument."""
+    from test_attractors import inertial_pair
+    from test_attractors import run as run_pair
+
+    raw = inertial_pair({"K_W": [0.005]})
+    raw["integrator"].update({"rtol": 1e-10, "atol": 1e-12})
+    point = run_pair(raw).isel(K_W=0)
+    assert int(point["cycle_events"]) == 2
+    blocks = Blocks("inertial", A, B, [1.0, 0.6], 0.005, 0.005, m_W=1.0, V=1.0)
+    mu = scipy_largest_multiplier(blocks, blocks.start([1.0, 1.0], [1.01, 1.0]), 1.0, 3000.0)
+    assert float(point["floquet_modulus"]) == pytest.approx(abs(mu), abs=1e-3)
+    assert abs(float(point["floquet_argument"])) == pytest.approx(abs(np.angle(mu)), abs=1e-3)
+    assert float(point["floquet_trivial_error"]) < 1e-5
+
+
+@pytest.mark.slow
+def test_ring_multiplier_is_scipys_return_map():
+    """Three unequal quasi-static blocks in a ring (D0 1.0/1.3/0.8 µm, k2/W 0.02 µm⁻¹, the
+    chain of configs/unequal_chain.yaml closed) on their simple cycle at K/W = 0.047 and
+    0.048 µm⁻¹ (K/Kc 0.97, 0.99): the engine's largest multiplier (rtol 1e-10) against
+    SciPy's return map to ln(v_0/V) = 0, within 1e-3."""
+    from test_attractors import run as run_chain
+    from test_attractors import unequal_chain
+
+    k_values = [0.047, 0.048]
+    raw = unequal_chain(k_values, integrator={"rtol": 1e-10, "atol": 1e-12})
+    raw["coupling"] = "ring"
+    ds = run_chain(raw)
+    for i, k in enumerate(k_values):
+        point = ds.isel(K_W=i)
+        assert int(point["cycle_events"]) == 1
+        blocks = Blocks("quasi-static", A, B, [1.0, 1.3, 0.8], k, 0.02, V=0.1, ring=True)
+        mu = scipy_largest_multiplier(blocks, blocks.start(1.0, 1.01), 0.0, 3000.0)
+        assert float(point["floquet_modulus"]) == pytest.approx(abs(mu), abs=1e-3)
+        assert abs(float(point["floquet_argument"])) == pytest.approx(abs(np.angle(mu)), abs=1e-3)

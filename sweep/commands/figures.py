@@ -367,6 +367,39 @@ def figure_fast_events(config, points=8000):
     return fig
 
 
+def figure_floquet(damped, route):
+    """How stable each cycle is: (a) the largest non-trivial Floquet multiplier's modulus
+    over the damped block's map (``damped``, two axes), (b) along the route to chaos
+    (``route``, one axis) by kind of multiplier, with the boundaries' types; returns the
+    Figure."""
+    from ..plot import plot_floquet
+
+    fig = new_figure(figsize=(8.0, 8.4))
+    top, bottom = fig.subplots(2, 1, height_ratios=(1.15, 1.0))
+    plot_floquet(damped, ax=top)
+    plot_floquet(route, ax=bottom)
+    values = parameter_values(damped)
+    eta_hat = damped["eta_W"].values * float(values["V"])
+    top.set_title(
+        f"(a) one radiation-damped block, aging law, {parameter_text(_fixed(damped))}, "
+        f"η̂ = ηV/W {eta_hat.min():g}–{eta_hat.max():g}: |μ| → 1 at Kc (dashed)",
+        fontsize=9,
+    )
+    values = parameter_values(route)
+    mass_hat = float(values["m_W"]) * float(values["V"]) ** 2 / float(np.mean(values["D0"]))
+    bottom.set_title(
+        f"(b) two inertial blocks, aging law, {parameter_text(_fixed(route))}, "
+        f"m/W = {float(values['m_W']):g} s²/µm (M̂ = {mass_hat:g}), K/Kc ≪ 1",
+        fontsize=9,
+    )
+    fig.suptitle(
+        "Largest non-trivial Floquet multiplier |μ| of every periodic run (exact tangent over "
+        "one period); white/absent: not periodic",
+        fontsize=10,
+    )
+    return fig
+
+
 def make_figures(
     paper="paper",
     twoblock="twoblock",
@@ -380,6 +413,7 @@ def make_figures(
     refined="unequal_qd",
     long_chain="long_chain",
     fast="fast_events",
+    damped="quasidynamic",
 ):
     """Regenerate every paper figure into ``out_dir``; returns the file paths.
 
@@ -389,7 +423,9 @@ def make_figures(
     the sweep with a catalogue whose statistics and busiest run are drawn, and whose
     statistics are drawn against the slip threshold (:data:`THRESHOLDS` on
     :data:`THRESHOLD_SWEEP`, ``catalogue_threshold``); ``fast``: the inertial one-block
-    config whose fast events are traced (:func:`figure_fast_events`). ``suffix``:
+    config whose fast events are traced (:func:`figure_fast_events`); ``damped``: the
+    two-axis sweep whose Floquet multipliers are mapped beside the route's
+    (:func:`figure_floquet`). ``suffix``:
     ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
     """
     from ..engine.dispatch import load_kernels
@@ -409,12 +445,13 @@ def make_figures(
     refined_config = load_config(refined)
     chain_config = load_config(long_chain)
     fast_config = load_config(fast)
+    damped_config = load_config(damped)
     stiffnesses(config)  # checked before any kernel is compiled
     check_writable(out_dir / f"fig1_one_block{suffix}", str(out_dir), "--out-dir", suffix)
     rows = (*ONE_BLOCK_ROWS, *((label, {**c, "k2_W": K2_W}) for label, c in TWO_BLOCK_ROWS))
     trace_configs = [variant(config, f"{config.name}_{r}", **c) for r, (_, c) in enumerate(rows)]
     every = [*trace_configs, phase_config, *bifurcation_configs, *nblock_configs, route_config,
-             refined_config, chain_config, fast_config]  # fmt: skip
+             refined_config, chain_config, fast_config, damped_config]  # fmt: skip
     # side by side; each variant here also has runs that need the tangent for λ1
     grids = [build_grid(c) for c in every]
     load_kernels([(g.params, g.settings, t) for g in grids for t in (None, True)], threads)
@@ -443,6 +480,9 @@ def make_figures(
     route = compute(route_config, threads=threads, show_progress=False)
     fig = plot_orbit_diagram(route, caption=caption, lnv_range=(0.5, 2.5))
     paths.append(save_figure(fig, out_dir / f"route_to_chaos{suffix}", dpi))
+    damped_result = compute(damped_config, threads=threads, show_progress=False)
+    fig = figure_floquet(damped_result, route)
+    paths.append(save_figure(fig, out_dir / f"floquet{suffix}", dpi))
     fig = figure_refined(compute(refined_config, threads=threads, show_progress=False))
     paths.append(save_figure(fig, out_dir / f"refined_{refined_config.name}{suffix}", dpi))
     fig = figure_long_chain(compute(chain_config, threads=threads, show_progress=False))

@@ -2,8 +2,8 @@
 
 The kernel ``kernels.monodromy`` carries every direction of the exact tangent once around
 the cycle from each periodic run's final state; here the matrix's eigenvalues are sorted
-into the trivial multiplier (the one whose eigenvector lies along the flow, 1 on an exact
-cycle: its distance from 1 is the check of the matrix's accuracy) and the non-trivial ones,
+into the trivial multiplier (along the flow, 1 on an exact cycle: the one nearest 1, its
+distance from 1 the check of the matrix's accuracy) and the non-trivial ones,
 of which the largest modulus, its argument and the return time are written into the run's
 ``R_FLOQUET_*`` columns. Runs not labelled periodic, and all runs where
 ``classification.floquet`` does not ask, get NaN and ``not_computed``.
@@ -29,6 +29,9 @@ AUTO_STATE_MAX = 16
 #: gap |y(T) − y0| / (1 + |y0|) below which none is taken (:func:`floquet_pass`).
 NEWTON_STEPS = 3
 CLOSURE = 1e-9
+#: A trivial multiplier farther than this from 1 marks the matrix ``inaccurate``: its
+#: modulus and argument are not given (measured elsewhere: 1e-9 to 1e-5).
+TRIVIAL_TOLERANCE = 1e-2
 
 _COLUMNS = slice(layout.R_FLOQUET_MODULUS, layout.R_FLOQUET_STATUS + 1)
 _BUILD = threading.Lock()
@@ -83,11 +86,14 @@ def floquet_pass(params, settings, results, y_final):
             why = "no_return" if info[M_STATUS] == 1 else "failed"
             out[layout.R_FLOQUET_STATUS] = code(FLOQUET_STATUSES, why)
             continue
-        modulus, argument, trivial, resolved = multipliers(columns, log_scale, flow)
-        out[layout.R_FLOQUET_MODULUS] = modulus
-        out[layout.R_FLOQUET_ARGUMENT] = argument
+        modulus, argument, trivial, resolved = multipliers(columns, log_scale)
         out[layout.R_FLOQUET_TRIVIAL] = trivial
         out[layout.R_RETURN_TIME] = info[M_RETURN_TIME]
+        if trivial > TRIVIAL_TOLERANCE:
+            out[layout.R_FLOQUET_STATUS] = code(FLOQUET_STATUSES, "inaccurate")
+            continue
+        out[layout.R_FLOQUET_MODULUS] = modulus
+        out[layout.R_FLOQUET_ARGUMENT] = argument
         status = "ok" if resolved else "at_resolution"
         out[layout.R_FLOQUET_STATUS] = code(FLOQUET_STATUSES, status)
 
@@ -157,29 +163,29 @@ def monodromy_kernel(params, settings):
         return build(*variant(params, settings)[:5])
 
 
-def multipliers(columns, log_scale, flow):
+def multipliers(columns, log_scale):
     """``(modulus, argument, trivial_error, resolved)`` of one monodromy matrix M, given as
-    unit ``columns`` (n, n; row j is column j of M) with log scales ``log_scale`` (n,), and
-    the flow f(y0) (n,) at its start: the largest modulus of the non-trivial multipliers and
-    its argument (rad), |μ − 1| of the trivial one (eigenvector most nearly along f(y0)),
-    and whether that modulus lies above the eigenvalues' round-off n ε ‖M‖ (else it is
-    replaced by that floor)."""
+    unit ``columns`` (n, n; row j is column j of M) with log scales ``log_scale`` (n,): the
+    largest modulus of the non-trivial multipliers and its argument (rad), |μ − 1| of the
+    trivial one, and whether that modulus lies above the eigenvalues' round-off n ε ‖M‖
+    (else it is replaced by that floor).
+
+    The trivial multiplier is the one nearest 1. Its eigenvector lies along the flow f(y0),
+    but in an inertial stick (ln v/V ≈ −25) f is known far less well than M (ℓ' = z e^(−ℓ)/M̂
+    moves by 1e10 per unit of z), and the eigenvector most nearly along it was a wrong one
+    (measured: the pair of configs/route_to_chaos.yaml at K/W = 0.00465 µm⁻¹). Where a
+    non-trivial multiplier is as near 1, the two are within their distance of each other,
+    so the modulus given is 1 to that accuracy either way."""
     top = float(np.max(log_scale))
     scaled = columns.T * np.exp(log_scale - top)  # M / e^top, column by column
-    values, vectors = np.linalg.eig(scaled)
-    along = np.abs(vectors.conj().T @ flow) / (np.linalg.norm(flow) or 1.0)
-    trivial = int(np.argmax(along))
+    values = np.linalg.eigvals(scaled) * np.exp(top)
+    trivial = int(np.argmin(np.abs(values - 1.0)))
     others = np.delete(values, trivial)
-    floor = scaled.shape[0] * np.finfo(float).eps * np.linalg.norm(scaled, 2)
+    error = float(abs(values[trivial] - 1.0))
     if others.size == 0:
-        return np.nan, np.nan, abs(values[trivial] * np.exp(top) - 1.0), True
+        return np.nan, np.nan, error, True
+    floor = scaled.shape[0] * np.finfo(float).eps * np.linalg.norm(scaled, 2) * np.exp(top)
     largest = others[np.argmax(np.abs(others))]
     resolved = abs(largest) > floor
-    log_modulus = np.log(max(abs(largest), floor)) + top
     argument = float(np.angle(largest)) if resolved else np.nan
-    return (
-        float(np.exp(log_modulus)),
-        argument,
-        float(abs(values[trivial] * np.exp(top) - 1.0)),
-        resolved,
-    )
+    return float(max(abs(largest), floor)), argument, error, resolved

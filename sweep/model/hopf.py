@@ -4,7 +4,7 @@ Plain numpy. Where steady sliding loses stability (the common κ = κc of
 ``linear``, the engine's ``critical_K_W``) a pair of eigenvalues ±iω of the Jacobian A
 crosses the imaginary axis. The first Lyapunov coefficient (Kuznetsov 2004, *Elements
 of Applied Bifurcation Theory*, 3rd ed., §3.5 and §5.4; the same formula in the MatCont
-manual, eq. 40, and Badiale & Cravero, arXiv:2511.08428, eq. 1)::
+manual, eq. 40, and the notes arXiv:2511.08428, eq. 1)::
 
     l1 = 1/(2ω) Re[ ⟨p, C(q, q, q̄)⟩ − 2 ⟨p, B(q, A⁻¹ B(q, q̄))⟩
                    + ⟨p, B(q̄, (2iω I − A)⁻¹ B(q, q))⟩ ]
