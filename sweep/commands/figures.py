@@ -381,20 +381,22 @@ def figure_floquet(damped, route):
     values = parameter_values(damped)
     eta_hat = damped["eta_W"].values * float(values["V"])
     top.set_title(
-        f"(a) one radiation-damped block, aging law, {parameter_text(_fixed(damped))}, "
-        f"η̂ = ηV/W {eta_hat.min():g}–{eta_hat.max():g}: |μ| → 1 at Kc (dashed)",
+        f"(a) one radiation-damped block, aging law, {parameter_text(_fixed(damped))},\n"
+        f"η̂ = ηV/W = {eta_hat.min():g}–{eta_hat.max():g}: |μ| → 1 at Kc (dashed); "
+        "grey: no periodic run",
         fontsize=9,
     )
     values = parameter_values(route)
     mass_hat = float(values["m_W"]) * float(values["V"]) ** 2 / float(np.mean(values["D0"]))
     bottom.set_title(
-        f"(b) two inertial blocks, aging law, {parameter_text(_fixed(route))}, "
-        f"m/W = {float(values['m_W']):g} s²/µm (M̂ = {mass_hat:g}), K/Kc ≪ 1",
+        f"(b) two inertial blocks, aging law, {parameter_text(_fixed(route))},\n"
+        f"m/W = {float(values['m_W']):g} s²/µm (M̂ = {mass_hat:g}), K/Kc ≪ 1\n"
+        "dotted: boundaries, by type (PD period doubling, ? undetermined: see the guide)",
         fontsize=9,
     )
     fig.suptitle(
-        "Largest non-trivial Floquet multiplier |μ| of every periodic run (exact tangent over "
-        "one period); white/absent: not periodic",
+        "Largest non-trivial Floquet multiplier |μ| of every periodic run\n"
+        "(exact tangent of the step map over one period; perturbations shrink by |μ| a cycle)",
         fontsize=10,
     )
     return fig

@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..refine.boundary_types import REAL_ANGLE
 from .bifurcation import TYPE_COLOUR
 from .common import TYPE_BOX, axis_label, kind_text, new_figure
 from .maps import plot_variable
 
-#: |arg μ| within this of 0 or π: a real multiplier (as ``refine.boundary_types.REAL_ANGLE``).
-REAL_ANGLE = 0.1
 #: Marker and label of each kind of largest multiplier.
 KINDS = (
     ("real, positive (→ +1: fold)", "o", "tab:blue"),
