@@ -94,24 +94,27 @@ def test_damped_block_multiplier_is_liouvilles(law):
 
 @pytest.mark.slow
 def test_decay_rate_is_the_cycle_to_cycle_convergence_of_the_run():
-    """Consistency, not a reference: the engine's own run (a trace, K/Kc 0.9 and 0.97,
-    aging law) approaches its cycle with successive maxima of ln v whose differences shrink
-    by |μ| per cycle; the fitted ratio (from the largest difference down to 30× the trace's
-    sampling noise) is floquet_modulus within 10 %."""
+    """Consistency, not a reference: the engine's own run (a trace of 40000 points, K/Kc 0.9
+    and 0.97, aging law) approaches its cycle with successive maxima of ln v whose
+    differences shrink by |μ| per cycle; their ratio, fitted over the cycles closest to the
+    limit that stand 30× above the trace's sampling noise (the second half of those after
+    the largest difference), is floquet_modulus within 2 % (measured 0.3 % and 0.05 %; over
+    the whole approach, which starts far from the cycle, 3 % and 1.6 %)."""
     from sweep.commands.trace import compute_trace, pin_config
 
     for k in (0.036, 0.0388):
         config = parse_config(yaml.safe_dump(damped_block("aging", [k])), "<test>")
-        trace = compute_trace(pin_config(config, {"K_W": k}))
+        trace = compute_trace(pin_config(config, {"K_W": k}), points=40000)
         lnv = trace["lnv"].values.ravel()
         peaks = np.flatnonzero((lnv[1:-1] > lnv[:-2]) & (lnv[1:-1] >= lnv[2:])) + 1
         d = np.abs(np.diff(lnv[peaks]))
         noise = np.median(d[d.size // 2 :])
-        start = int(np.argmax(d))
-        stop = start + int(np.argmax(d[start:] < 30 * noise))
-        assert stop - start >= 4, "too few cycles of convergence to fit"
+        first = int(np.argmax(d)) + 1
+        stop = first + int(np.argmax(d[first:] < 30 * noise))
+        start = (first + stop) // 2
+        assert stop - start >= 5, "too few cycles of convergence to fit"
         slope = np.polyfit(np.arange(start, stop), np.log(d[start:stop]), 1)[0]
-        assert math.exp(slope) == pytest.approx(trace.attrs["floquet_modulus"], rel=0.1)
+        assert math.exp(slope) == pytest.approx(trace.attrs["floquet_modulus"], rel=0.02)
 
 
 @pytest.mark.slow
