@@ -9,12 +9,19 @@ axes, a map of |μ| (``plot_variable``).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..refine.boundary_types import REAL_ANGLE
 from .bifurcation import TYPE_COLOUR
 from .common import TYPE_BOX, axis_label, kind_text, new_figure
 from .maps import plot_variable
+
+if TYPE_CHECKING:
+    import xarray
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 #: Marker and label of each kind of largest multiplier.
 KINDS = (
@@ -32,7 +39,7 @@ def multiplier_kind(argument):
     return np.where(np.isfinite(a), kind, -1)
 
 
-def plot_floquet(ds, caption="", ax=None):
+def plot_floquet(ds: xarray.Dataset, caption: str = "", ax: Axes | None = None) -> Figure:
     """The largest non-trivial Floquet multiplier's modulus of a sweep's periodic runs.
 
     Parameters
@@ -47,6 +54,7 @@ def plot_floquet(ds, caption="", ax=None):
     Returns
     -------
     matplotlib.figure.Figure
+        The new figure, or the figure of ``ax``.
 
     Raises
     ------
