@@ -248,7 +248,8 @@ def _draw_types(axes, curves):
     """The boundaries between neighbouring points of each curve
     (``refine.boundary_types.boundary_types_1d``) as vertical dotted lines on ``axes`` at
     the middle of their K/Kc, their type's short text low in the first, beside the line
-    (left for the first curve, right for the second, and so on); returns the types
+    (left for the first curve, right for the second, and the next pair higher up, so that
+    curves whose boundaries share a K/Kc do not write over each other); returns the types
     drawn."""
     from ..refine.boundary_types import boundary_types_1d
 
@@ -265,7 +266,7 @@ def _draw_types(axes, curves):
                 ax.axvline(x, color=TYPE_COLOUR, ls=":", lw=1.0, zorder=1)
             axes[0].text(
                 x,
-                0.05,
+                0.05 + 0.35 * (k // 2),
                 kind_text(crossing.kind),
                 transform=axes[0].get_xaxis_transform(),
                 fontsize=7,
