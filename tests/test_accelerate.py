@@ -226,7 +226,10 @@ from sweep.kernels.classify import extrema, state
 from sweep.kernels.classify.cycle import close_cycle
 from sweep.kernels.slip_events import catalogue_step
 from sweep.kernels.methods import dop853, rodas4
-config = sweep.with_changes(sweep.load_config(CONFIG), {"integrator": {"method": "dopri5"}})
+# floquet: never: the pruning asked of the grid kernel, without the Floquet pass's kernel
+# (which carries the tangent, so compiles its step, where periodic runs ask for it)
+config = sweep.with_changes(sweep.load_config(CONFIG), {"integrator": {"method": "dopri5"},
+                                                       "classification": {"floquet": "never"}})
 if MODEL:
     config = sweep.with_changes(config, {"model": MODEL, "parameters": {"eta_W": 0.1}})
 ds = sweep.run(config, progress=False)

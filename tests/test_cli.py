@@ -15,7 +15,7 @@ from conftest import KC_W, SUBPROCESS_TIMEOUT, make_config, write_config
 from sweep import cli
 from sweep.engine import runner
 from sweep.model.physics import PARAMETERS
-from sweep.variables import REGIMES, variables_for
+from sweep.variables import FLAGS, REGIMES, variables_for
 
 ROOT = Path(__file__).resolve().parent.parent
 QUICK = ROOT / "configs" / "quick.yaml"
@@ -96,7 +96,7 @@ def test_file_schema(schema):
         assert got["dims"] == ["K_W"] + ["block"] * var.per_block + ["event"] * var.per_event
         assert got["dtype"] == var.dtype, name
         assert got["long_name"] == var.long_name, name
-        if name not in ("regime", "attractor"):  # flags: flag_values, no units
+        if name not in FLAGS:  # flags: flag_values, no units
             assert got["units"] == var.units, name
     regime = schema["vars"]["regime"]
     assert regime["dtype"] == "int8"

@@ -22,7 +22,7 @@ CONFIGS = ROOT / "configs"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 PAPER_FIGURES = (
     "fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation", "nblock",
-    "route_to_chaos", "refined_unequal_qd", "long_chain", "catalogue_threshold",
+    "route_to_chaos", "floquet", "refined_unequal_qd", "long_chain", "catalogue_threshold",
     "fast_events",
 )  # fmt: skip
 
@@ -273,14 +273,17 @@ def test_make_figures_on_small_configs(tmp_path):
                   initial={"v_over_V": 1.0, "phi_over_phi_ss": 1.05},
                   sweep={"k2_W": [0.05, 0.2], "spread_D0": [0.0, 0.2]},
                   integrator={"t_end": 400.0})  # fmt: skip
+    damped = small(CONFIGS / "quasidynamic.yaml", "damped_small",
+                   sweep={"K_W": [0.03, 0.045], "eta_W": [0.05, 0.1]})  # fmt: skip
     paths = []
-    for config in (paper, twoblock, qs, nblock, heterogeneous, route, refined, chain):
+    for config in (paper, twoblock, qs, nblock, heterogeneous, route, refined, chain, damped):
         path = tmp_path / f"{config.name}.yaml"
         path.write_text(config.text)
         paths.append(path)
     out = make_figures(
         paths[0], paths[1], (paths[2],), nblock=paths[3:5], route=paths[5],
         out_dir=tmp_path / "figures", threads=1, refined=paths[6], long_chain=paths[7],
+        damped=paths[8],
     )  # fmt: skip
     assert [p.stem for p in out] == list(PAPER_FIGURES)
     for path in out:

@@ -12,6 +12,7 @@ from conftest import KC_W, PAPER_A, PAPER_B, kc_w, make_config, run_grid
 from sweep.codes import METHODS as CODE_TABLE
 from sweep.codes import code
 from sweep.engine import dispatch
+from sweep.engine.floquet import floquet_pass
 from sweep.engine.grid import build_grid
 from sweep.engine.runner import compute
 from sweep.kernels import equations, layout, tangent
@@ -221,9 +222,11 @@ def test_runs_that_need_the_tangent_are_redone_by_its_kernel_number_for_number()
     g = build_grid(config)
 
     def call(kernel, settings):
+        """The kernel's run, then the Floquet pass that ``integrate_grid`` adds after it."""
         results = np.full((len(ks), layout.result_width(settings)), -7.0)
         y_final = np.empty_like(g.y0)
         kernel(g.params, g.y0, settings, results, y_final, 0.0, np.empty(0), np.empty((0, 0)))
+        floquet_pass(g.params, settings, results, y_final)
         return results, y_final
 
     plain, _ = call(dispatch.grid_kernel(g.params, g.settings, tangent=False), g.settings)

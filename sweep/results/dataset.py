@@ -58,7 +58,7 @@ def derived_fields(grid, results, y_final):
             "v_max": V * np.exp(r[:, layout.R_LNV_MAX]),
             "v_min": V * np.exp(r[:, layout.R_LNV_MIN]),
             "slip_per_event": np.where(events > 0, V * period / np.maximum(events, 1), np.nan),
-            "cycle_decay_rate": -np.log(fields["floquet_modulus"]) / fields["floquet_period"],
+            "cycle_decay_rate": np.log(1.0 / fields["floquet_modulus"]) / fields["floquet_period"],
             "lnv_final": y_final[:, :nb],
             "ln_state_final": y_final[:, nb : 2 * nb],
             "linear_growth_rate": growth / time_unit,
