@@ -15,7 +15,7 @@ import numpy as np
 
 from ..refine.boundary_types import REAL_ANGLE
 from .bifurcation import TYPE_COLOUR
-from .common import TYPE_BOX, axis_label, kind_text, new_figure
+from .common import TYPE_BOX, _figure_and_axes, axis_label, kind_text
 from .maps import plot_variable
 
 if TYPE_CHECKING:
@@ -79,11 +79,7 @@ def _modulus_line(ds, axis, ax):
     """|μ| against ``axis`` by kind of multiplier, with the boundaries' types."""
     from ..refine.boundary_types import boundary_types_1d
 
-    if ax is None:
-        fig = new_figure(figsize=(8.0, 4.2))
-        ax = fig.add_subplot()
-    else:
-        fig = ax.figure
+    fig, ax = _figure_and_axes(ax, (8.0, 4.2))
     line = ds.sortby(axis)
     x = line[axis].values
     modulus = line["floquet_modulus"].values
