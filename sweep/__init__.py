@@ -13,11 +13,14 @@ Kernels: :func:`compile_kernels` (warm numba's cache before job arrays);
 configs: :func:`load_config`, :func:`with_changes`, :func:`examples.names`;
 figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
 :func:`plot_orbit_diagram`, :func:`plot_trace`, :func:`plot_catalogue`, :func:`plot_floquet`,
-:func:`plot_threshold_sensitivity` (``sweep/plot/``, one module per family); slip-event
+:func:`plot_critical_kick`, :func:`plot_threshold_sensitivity`
+(``sweep/plot/``, one module per family); slip-event
 statistics: :func:`catalogue_statistics`, against the slip threshold:
 :func:`threshold_sensitivity`;
 statistics over realisations of the disorder (seeds): :func:`over_realisations`;
-traces: :func:`compute_trace`; refined results: :func:`to_grid`, :func:`boundaries`;
+traces: :func:`compute_trace`; the critical kick of a sweep over the start:
+:func:`critical_kick`, by bisection: :func:`bisect_critical_kick`; refined results:
+:func:`to_grid`, :func:`boundaries`;
 files: :func:`read_result`, :func:`write_netcdf`; runs with parts, shards and Dask:
 :func:`run_sweep`, :func:`merge_parts`, :class:`Resources`; extending and auditing a
 result: :func:`extend_result`, :func:`extend_file`, :func:`audit_result`.
@@ -38,6 +41,9 @@ _LAZY = {
     "save_figure": "plot",
     "plot_catalogue": "plot",
     "plot_floquet": "plot",
+    "plot_critical_kick": "plot",
+    "critical_kick": "results.kicks",
+    "bisect_critical_kick": "engine.kicks",
     "plot_threshold_sensitivity": "plot",
     "threshold_sensitivity": "commands.sensitivity",
     "catalogue_statistics": "results.catalogue_statistics",

@@ -300,6 +300,25 @@ def add_figure_commands(sub):
         "--png", type=_path, help="output .png, .pdf or .svg (default: the NetCDF path with .png)"
     )
     _add_dpi(trace)
+    kick = sub.add_parser(
+        "kick",
+        help="critical kick at every point of a config sweeping a start axis (bisection; "
+        "NetCDF + figure; resumes from its file)",
+    )
+    kick.add_argument("config", help="YAML config file or packaged example name")
+    kick.add_argument(
+        "--rtol",
+        type=float,
+        default=0.01,
+        help="relative width of the brackets, in (0, 1) (default 0.01)",
+    )
+    kick.add_argument("--out", type=_path, help="output NetCDF (default results/<name>_kick.nc)")
+    kick.add_argument(
+        "--png", type=_path, help="output .png, .pdf or .svg (default: the NetCDF path with .png)"
+    )
+    kick.add_argument("--threads", type=_threads, help="threads (default: all cores)")
+    kick.add_argument("--quiet", action="store_true", help="no progress")
+    _add_dpi(kick)
     bif = sub.add_parser("bifurcation", help="amplitude against K/Kc of 1-D sweeps")
     bif.add_argument("results", nargs="+", help="result NetCDF files, one curve per model")
     bif.add_argument(
@@ -636,6 +655,34 @@ def cmd_trace(args):
     return 0
 
 
+def cmd_kick(args):
+    """Bisect the critical kick of every point, write its NetCDF (after every round) and
+    its figure, and say how many points have each status."""
+    from pathlib import Path
+
+    from .config import load_config
+    from .engine.kicks import bisect_critical_kick
+    from .io.files import check_writable
+    from .plot import plot_critical_kick, save_figure
+    from .plot.common import FORMATS
+    from .results.kicks import KICK_STATUSES
+
+    config = load_config(args.config)
+    nc = Path(args.out) if args.out else Path("results") / f"{config.name}_kick.nc"
+    png = Path(args.png) if args.png else nc.with_suffix(".png")
+    check_writable(png, config.source, "--png", tuple(FORMATS))
+    ds = bisect_critical_kick(
+        config, args.rtol, out=nc, threads=args.threads, progress=not args.quiet
+    )
+    save_figure(plot_critical_kick(ds), png, args.dpi)
+    status = ds["critical_kick_status"].values.ravel()
+    for code, name in enumerate(KICK_STATUSES):
+        print(f"{name:<15} {int((status == code).sum()):>6d} points")
+    runs = int(ds["kick_runs"].sum())
+    print(f"{runs} runs in {int(ds.attrs['kick_rounds'])} rounds; wrote {nc} and {png}")
+    return 0
+
+
 def cmd_bifurcation(args):
     from pathlib import Path
 
@@ -685,6 +732,7 @@ COMMANDS = {
     "audit": cmd_audit,
     "plot": cmd_plot,
     "trace": cmd_trace,
+    "kick": cmd_kick,
     "bifurcation": cmd_bifurcation,
     "figures": cmd_figures,
     "compile": cmd_compile,

@@ -130,6 +130,11 @@ VARIABLES = (
              column="R_LNV_MAX"),
     Variable("lnv_min", "float64", "1", "minimum ln(v/V)", "in the final window",
              column="R_LNV_MIN"),
+    Variable("lnv_peak", "float64", "1", "peak ln(v/V) of the whole run",
+             "maximum of ln(v/V) over all blocks from the start to the end of the run (the "
+             "start included; maxima inside a step from its dense output): the excursion of a "
+             "kick that returns; for runaway runs at least ln(classification_v_cap_over_V)",
+             column="R_LNV_MAX_RUN"),
     Variable("v_max", "float64", "um s-1", "maximum slip velocity",
              "V exp(lnv_max); for runaway runs the velocity after the step that crossed the "
              "cap (at least the cap), or the last finite value if the run blew up first"),

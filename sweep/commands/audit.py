@@ -21,12 +21,11 @@ import numpy as np
 import xarray as xr
 
 from ..engine.chunks import integrate_in_memory
-from ..engine.grid import build_grid, initial_state
+from ..engine.grid import build_grid, initial_state, physical_parameters
 from ..errors import InputError
 from ..kernels import layout
-from ..model.physics import PARAMETERS
 from ..progress import Progress
-from ..results.dataset import stored_config
+from ..results.dataset import parameter_attrs, stored_config
 from ..variables import ATTRACTORS, REGIMES
 from .extend import final_state, load_result
 
@@ -176,7 +175,7 @@ def audit_result(
         axis.name: (
             "point",
             np.asarray(axis.values)[i],
-            {"units": PARAMETERS[axis.name].units, "long_name": PARAMETERS[axis.name].long_name},
+            parameter_attrs(axis.name),
         )
         for axis, i in zip(config.axes, index, strict=True)
     }
@@ -236,7 +235,8 @@ def merged_blocks(ds, config, runs):
         return np.zeros(0, np.int32)
     nb = config.blocks
     end = end.reshape(runs.size, -1, nb)
-    start = initial_state(config, ds["regime"].size)[runs].reshape(runs.size, -1, nb)
+    phys = physical_parameters(config)
+    start = initial_state(config, ds["regime"].size, phys)[runs].reshape(runs.size, -1, nb)
     same_end = (end[:, :, :, None] == end[:, :, None, :]).all(axis=1)
     same_start = (start[:, :, :, None] == start[:, :, None, :]).all(axis=1)
     return (same_end & ~same_start).any(axis=2).sum(axis=1).astype(np.int32)

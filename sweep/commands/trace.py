@@ -29,7 +29,7 @@ from ..errors import InputError
 from ..kernels import layout
 from ..model import physics
 from ..model.heterogeneity import SEED_AXIS, SPREAD_AXES, SPREAD_PREFIX
-from ..model.physics import PARAMETERS
+from ..model.physics import INITIAL_AXES, PARAMETERS
 from ..results.dataset import (
     derived_fields,
     parameter_attrs,
@@ -79,7 +79,7 @@ def pin_config(config: Config, at: Mapping[str, float], t_end: float | None = No
     """
     text = " ".join(f"--at {name}={value:g}" for name, value in at.items())
     source = f"{config.source} {text}".strip()
-    known = (*PARAMETERS, *SPREAD_AXES, SEED_AXIS)
+    known = (*PARAMETERS, *INITIAL_AXES, *SPREAD_AXES, SEED_AXIS)
     problems = [
         f"--at {name}: unknown parameter; known: {', '.join(known)}"
         for name in at

@@ -35,7 +35,7 @@ from ..model.heterogeneity import (
     SPREAD_PREFIX,
     spread_pattern,
 )
-from ..model.physics import MODELS, PARAMETERS, STATE_LAWS, interval_text
+from ..model.physics import INITIAL_AXES, MODELS, PARAMETERS, STATE_LAWS, interval_text
 from .schema import (
     DEFAULT_MAX_STEPS,
     INT32_MAX,
@@ -390,6 +390,11 @@ def _validate(raw, text, source):
     if model == "inertial":
         _check_mass(c, params, axes)
     initial = _parse_initial(c, raw, blocks)
+    if initial.kicked_blocks and not any(a.name in INITIAL_AXES for a in axes):
+        c.add(
+            "initial.kicked_blocks names the blocks the sweep axes "
+            f"{' and '.join(INITIAL_AXES)} set, but neither is swept"
+        )
     _check_runs(c, axes, initial.ensemble)
     if not c.problems:
         _check_spread_values(c, params, spread, axes, blocks)
@@ -461,6 +466,11 @@ def config_mapping(config: Config) -> dict[str, Any]:
         "initial": {
             "v_over_V": _start_values(config.initial.v_over_V),
             "phi_over_phi_ss": _start_values(config.initial.phi_over_phi_ss),
+            **(
+                {"kicked_blocks": list(config.initial.kicked_blocks)}
+                if config.initial.kicked_blocks
+                else {}
+            ),
         },
         "integrator": dataclasses.asdict(config.integrator),
         "classification": dataclasses.asdict(config.classification),
@@ -583,8 +593,16 @@ def _parse_sweep(c, raw):
             ):
                 axes.append(Axis(name, tuple(float(v) for v in values), span))
             continue
+        if name in INITIAL_AXES:
+            values, span = _axis_values(c, spec, key, 0.0, True)
+            if values is not None and all(
+                c.number(v, f"{key}[{i}]", low=0.0, low_open=True) is not None
+                for i, v in enumerate(values)
+            ):
+                axes.append(Axis(name, tuple(float(v) for v in values), span))
+            continue
         if name not in PARAMETERS:
-            allowed = ", ".join((*PARAMETERS, *SPREAD_AXES, SEED_AXIS))
+            allowed = ", ".join((*PARAMETERS, *INITIAL_AXES, *SPREAD_AXES, SEED_AXIS))
             c.add(f"unknown sweep axis {key}; allowed: {allowed}")
             continue
         values, span = _axis_values(c, spec, key, PARAMETERS[name].low, PARAMETERS[name].low_open)
@@ -887,9 +905,25 @@ def _parse_initial(c, raw, blocks):
     ensemble = c.integer(spec.get("ensemble", d.ensemble), "initial.ensemble", 0, MAX_RUNS)
     seed = c.integer(spec.get("seed", d.seed), "initial.seed", 0)
     amplitude = c.number(spec.get("amplitude", d.amplitude), "initial.amplitude", low=0.0)
-    if None in (v, phi, ensemble, seed, amplitude):  # a problem was recorded: rejected
+    kicked = _kicked_blocks(c, spec.get("kicked_blocks", list(d.kicked_blocks)), blocks)
+    if None in (v, phi, ensemble, seed, amplitude, kicked):  # a problem was recorded: rejected
         return d
-    return Initial(v, phi, ensemble, seed, amplitude)
+    return Initial(v, phi, ensemble, seed, amplitude, kicked)
+
+
+def _kicked_blocks(c, value, blocks):
+    """``initial.kicked_blocks``: distinct block indices in [0, blocks) → sorted tuple."""
+    key = "initial.kicked_blocks"
+    if not isinstance(value, list):
+        c.add(f"{key} must be a list of block indices (0 to {blocks - 1}), got {value!r}")
+        return None
+    out = [c.integer(v, f"{key}[{i}]", 0, blocks - 1) for i, v in enumerate(value)]
+    if None in out:
+        return None
+    if len(set(out)) != len(out):
+        c.add(f"{key} lists a block twice: {value!r}")
+        return None
+    return tuple(sorted(out))
 
 
 def _parse_integrator(c, raw, model, blocks, coupling):

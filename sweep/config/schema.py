@@ -99,6 +99,9 @@ class Initial:
     grid point); without an ensemble ``seed`` and ``amplitude`` are not used.
     The defaults are one block's: a config that leaves out ``v_over_V`` or
     ``phi_over_phi_ss`` starts every block there (v = V, Φ = 1.01 Φss).
+    ``kicked_blocks``: the blocks whose start the sweep axes ``initial_v_over_V`` and
+    ``initial_phi_over_phi_ss`` set (``physics.INITIAL_AXES``; empty: every block); the
+    others start from the values above.
     """
 
     v_over_V: tuple = (1.0,)
@@ -106,6 +109,7 @@ class Initial:
     ensemble: int = 0
     seed: int = 0
     amplitude: float = 0.1
+    kicked_blocks: tuple = ()
 
 
 @dataclass(frozen=True)

@@ -171,7 +171,7 @@ def build_grid(config, points=None):
             params[:, start : start + nb] = values
     lin = linear.theory(config, phys, dl, blocks)
     params[:, layout.P_LIN_GROWTH] = lin["growth_rate"]
-    y0 = initial_state(config, n)
+    y0 = initial_state(config, n, phys)
     return Grid(config, phys, dl, blocks, lin, params, y0, settings_array(config))
 
 
@@ -188,18 +188,26 @@ def state_size(config):
     return config.blocks * layout.values_per_block(codes.code(codes.MODELS, config.model))
 
 
-def initial_state(config, n_systems):
+def initial_state(config, n_systems, phys=None):
     """Initial log-form state of ``n_systems`` systems (rows) from the config's perturbation.
 
     ℓ_i = ln(v_i/V), ψ_i = ln(Φ_i/Φss); for the inertial model the spring force
     starts in balance with friction: inertial force z_i = 0 (zero acceleration).
-    With an ensemble, member m adds the m-th of the random offsets
-    (:func:`ensemble_offsets`) at every grid point.
+    Where the start is swept (``physics.INITIAL_AXES``; their values per system in
+    ``phys``, :func:`physical_parameters`), the blocks of ``initial.kicked_blocks`` (all
+    if empty) start from the axis's value. With an ensemble, member m adds the m-th of
+    the random offsets (:func:`ensemble_offsets`) at every grid point.
     """
     nb = config.blocks
-    lnv = np.log(np.asarray(config.initial.v_over_V, float))
-    psi = np.log(np.asarray(config.initial.phi_over_phi_ss, float))
-    columns = [np.broadcast_to(lnv, (n_systems, nb)), np.broadcast_to(psi, (n_systems, nb))]
+    ini = config.initial
+    lnv = np.broadcast_to(np.log(np.asarray(ini.v_over_V, float)), (n_systems, nb))
+    psi = np.broadcast_to(np.log(np.asarray(ini.phi_over_phi_ss, float)), (n_systems, nb))
+    columns = [lnv, psi]
+    kicked = list(ini.kicked_blocks) or slice(None)
+    for k, name in enumerate(physics.INITIAL_AXES):
+        if phys is not None and name in phys:
+            columns[k] = columns[k].copy()
+            columns[k][:, kicked] = np.log(phys[name])[:, None]
     if config.initial.ensemble:
         offsets = np.tile(ensemble_offsets(config), (n_systems // config.members, 1))
         columns = [columns[0] + offsets[:, :nb], columns[1] + offsets[:, nb:]]

@@ -377,6 +377,6 @@ def theory(config, phys, dl, values, growth):
     status = np.array([f.status for f in found], np.int8)
     near = (growth > 0.0) & (growth <= NORMAL_FORM_RANGE * omega)
     past = (status == code(HOPF_CRITICALITIES, "supercritical")) & near
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore"):  # NaN where not past
         amplitude = np.where(past, predicted_lnv_amplitude(l1, omega, weight, growth), np.nan)
     return {"l1": l1, "criticality": status, "lnv_amplitude": amplitude}

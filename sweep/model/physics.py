@@ -55,6 +55,19 @@ PARAMETERS = {
     "m_W": ParameterInfo("s2 um-1", "block mass per normal load m/W", 0.0, False),
 }
 
+#: The start as a swept dimension (``sweep:`` axes; ``sweep/engine/grid.py``): the initial
+#: ln(v/V) and ln(Φ/Φss) of the blocks in ``initial.kicked_blocks`` (default: every block),
+#: e.g. a velocity jump from steady sliding on a log axis for the critical kick
+#: (``sweep/results/kicks.py``). Not model parameters: the dynamics do not depend on them.
+INITIAL_AXES = {
+    "initial_v_over_V": ParameterInfo(
+        "1", "initial slip velocity / load-point velocity", 0.0, True
+    ),
+    "initial_phi_over_phi_ss": ParameterInfo(
+        "1", "initial state / its steady value Phi/Phi_ss", 0.0, True
+    ),
+}
+
 
 def interval_text(name):
     """The allowed interval of parameter ``name``, e.g. ``(0, inf)``."""

@@ -7,14 +7,16 @@ matplotlib is imported on first use, so importing the package stays light.
 
 ``maps`` (phase diagrams, maps of a variable, refined results and their boundaries),
 ``bifurcation`` (bifurcation and orbit diagrams), ``trace`` (time series),
-``catalogue`` (a run's slip events), ``floquet`` (how stable each cycle is), ``nblock``
-(the N-block figure); ``common``: what they share (colours, labels, titles, saving).
+``catalogue`` (a run's slip events), ``floquet`` (how stable each cycle is), ``kicks``
+(the critical kick), ``nblock`` (the N-block figure); ``common``: what they share (colours,
+labels, titles, saving).
 """
 
 from .bifurcation import plot_bifurcation, plot_orbit_diagram
 from .catalogue import plot_catalogue, plot_threshold_sensitivity
 from .common import save_figure
 from .floquet import plot_floquet
+from .kicks import plot_critical_kick
 from .maps import plot_refined, plot_result, plot_variable, plottable
 from .nblock import plot_nblock
 from .trace import draw_trace, plot_trace
@@ -23,6 +25,7 @@ __all__ = [
     "draw_trace",
     "plot_bifurcation",
     "plot_catalogue",
+    "plot_critical_kick",
     "plot_floquet",
     "plot_nblock",
     "plot_orbit_diagram",

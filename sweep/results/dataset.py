@@ -20,7 +20,7 @@ from .._version import __version__
 from ..config import parse_stored_config
 from ..errors import ConfigError, InputError
 from ..model import heterogeneity, hopf
-from ..model.physics import PARAMETERS
+from ..model.physics import INITIAL_AXES, PARAMETERS
 from ..variables import REGIMES, SCALES, VARIABLES, variable_attrs, variables_for
 from .catalogue_statistics import (
     MAGNITUDE_CONVENTION,
@@ -116,7 +116,8 @@ def parameter_attrs(name):
     if name.startswith(heterogeneity.SPREAD_PREFIX):
         of = name[len(heterogeneity.SPREAD_PREFIX) :]
         return {"units": "1", "long_name": f"relative spread of {of} between blocks"}
-    return {"units": PARAMETERS[name].units, "long_name": PARAMETERS[name].long_name}
+    info = PARAMETERS.get(name) or INITIAL_AXES[name]
+    return {"units": info.units, "long_name": info.long_name}
 
 
 def axis_coordinate(name, values):

@@ -1,0 +1,294 @@
+"""The critical kick: the smallest start that leaves steady sliding, at every grid point.
+
+A sweep over the start (a sweep axis of ``physics.INITIAL_AXES``, e.g. the velocity jump
+``initial_v_over_V`` from steady sliding on a log axis) labels every kick: the run comes
+back to steady sliding (regime ``steady``) or leaves it, for runaway past the velocity cap
+or another attractor (``runaway`` or ``stick_slip``). Along the kick axis, at every point
+of the other axes, the critical kick is the smallest kick that leaves; it is bracketed by
+the largest kick below it that returns (:func:`scan_brackets`), and bisection in ln(kick)
+narrows the bracket (``sweep/engine/kicks.py``) to a relative width ``critical_kick_rtol``.
+
+The kind of threshold (Gu, Rice, Ruina & Tse 1984 for the quasi-static slip law: a finite
+jump sets off unstable slip; Ranjith & Rice 1999 for the aging law: every perturbation
+decays, so only a velocity cap makes a threshold) is read from the excursion's peak
+ln(v/V) (output ``lnv_peak``) on the two sides of the bracket: **sharp** where it jumps by
+more than :data:`SHARP_JUMP` (a factor 10 in the peak velocity) across the bracket,
+**cap_limited** where it grows through it by less, i.e. the returning run already came
+close to the cap or to the other attractor's peak. The verdict is that of the bracket:
+a smooth growth of the peak with slope s = d lnv_peak / d ln(kick) is read as sharp once
+s ln(1 + rtol) > ln 10, so a coarse scan can call a cap-limited threshold sharp; bisect to
+``critical_kick_rtol`` ≤ 0.01 before reading it (s would have to pass 230).
+
+Statuses (``critical_kick_status``): ``found`` (a bracket: critical_kick and
+critical_kick_low given), ``none_up_to_max`` (every kick tried returned: "none up to the
+largest kick tried", no number), ``below_min`` (the smallest kick tried already leaves:
+steady sliding there is linearly unstable or the threshold is below the axis),
+``undecided`` (an undecided run at or below the first kick that leaves, where the
+bracket would be: no number).
+"""
+
+import numpy as np
+import xarray as xr
+
+from ..codes import REGIMES, code
+from ..errors import InputError
+from ..model.physics import INITIAL_AXES
+
+#: The statuses of ``critical_kick_status`` (flag meanings, in code order).
+KICK_STATUSES = ("found", "none_up_to_max", "below_min", "undecided")
+#: The kinds of threshold of ``kick_threshold`` (flag meanings, in code order).
+THRESHOLD_KINDS = ("sharp", "cap_limited", "not_found")
+#: Jump of the peak ln(v/V) across a bracket above which a threshold is sharp: ln 10.
+SHARP_JUMP = float(np.log(10.0))
+
+_STEADY = code(REGIMES, "steady")
+_UNDECIDED = code(REGIMES, "undecided")
+
+
+def leaves(regime):
+    """Whether runs of these regime codes left steady sliding (runaway or stick-slip)."""
+    regime = np.asarray(regime)
+    return (regime != _STEADY) & (regime != _UNDECIDED)
+
+
+def scan_brackets(kicks, regime, peak):
+    """Brackets of the critical kick from a scan: ``kicks`` (k,) ascending, ``regime`` and
+    ``peak`` (n, k) per point (regime codes, lnv_peak).
+
+    Returns a dict of (n,) arrays: ``low``, ``high`` (the bracket; NaN unless found),
+    ``peak_low``, ``peak_high``, ``regime_high`` (−1 where none) and ``status`` (codes of
+    :data:`KICK_STATUSES`).
+    """
+    kicks = np.asarray(kicks, float)
+    regime = np.asarray(regime)
+    peak = np.asarray(peak, float)
+    n = regime.shape[0]
+    left = leaves(regime)
+    undecided = regime == _UNDECIDED
+    any_left = left.any(axis=1)
+    first = np.where(any_left, left.argmax(axis=1), kicks.size)
+    before = np.arange(kicks.size)[None, :] < first[:, None]
+    unsure = (undecided & before).any(axis=1)
+    status = np.where(
+        unsure,
+        code(KICK_STATUSES, "undecided"),
+        np.where(
+            ~any_left,
+            code(KICK_STATUSES, "none_up_to_max"),
+            np.where(first == 0, code(KICK_STATUSES, "below_min"), code(KICK_STATUSES, "found")),
+        ),
+    ).astype(np.int8)
+    found = status == code(KICK_STATUSES, "found")
+    rows = np.arange(n)
+    hi = np.minimum(first, kicks.size - 1)
+    lo = np.maximum(first - 1, 0)
+    out = {
+        "low": np.where(found, kicks[lo], np.nan),
+        "high": np.where(found, kicks[hi], np.nan),
+        "peak_low": np.where(found, peak[rows, lo], np.nan),
+        "peak_high": np.where(any_left & ~unsure, peak[rows, hi], np.nan),
+        "regime_high": np.where(any_left & ~unsure, regime[rows, hi], -1).astype(np.int8),
+        "status": status,
+    }
+    return out
+
+
+def bisect_brackets(brackets, mid, regime, peak, todo):
+    """Narrow the brackets of the points ``todo`` (indices) by runs at kicks ``mid`` with
+    outcomes ``regime`` and ``peak`` (one per point of ``todo``), in place: a run that
+    leaves is the new high end, one that returns the new low end, an undecided one makes
+    the point ``undecided`` (its bracket dropped)."""
+    left = leaves(regime)
+    steady = regime == _STEADY
+    b = brackets
+    hi, lo = todo[left], todo[steady]
+    b["high"][hi], b["peak_high"][hi], b["regime_high"][hi] = mid[left], peak[left], regime[left]
+    b["low"][lo], b["peak_low"][lo] = mid[steady], peak[steady]
+    unsure = todo[~left & ~steady]
+    b["status"][unsure] = code(KICK_STATUSES, "undecided")
+    for name in ("low", "high", "peak_low", "peak_high"):
+        b[name][unsure] = np.nan
+    b["regime_high"][unsure] = -1
+
+
+def open_brackets(brackets, rtol):
+    """Indices of the points whose bracket is found and wider than ``rtol`` (relative)."""
+    found = brackets["status"] == code(KICK_STATUSES, "found")
+    with np.errstate(invalid="ignore"):
+        wide = brackets["high"] / brackets["low"] - 1.0 > rtol
+    return np.flatnonzero(found & wide)
+
+
+def threshold_kinds(brackets):
+    """Codes of :data:`THRESHOLD_KINDS` per point from the peaks on the bracket's sides."""
+    jump = brackets["peak_high"] - brackets["peak_low"]
+    found = brackets["status"] == code(KICK_STATUSES, "found")
+    kind = np.where(jump > SHARP_JUMP, 0, 1)
+    return np.where(found, kind, code(THRESHOLD_KINDS, "not_found")).astype(np.int8)
+
+
+def kick_axis(ds, axis=None):
+    """The kick axis of a result: ``axis`` or its one swept ``physics.INITIAL_AXES`` axis."""
+    source = ds.attrs.get("sweep_name", "<dataset>")
+    swept = [name for name in INITIAL_AXES if name in ds.dims]
+    if axis is None:
+        if len(swept) != 1:
+            found = ", ".join(swept) or "none"
+            raise InputError(
+                source,
+                [
+                    f"critical kick needs one swept start axis of {', '.join(INITIAL_AXES)} "
+                    f"(found: {found}); name it with axis="
+                ],
+            )
+        axis = swept[0]
+    if axis not in ds.dims:
+        raise InputError(source, [f"critical kick: {axis!r} is not a dimension of the result"])
+    if "member" in ds.dims:
+        raise InputError(
+            source,
+            [
+                "critical kick of an initial-condition ensemble: the kick and the random "
+                "starts would mix; select one member (ds.isel(member=m)) or use "
+                "sweep.basin_fractions"
+            ],
+        )
+    return axis
+
+
+def critical_kick(ds, axis=None):
+    """The critical kick at every point of a result swept over the start.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result of :func:`sweep.run` (or a file read back) with a sweep axis of
+        ``physics.INITIAL_AXES`` and the outputs ``regime`` and ``lnv_peak``.
+    axis : str, optional
+        The kick axis (default: the one start axis swept).
+
+    Returns
+    -------
+    xarray.Dataset
+        Over the other axes: ``critical_kick`` (the smallest kick that left),
+        ``critical_kick_low`` (the largest below it that returned), their relative
+        width, the status, the kind of threshold, the peaks on both sides and the
+        regime above; see :func:`kick_dataset`.
+    """
+    axis = kick_axis(ds, axis)
+    ordered = ds.sortby(axis)
+    others = [d for d in ordered["regime"].dims if d != axis]
+    regime = ordered["regime"].transpose(*others, axis)
+    peak = ordered["lnv_peak"].transpose(*others, axis)
+    shape = regime.shape[:-1]
+    k = regime.shape[-1]
+    brackets = scan_brackets(
+        ordered[axis].values, regime.values.reshape(-1, k), peak.values.reshape(-1, k)
+    )
+    template = ordered.isel({axis: 0}, drop=True)
+    runs = np.full(int(np.prod(shape)), k, np.int32)
+    searched = (float(ordered[axis][0]), float(ordered[axis][-1]))
+    return kick_dataset(template, axis, searched, brackets, runs, shape, others)
+
+
+#: Variables of a result that do not depend on the start, carried to the kick dataset.
+CARRIED = ("K_over_Kc", "critical_K_W", "linear_growth_rate", "onset_period", "hopf_l1")
+
+
+def kick_dataset(template, axis, searched, brackets, runs, shape, dims):
+    """The critical-kick Dataset over ``dims`` (``shape``) from flat ``brackets`` and the
+    number of ``runs`` per point, the kicks ``searched`` (smallest, largest) in the
+    attributes ``kick_min``, ``kick_max``; coordinates, carried variables
+    (:data:`CARRIED`) and attributes from ``template`` (a result at one kick, the kick
+    axis dropped)."""
+    info = INITIAL_AXES[axis]
+    status = brackets["status"]
+    found = status == code(KICK_STATUSES, "found")
+    width = np.where(found, brackets["high"] / brackets["low"] - 1.0, np.nan)
+    regime_flags = {
+        "flag_values": np.arange(len(REGIMES), dtype=np.int8),
+        "flag_meanings": " ".join(REGIMES),
+        "_FillValue": np.int8(-1),
+    }
+
+    def var(values, attrs):
+        return (dims, np.asarray(values).reshape(shape), attrs)
+
+    data = {
+        "critical_kick": var(
+            brackets["high"],
+            {
+                "units": info.units,
+                "long_name": f"critical kick: smallest {info.long_name} that leaves steady sliding",
+                "description": "the smallest start tried that ran away past the cap or "
+                "reached another attractor; the threshold lies between critical_kick_low "
+                "and it; NaN unless critical_kick_status is found",
+            },
+        ),
+        "critical_kick_low": var(
+            brackets["low"],
+            {
+                "units": info.units,
+                "long_name": f"largest {info.long_name} below the critical kick that returns",
+                "description": "the run there came back to steady sliding; NaN unless found",
+            },
+        ),
+        "critical_kick_rtol": var(
+            width,
+            {
+                "units": "1",
+                "long_name": "relative width of the critical kick's bracket",
+                "description": "critical_kick / critical_kick_low - 1",
+            },
+        ),
+        "critical_kick_status": var(
+            status,
+            {
+                "long_name": "what the critical kick is",
+                "description": "found; none_up_to_max (every kick tried returned); below_min "
+                "(the smallest kick tried left); undecided (an undecided run where the "
+                "bracket would be)",
+                "flag_values": np.arange(len(KICK_STATUSES), dtype=np.int8),
+                "flag_meanings": " ".join(KICK_STATUSES),
+            },
+        ),
+        "kick_threshold": var(
+            threshold_kinds(brackets),
+            {
+                "long_name": "kind of threshold",
+                "description": "sharp: the peak ln(v/V) jumps by more than ln 10 across the "
+                "bracket; cap_limited: it grows through the bracket by less (the returning "
+                "excursion already nears the cap); not_found unless found",
+                "flag_values": np.arange(len(THRESHOLD_KINDS), dtype=np.int8),
+                "flag_meanings": " ".join(THRESHOLD_KINDS),
+            },
+        ),
+        "lnv_peak_below": var(
+            brackets["peak_low"],
+            {
+                "units": "1",
+                "long_name": "peak ln(v/V) of the run at critical_kick_low",
+                "description": "the largest ln(v/V) of the returning excursion",
+            },
+        ),
+        "lnv_peak_above": var(
+            brackets["peak_high"],
+            {
+                "units": "1",
+                "long_name": "peak ln(v/V) of the run at critical_kick",
+                "description": "at least ln(classification_v_cap_over_V) for a runaway run",
+            },
+        ),
+        "regime_above": var(
+            brackets["regime_high"], {"long_name": "regime at critical_kick", **regime_flags}
+        ),
+        "kick_runs": var(runs, {"units": "1", "long_name": "runs made at the point"}),
+    }
+    carried = {name: template[name] for name in CARRIED if name in template and template[name].ndim}
+    coords = {name: c for name, c in template.coords.items() if set(c.dims) <= set(dims)}
+    ds = xr.Dataset({**data, **carried}, coords=coords, attrs=dict(template.attrs))
+    ds.attrs["title"] = f"Critical kicks: {template.attrs.get('sweep_name', '')}".strip()
+    ds.attrs["kick_axis"] = axis
+    ds.attrs["kick_min"], ds.attrs["kick_max"] = searched
+    ds.attrs["kick_sharp_jump"] = SHARP_JUMP
+    return ds
