@@ -23,7 +23,7 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 PAPER_FIGURES = (
     "fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation", "nblock",
     "route_to_chaos", "floquet", "refined_unequal_qd", "long_chain", "catalogue_threshold",
-    "fast_events",
+    "fast_events", "critical_kick",
 )  # fmt: skip
 
 
@@ -275,15 +275,21 @@ def test_make_figures_on_small_configs(tmp_path):
                   integrator={"t_end": 400.0})  # fmt: skip
     damped = small(CONFIGS / "quasidynamic.yaml", "damped_small",
                    sweep={"K_W": [0.03, 0.045], "eta_W": [0.05, 0.1]})  # fmt: skip
+    kicks = [
+        small(CONFIGS / f"kick_{law}_law.yaml", f"kick_{law}",
+              sweep={"K_W": [0.055, 0.085], "initial_v_over_V": [1.0, 1e5]})
+        for law in ("slip", "aging")
+    ]  # fmt: skip
     paths = []
-    for config in (paper, twoblock, qs, nblock, heterogeneous, route, refined, chain, damped):
+    for config in (paper, twoblock, qs, nblock, heterogeneous, route, refined, chain, damped,
+                   *kicks):  # fmt: skip
         path = tmp_path / f"{config.name}.yaml"
         path.write_text(config.text)
         paths.append(path)
     out = make_figures(
         paths[0], paths[1], (paths[2],), nblock=paths[3:5], route=paths[5],
         out_dir=tmp_path / "figures", threads=1, refined=paths[6], long_chain=paths[7],
-        damped=paths[8],
+        damped=paths[8], kicks=paths[9:11],
     )  # fmt: skip
     assert [p.stem for p in out] == list(PAPER_FIGURES)
     for path in out:

@@ -402,6 +402,32 @@ def figure_floquet(damped, route):
     return fig
 
 
+#: The higher velocity cap of the aging law's second curve in :func:`figure_critical_kick`.
+HIGH_CAP = 1.0e9
+
+
+def figure_critical_kick(slip, aging, threads=None):
+    """How big a kick leaves steady sliding: the critical velocity jump against K/Kc for
+    the slip law (``slip``) and the aging law (``aging``) at its cap and at
+    :data:`HIGH_CAP`, each bisected to 1 % (``engine/kicks.py``); returns the Figure."""
+    from ..engine.kicks import bisect_critical_kick
+    from ..plot import plot_critical_kick
+
+    high = with_changes(
+        aging, {"classification": {"v_cap_over_V": HIGH_CAP}}, f"{aging.source} (cap {HIGH_CAP:g})"
+    )
+    runs = [bisect_critical_kick(c, threads=threads, progress=False) for c in (slip, aging, high)]
+    labels = [
+        f"{c.state_law} law, cap v/V = {power_text(c.classification.v_cap_over_V)}"
+        for c in (slip, aging, high)
+    ]
+    caption = (
+        "slip law: a sharp threshold (Gu et al. 1984); aging law: every kick returns "
+        "(Ranjith & Rice 1999), so the threshold is where the excursion passes the cap"
+    )
+    return plot_critical_kick(runs, labels, caption)
+
+
 def make_figures(
     paper="paper",
     twoblock="twoblock",
@@ -416,6 +442,7 @@ def make_figures(
     long_chain="long_chain",
     fast="fast_events",
     damped="quasidynamic",
+    kicks=("kick_slip_law", "kick_aging_law"),
 ):
     """Regenerate every paper figure into ``out_dir``; returns the file paths.
 
@@ -427,7 +454,8 @@ def make_figures(
     :data:`THRESHOLD_SWEEP`, ``catalogue_threshold``); ``fast``: the inertial one-block
     config whose fast events are traced (:func:`figure_fast_events`); ``damped``: the
     two-axis sweep whose Floquet multipliers are mapped beside the route's
-    (:func:`figure_floquet`). ``suffix``:
+    (:func:`figure_floquet`); ``kicks``: the slip- and aging-law configs whose critical
+    kicks are drawn (:func:`figure_critical_kick`). ``suffix``:
     ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
     """
     from ..engine.dispatch import load_kernels
@@ -448,12 +476,14 @@ def make_figures(
     chain_config = load_config(long_chain)
     fast_config = load_config(fast)
     damped_config = load_config(damped)
+    kick_configs = [load_config(c) for c in kicks]
     stiffnesses(config)  # checked before any kernel is compiled
     check_writable(out_dir / f"fig1_one_block{suffix}", str(out_dir), "--out-dir", suffix)
     rows = (*ONE_BLOCK_ROWS, *((label, {**c, "k2_W": K2_W}) for label, c in TWO_BLOCK_ROWS))
     trace_configs = [variant(config, f"{config.name}_{r}", **c) for r, (_, c) in enumerate(rows)]
     every = [*trace_configs, phase_config, *bifurcation_configs, *nblock_configs, route_config,
-             refined_config, chain_config, fast_config, damped_config]  # fmt: skip
+             refined_config, chain_config, fast_config, damped_config,
+             *kick_configs]  # fmt: skip
     # side by side; each variant here also has runs that need the tangent for λ1
     grids = [build_grid(c) for c in every]
     load_kernels([(g.params, g.settings, t) for g in grids for t in (None, True)], threads)
@@ -494,4 +524,6 @@ def make_figures(
     paths.append(save_figure(fig, out_dir / f"catalogue_threshold{suffix}", dpi))
     fig = figure_fast_events(fast_config)
     paths.append(save_figure(fig, out_dir / f"{fast_config.name}{suffix}", dpi))
+    fig = figure_critical_kick(*kick_configs, threads=threads)
+    paths.append(save_figure(fig, out_dir / f"critical_kick{suffix}", dpi))
     return paths

@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..codes import code
-from ..model.physics import INITIAL_AXES
 from ..results.kicks import KICK_STATUSES, THRESHOLD_KINDS
 from .common import _figure_and_axes, _suptitle, axis_label, describe, dimensionless_text
 
@@ -23,6 +22,10 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
+#: The kick's symbol on the y axis, per start axis.
+SYMBOLS = {"initial_v_over_V": "v0/V", "initial_phi_over_phi_ss": "Φ0/Φss"}
+#: Factor between the "none up to the largest kick" markers of successive curves.
+NONE_LIFT = 1.5
 #: Most curves one figure draws (values of a second axis).
 MAX_CURVES = 8
 COLOURS = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#F0E442", "#000")
@@ -53,6 +56,8 @@ def plot_critical_kick(
     -------
     matplotlib.figure.Figure
     """
+    from matplotlib.ticker import FuncFormatter
+
     datasets = datasets if isinstance(datasets, (list, tuple)) else [datasets]
     if labels is not None and len(labels) != len(datasets):
         raise ValueError(f"labels: {len(labels)} given for {len(datasets)} datasets")
@@ -63,24 +68,42 @@ def plot_critical_kick(
         curves += _curves(ds, label)
     if len(curves) > MAX_CURVES:
         raise ValueError(f"{len(curves)} curves: at most {MAX_CURVES} (select fewer values)")
-    for (ds, label), colour in zip(curves, COLOURS, strict=False):
-        _draw(ax, ds, label, colour)
+    for i, ((ds, label), colour) in enumerate(zip(curves, COLOURS, strict=False)):
+        _draw(ax, ds, label, colour, NONE_LIFT**i)
     first = datasets[0]
-    kick = INITIAL_AXES[first.attrs["kick_axis"]]
     ax.set_yscale("log")
-    ax.set_ylabel(f"critical kick: {kick.long_name}")
-    ax.grid(True, which="both", alpha=0.3)
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda y, _: f"{y:g}"))
+    ax.yaxis.set_minor_formatter(FuncFormatter(lambda y, _: f"{y:g}" if _few_decades(ax) else ""))
+    ax.set_ylabel(f"critical kick {SYMBOLS[first.attrs['kick_axis']]}")
+    ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8, loc="best")
     rtol = np.nanmax([float(d["critical_kick_rtol"].max()) for d in datasets])
+    title = describe(first)
+    if len({d.attrs["state_law"] for d in datasets}) > 1:  # the laws are in the legend
+        title = title.replace(f", {first.attrs['state_law']} law", "")
     lines = [
-        describe(first),
-        f"{dimensionless_text(first)}; start {_start_text(first)}; brackets to "
+        title,
+        f"{dimensionless_text(first)}; start {_start_text(first)}; runaway past "
+        f"{_caps_text(datasets)}; brackets to "
         f"{100 * rtol:.2g} % (bars); filled: sharp (peak ln v/V jumps by > ln 10 across the "
-        "bracket), open: set by the cap; ▲ none up to the largest kick tried",
+        "bracket), open: set by the cap; ▲ none up to the largest kick tried (drawn at and "
+        "above it)",
         caption,
     ]
     _suptitle(fig, lines)
     return fig
+
+
+def _few_decades(ax):
+    """Whether the y range spans less than a decade (minor ticks then get numbers too)."""
+    low, high = ax.get_ylim()
+    return high / low < 10.0
+
+
+def _caps_text(datasets):
+    """The velocity caps of the datasets, e.g. ``"v/V = 1e+06"``."""
+    caps = dict.fromkeys(f"{float(d.attrs['classification_v_cap_over_V']):.0e}" for d in datasets)
+    return "v/V = " + ", ".join(caps)
 
 
 def _default_label(ds, n):
@@ -111,8 +134,10 @@ def _curves(ds, label):
     ]
 
 
-def _draw(ax, ds, label, colour):
-    """One curve: brackets, markers by kind, and the points without a threshold."""
+def _draw(ax, ds, label, colour, lift):
+    """One curve: brackets, markers by kind, and the points without a threshold (those
+    with none up to the largest kick drawn ``lift`` times above it, so that curves that
+    share them stay apart)."""
     (dim,) = ds["critical_kick"].dims
     if dim == "K_W" and "K_over_Kc" in ds:
         x = ds["K_over_Kc"].values
@@ -128,13 +153,21 @@ def _draw(ax, ds, label, colour):
     ax.plot(x[found], mid[found], "-", color=colour, lw=0.8, alpha=0.6)
     sharp = found & (kind == code(THRESHOLD_KINDS, "sharp"))
     capped = found & (kind == code(THRESHOLD_KINDS, "cap_limited"))
-    ax.plot(x[sharp], mid[sharp], "o", color=colour, ms=5, label=f"{label}: sharp")
-    ax.plot(
-        x[capped], mid[capped], "o", mfc="white", mec=colour, ms=6, label=f"{label}: cap-limited"
-    )
+    if sharp.any():
+        ax.plot(x[sharp], mid[sharp], "o", color=colour, ms=5, label=f"{label}: sharp")
+    if capped.any():
+        ax.plot(
+            x[capped],
+            mid[capped],
+            "o",
+            mfc="white",
+            mec=colour,
+            ms=6,
+            label=f"{label}: cap-limited",
+        )
     none = status == code(KICK_STATUSES, "none_up_to_max")
     if none.any():
-        top = np.full(none.sum(), ds.attrs["kick_max"])
+        top = np.full(none.sum(), ds.attrs["kick_max"] * lift)
         ax.plot(x[none], top, "^", color=colour, ms=7, label=f"{label}: none up to the max")
     unsure = status == code(KICK_STATUSES, "undecided")
     if unsure.any():
