@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 CONFIG ?= configs/twoblock.yaml
 THREADS ?=
 
-.PHONY: sweep test test-all test-nojit bench figures lint clean venv docs bit-identity-reference
+.PHONY: sweep kick test test-all test-nojit bench figures lint clean venv docs bit-identity-reference
 
 venv: $(STAMP)
 
@@ -19,6 +19,12 @@ $(STAMP): pyproject.toml
 
 sweep: $(STAMP)
 	$(PY) -m sweep run $(CONFIG) $(if $(THREADS),--threads $(THREADS))
+
+# The critical kick of a config that sweeps the start (initial_v_over_V), bisected to
+# 1 %: results/<name>_kick.nc and .png; resumes from that file. E.g.
+#   make kick CONFIG=configs/kick_slip_law.yaml
+kick: $(STAMP)
+	$(PY) -m sweep kick $(CONFIG) $(if $(THREADS),--threads $(THREADS))
 
 # The suite on TEST_WORKERS processes (pytest-xdist; "auto": one per core), which take
 # tests as they come free and share numba's on-disk cache of compiled kernels. First the

@@ -74,7 +74,9 @@ def __getattr__(name):
 
 __all__ = [
     "audit_result",
+    "bisect_critical_kick",
     "compile_kernels",
+    "critical_kick",
     "compute_trace",
     "extend_file",
     "extend_result",
@@ -95,6 +97,7 @@ __all__ = [
     "parse_config",
     "plot_bifurcation",
     "plot_catalogue",
+    "plot_critical_kick",
     "plot_floquet",
     "plot_orbit_diagram",
     "plot_result",

@@ -108,15 +108,15 @@ def test_provenance_attributes(result):
 def test_each_kernel_column_is_declared_once():
     """A variable read from one column of the kernels' results names it in its
     declaration (``variables.py``): the column exists, no two variables read the same
-    one, every conversion is known, and the columns no variable reads are the kernels'
-    bookkeeping (the run's highest ℓ, the count of recorded points)."""
+    one, every conversion is known, and the column no variable reads is the kernels'
+    bookkeeping (the count of recorded points)."""
     from sweep.variables import SCALES, VARIABLES
 
     columns = [v.column for v in VARIABLES if v.column]
     assert len(columns) == len(set(columns))
     kernel_columns = {name for name in vars(layout) if name.startswith("R_")}
     assert set(columns) <= kernel_columns
-    assert kernel_columns - set(columns) == {"R_LNV_MAX_RUN", "R_N_RECORDED"}
+    assert kernel_columns - set(columns) == {"R_N_RECORDED"}
     assert {v.scale for v in VARIABLES} <= set(SCALES)
     assert sorted(getattr(layout, name) for name in kernel_columns) == list(range(layout.N_RESULTS))
 

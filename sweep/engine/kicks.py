@@ -16,13 +16,18 @@ search loses at most one round. Each run is the run a uniform sweep makes at tha
 the outcome does not depend on the rounds, threads or chunks.
 """
 
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import xarray as xr
 import yaml
 
-from ..config import config_mapping, load_config
+from ..config import Config, config_mapping, load_config
 from ..errors import InputError
 from ..io import files
 from ..io.netcdf import write_netcdf
@@ -39,7 +44,13 @@ from .uniform import compute as compute_grid
 DEFAULT_RTOL = 0.01
 
 
-def bisect_critical_kick(config, rtol=DEFAULT_RTOL, out=None, threads=None, progress=True):
+def bisect_critical_kick(
+    config: str | os.PathLike | Mapping[str, Any] | Config,
+    rtol: float = DEFAULT_RTOL,
+    out: str | os.PathLike | None = None,
+    threads: int | None = None,
+    progress: bool = True,
+) -> xr.Dataset:
     """Bisect the critical kick at every point of ``config``'s other axes.
 
     Parameters
@@ -49,7 +60,7 @@ def bisect_critical_kick(config, rtol=DEFAULT_RTOL, out=None, threads=None, prog
         searched), no initial-condition ensemble.
     rtol : float
         Relative width of the brackets to reach, in (0, 1).
-    out : str or pathlib.Path, optional
+    out : str or os.PathLike, optional
         A NetCDF file written after every round and resumed from (None: nothing written).
     threads : int, optional
         Threads (default: all cores).

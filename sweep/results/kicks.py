@@ -27,6 +27,8 @@ steady sliding there is linearly unstable or the threshold is below the axis),
 bracket would be: no number).
 """
 
+from __future__ import annotations
+
 import numpy as np
 import xarray as xr
 
@@ -156,7 +158,7 @@ def kick_axis(ds, axis=None):
     return axis
 
 
-def critical_kick(ds, axis=None):
+def critical_kick(ds: xr.Dataset, axis: str | None = None) -> xr.Dataset:
     """The critical kick at every point of a result swept over the start.
 
     Parameters
