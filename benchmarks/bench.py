@@ -21,6 +21,8 @@ Prints and writes ``results/bench.json``:
 * ``configs/twoblock.yaml`` wall time on 1 and 2 threads (JIT cache warm) and
   the 2-thread speed-up; JIT compile time measured separately, in a fresh
   process with the cache off and on;
+* the critical kick of ``configs/kick_slip_law.yaml`` on 64 stiffnesses bisected to 1 %:
+  runs, rounds and wall time on 2 threads against a uniform scan of the kicks;
 * a refinement by label (``configs/unequal_qd.yaml``, 8 levels: 1/256 of each grid
   step): its runs against the uniform grid of its finest cells, its wall time on 2
   threads, and its time beyond the integration (planning, bookkeeping, the file)
@@ -905,6 +907,48 @@ def _print_refine_targets(found):
             print(f"  {what:<48} target {target:<10} measured {measured}")
 
 
+def bench_critical_kick(n_stiffness, rtol, threads=2):
+    """The critical kick of ``configs/kick_slip_law.yaml`` on ``n_stiffness`` stiffnesses
+    (K/Kc 1.01-1.7) bisected to ``rtol`` on ``threads`` threads (kernels compiled
+    beforehand): runs, rounds and wall time, against the runs of a uniform scan of the
+    same kick range at that resolution."""
+    from sweep.engine.kicks import bisect_critical_kick
+
+    config = load_config(repo_config("kick_slip_law"))
+    k_axis = {"start": 0.0505, "stop": 0.085, "num": n_stiffness}
+    config = with_changes(config, {"sweep": {"K_W": k_axis}})
+    small = with_changes(config, {"sweep": {"K_W": [0.06]}})
+    bisect_critical_kick(small, rtol=0.5, threads=threads, progress=False)  # compiles
+    start = time.perf_counter()
+    ds = bisect_critical_kick(config, rtol=rtol, threads=threads, progress=False)
+    seconds = time.perf_counter() - start
+    kicks = next(a.values for a in config.axes if a.name == "initial_v_over_V")
+    uniform = n_stiffness * math.ceil(math.log(max(kicks) / min(kicks)) / math.log1p(rtol))
+    runs = int(ds["kick_runs"].sum())
+    return {
+        "config": "configs/kick_slip_law.yaml",
+        "stiffnesses": n_stiffness,
+        "rtol": rtol,
+        "threads": threads,
+        "runs": runs,
+        "rounds": int(ds.attrs["kick_rounds"]),
+        "found": int((ds["critical_kick_status"] == 0).sum()),
+        "seconds": seconds,
+        "runs_per_second": runs / seconds,
+        "uniform_scan_runs": uniform,
+        "runs_over_uniform_scan": runs / uniform,
+    }
+
+
+def _print_critical_kick(ck):
+    print(
+        f"critical kick of {ck['stiffnesses']} stiffnesses to {100 * ck['rtol']:g} % "
+        f"({ck['config']}): {ck['runs']} runs in {ck['rounds']} rounds, {ck['seconds']:.2f} s "
+        f"on {ck['threads']} threads ({ck['runs_per_second']:.0f} runs/s); a uniform scan at "
+        f"that resolution: {ck['uniform_scan_runs']} runs ({ck['runs_over_uniform_scan']:.3f}x)"
+    )
+
+
 #: The refinements of issue 37's targets (``--refine-only``): the shipped refined example
 #: and the two-block map, each to 1/256 of its grid steps.
 REFINE_TARGETS = (("unequal_qd", 8), ("twoblock", 8))
@@ -918,21 +962,21 @@ SIZES = {
              "block_scaling": (8, 500), "implicit_scaling": (2, 100),
              "structured_crossing": (2, 100, 4.0),
              "configs": ("oneblock", "twoblock"), "dask": "twoblock", "compile": "twoblock",
-             "refine": (("unequal_qd", 8),)},
+             "refine": (("unequal_qd", 8),), "critical_kick": (64, 0.01)},
     "quick": {"scipy": (6, 300), "single_purpose": (21, 300), "scipy_hard": (5, 2000),
               "attractors": (21, 300),
               "threads_large": (200, 2000), "throughput": (2, 50), "rk4": 10_000,
               "block_scaling": (2, 50), "implicit_scaling": (1, 30),
               "structured_crossing": (1, 30, 0.5),
               "configs": ("quick", "quick"), "dask": "quick", "compile": "quick",
-              "refine": (("unequal_qd", 2),)},
+              "refine": (("unequal_qd", 2),), "critical_kick": (8, 0.01)},
     "smoke": {"scipy": (3, 100), "single_purpose": (3, 100), "scipy_hard": (2, 100),
               "attractors": (3, 100),
               "threads_large": (4, 100), "throughput": (1, 10), "rk4": 1_000,
               "block_scaling": (1, 10), "implicit_scaling": (1, 2),
               "structured_crossing": (1, 2, 0.0, (1, 3)),
               "configs": ("quick",), "dask": "quick", "compile": "quick", "empty_cache": False,
-              "refine": (("quick", 2),)},
+              "refine": (("quick", 2),), "critical_kick": (2, 0.1)},
 }  # fmt: skip
 
 
@@ -1044,6 +1088,8 @@ def main(argv=None):
         f"with an empty cache, {c['cache_warm_seconds']:.1f} s with a warm cache); a further "
         f"variant (another model), shared helpers cached: {c['further_compile_seconds']:.1f} s"
     )
+    figures["critical_kick"] = ck = bench_critical_kick(*size["critical_kick"])
+    _print_critical_kick(ck)
     figures["refine"] = bench_refinements(size["refine"])
     if "twoblock" in figures:
         _print_targets(figures)
