@@ -12,8 +12,50 @@ with phi0 = Φ/Φss (1: the state unchanged); the spring stretch follows from th
 balance, so nothing else is set. A run "leaves" if ℓ reaches ln(cap) (cap = v_cap/V) before
 ``t_end``, else it "returns"; its peak is the largest ℓ over the run, t = 0 included.
 
-Findings (SciPy results: LSODA, rtol 1e-10, atol 1e-12, t_end 2000 D0/V; A = 0.03, B = 0.08)
-are filled in below by ``python tests/kick_reference.py``'s run recorded on the branch.
+Findings (SciPy results, not engine output): ``critical_kick(law, 0.03, 0.08, K/Kc, cap,
+check_t_end=True)`` (the A, B of configs/oneblock.yaml and slip_law.yaml), LSODA, rtol 1e-10,
+t_end 200 D0/V, phi0 = 1, bracket to 1e-4; kick = v0/V, peaks are ln(v/V); "peak 0.99" is
+the peak of the kick 0.99 kick_low (ln cap: 13.816 for 1e6, 20.723 for 1e9)::
+
+    slip law       cap 1e6 and cap 1e9 (the same brackets to all digits shown)
+    K/Kc   kick_low   kick_high  peak_low  peak 0.99  peak 0.9  peak 0.5
+    1.02   2.03253    2.03271    6.330     3.008      1.458     0.020
+    1.05   2.10836    2.10854    6.657     3.111      1.526     0.066
+    1.1    2.24088    2.24107    6.572     3.279      1.637     0.140
+    1.2    2.53076    2.53099    8.512     3.619      1.855     0.285
+    1.3    2.85539    2.85564    7.711     3.947      2.067     0.424
+    1.5    3.62375    3.62407    11.491    4.617      2.485     0.694
+    1.7    4.57630    4.57671    11.066    5.281      2.897     0.956
+
+    aging law      cap 1e6                           cap 1e9
+    K/Kc   kick_low   kick_high  peak 0.99   kick_low   kick_high  peak 0.99
+    1.001  24.9448    24.9470    13.675      37.2332    37.2365    20.512
+    1.01   28.1841    28.1866    13.689      44.5283    44.5322    20.544
+    1.02   32.4028    32.4056    13.703      54.7996    54.8044    20.571
+    1.05   50.3460    50.3505    13.733      107.650    107.659    20.624
+    1.1    112.019    112.029    13.762      382.966    383.000    20.665
+    1.3    4332.15    4332.53    13.795      none up to 1e5 (peak 20.090 at 1e5)
+    1.7    none up to 1e5 (peak = ln 1e5 = 11.513, the kick itself: κ > B, ℓ'(0) < 0)
+
+- Slip law: a sharp threshold that does not move with the cap (1e6 and 1e9 give the same
+  bracket). The run that leaves does so in its first excursion (t < 1 D0/V). The peak
+  just below the threshold is not bounded: it grows by about 1.6 per decade of the
+  distance δ = 1 − kick/kick_c (K/Kc = 1.3: 3.95, 5.73, 7.28 at δ = 1e-2, 1e-3, 1e-4), so
+  peak_low depends on where the bracket falls (6.3 to 11.5 at 1e-4, about 3 to 5 at 1 %);
+  the ~1.6 of physics.md §5d is the peak at δ ≈ 0.1 (K/Kc ≈ 1.1).
+- Aging law: the threshold is set by the cap: the peak grows smoothly and steeply with the
+  kick (about 14 ln(kick) near K/Kc = 1.001, about 2 ln(kick) at 1.3) and is within 1e-3
+  of ln cap just below the threshold; the threshold moves with the cap (×1.5 at K/Kc =
+  1.001, ×3.4 at 1.1 from cap 1e6 to 1e9). For K/Kc > B/(B − A) = 1.6, ℓ'(0) = (B − κ)
+  (kick − 1)/A < 0 and (seen at 1.7) the peak is the kick: only kick ≥ cap leaves.
+- LSODA at rtol 1e-10 and 1e-11 and Radau at 1e-10 and 1e-11 agree on every outcome at the
+  bracket ends (slip 1.02, 1.3, 1.7; aging 1.001, 1.05, 1.1) and on the peaks within 3e-6.
+  t_end 2000 instead of 200 changed no outcome at any bracket end. A scan of 41 kicks from
+  1.01 to 1e5 (both laws, both caps, four K/Kc each) switched from returns to leaves once
+  and the peaks of the returns grew with the kick: the bisection's single crossing holds.
+- Wall time (2 shared cores, niced; ``call_time``): a call that leaves 0.005–0.04 s, one
+  that returns near the threshold 0.1–0.35 s (up to 0.8 s under load) with LSODA, Radau
+  30–60× slower; a bisection to 1e-4 (about 17 calls) 1–8 s.
 """
 
 import time

@@ -63,3 +63,15 @@ def test_small_kick_decays_at_the_linear_rate(law, K_over_Kc):
     t_max, lnv_max = sol.t_events[1], sol.y_events[1][:, 0]
     measured = np.log(lnv_max[2] / lnv_max[1]) / (t_max[2] - t_max[1])
     assert measured == pytest.approx(rate, rel=0.01)
+
+
+def test_a_maximum_just_above_the_cap_leaves():
+    """Leaving is ℓ reaching ln(cap): a peak 1e-6 above ln(cap) leaves, 1e-6 below returns,
+    even where the peak rises and falls within one solver step."""
+    _, peak = kick_outcome("aging", A, B, 1.05, 40.0, cap=1e12)
+    assert kick_outcome("aging", A, B, 1.05, 40.0, cap=np.exp(peak - 1e-6)) == (
+        True,
+        pytest.approx(peak - 1e-6),
+    )
+    leaves, below = kick_outcome("aging", A, B, 1.05, 40.0, cap=np.exp(peak + 1e-6))
+    assert not leaves and below == pytest.approx(peak, abs=1e-8)
