@@ -3,11 +3,12 @@
 bisection (resumed or not), the CLI and bad input. The thresholds against SciPy are in
 ``tests/test_kick_reference_checks.py``."""
 
+import kick_reference as ref
 import numpy as np
 import pytest
 import xarray as xr
 import yaml
-from conftest import config_dict, make_config, scipy_runaway_time, write_config
+from conftest import PAPER_A, PAPER_B, config_dict, make_config, write_config
 
 from sweep import cli
 from sweep.codes import REGIMES, code
@@ -104,10 +105,15 @@ def test_scan_brackets_on_hand_made_outcomes():
     np.testing.assert_equal(b["low"], [2.0, np.nan, np.nan, np.nan, np.nan, 1.0])
     np.testing.assert_equal(b["high"], [4.0, np.nan, np.nan, np.nan, np.nan, 2.0])
     assert b["regime_high"][0] == R and b["regime_high"][5] == T and b["regime_high"][1] == -1
-    kinds = threshold_kinds(b)
-    assert kinds[0] == code(THRESHOLD_KINDS, "sharp")  # 0.7 → 14: a jump of 13.3 > ln 10
-    assert kinds[5] == code(THRESHOLD_KINDS, "cap_limited")  # 0.1 → 0.7
+    # probes: the largest kick at or below 0.9 × critical_kick (row 0: 2 below 4; row 5:
+    # 1 below 2)
+    np.testing.assert_equal(b["probe"], [2.0, np.nan, np.nan, np.nan, np.nan, 1.0])
+    kinds = threshold_kinds(b, lnv_cap=14.0)
+    assert kinds[0] == code(THRESHOLD_KINDS, "sharp")  # runaway: 0.7 against the cap 14
+    assert kinds[5] == code(THRESHOLD_KINDS, "cap_limited")  # stick-slip: 0.1 against 0.7
     assert kinds[1] == code(THRESHOLD_KINDS, "not_found")
+    b["peak_probe"][0] = np.nan  # a probe that did not return
+    assert threshold_kinds(b, 14.0)[0] == code(THRESHOLD_KINDS, "undetermined")
 
 
 def test_bisection_step_keeps_the_half_where_the_outcome_changes():
@@ -136,18 +142,23 @@ def aging_kicks(tmp_path_factory):
     return cfg, out, bisect_critical_kick(cfg, rtol=0.02, out=out, progress=False)
 
 
-def test_bisection_brackets_the_runaway_time_reference(aging_kicks):
-    """Each found bracket: SciPy (conftest's LSODA reference of the brief's log form) runs
-    away past the cap at the upper kick and not at the lower one; K/Kc = 1.8 has none."""
+def test_bisection_brackets_the_scipy_outcomes(aging_kicks):
+    """Each found bracket: SciPy (``tests/kick_reference.py``, LSODA, its own right-hand
+    side) runs away past the cap at the upper kick and not at the lower one; K/Kc = 1.8
+    has no threshold up to 10⁴ in either."""
     cfg, _, ds = aging_kicks
     status = ds["critical_kick_status"].values
     assert list(status) == [code(KICK_STATUSES, n) for n in ("found", "found", "none_up_to_max")]
     assert np.all(ds["critical_kick_rtol"].values[:2] <= 0.02)
-    for i in range(2):
+    for i in range(3):
         ratio = float(ds["K_over_Kc"][i])
-        lo, hi = float(ds["critical_kick_low"][i]), float(ds["critical_kick"][i])
-        assert np.isfinite(scipy_runaway_time(ratio, np.log(hi), 0.0, t_max=2000.0))
-        assert not np.isfinite(scipy_runaway_time(ratio, np.log(lo), 0.0, t_max=2000.0))
+        if i < 2:
+            lo, hi = float(ds["critical_kick_low"][i]), float(ds["critical_kick"][i])
+            assert ref.kick_outcome("aging", PAPER_A, PAPER_B, ratio, hi)[0]
+            assert not ref.kick_outcome("aging", PAPER_A, PAPER_B, ratio, lo)[0]
+        else:
+            assert not ref.kick_outcome("aging", PAPER_A, PAPER_B, ratio, 1e4)[0]
+    assert (ds["kick_threshold"].values[:2] == code(THRESHOLD_KINDS, "cap_limited")).all()
     assert ds["critical_kick"].attrs["units"] == "1"
     assert ds.attrs["kick_complete"] == 1
 
@@ -161,7 +172,10 @@ def test_resumed_bisection_gives_the_same_numbers(aging_kicks, tmp_path):
     resumed = bisect_critical_kick(cfg, rtol=0.02, out=out, progress=False)
     for name in ("critical_kick", "critical_kick_low", "lnv_peak_below", "lnv_peak_above"):
         np.testing.assert_array_equal(resumed[name].values, whole[name].values)
-    np.testing.assert_array_equal(resumed["kick_runs"].values, whole["kick_runs"].values)
+    # the coarse search's probes went stale as the brackets narrowed: one more run each
+    found = whole["critical_kick_status"].values == code(KICK_STATUSES, "found")
+    np.testing.assert_array_equal(resumed["kick_runs"].values, whole["kick_runs"].values + found)
+    np.testing.assert_array_equal(resumed["lnv_peak_probe"].values, whole["lnv_peak_probe"].values)
     with xr.open_dataset(out) as stored:
         np.testing.assert_array_equal(stored["critical_kick"].values, whole["critical_kick"].values)
 

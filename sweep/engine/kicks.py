@@ -6,8 +6,10 @@ runs the config's grid and brackets the critical kick at every point
 (``results/kicks.py``: the largest kick that returns below the smallest that leaves);
 each later round runs the geometric mean of every bracket still wider than ``rtol``
 (relative) and keeps the half where the outcome changes, all open points in one batch of
-the engine's kernels. A bracket of relative width r0 takes ⌈log2(ln(1 + r0) /
-ln(1 + rtol))⌉ rounds: 7 from a factor √10 to 1 %.
+the engine's kernels; a last round runs the probes that tell a sharp threshold from one
+set by the cap (``results/kicks.py``), 10 % below each critical kick. A bracket of
+relative width r0 takes ⌈log2(ln(1 + r0) / ln(1 + rtol))⌉ rounds: 7 from a factor √10 to
+1 %, and the probes one more.
 
 After every round the Dataset so far is written to ``out`` (a temporary file, then a
 rename) with ``kick_complete`` 0; a later call with the same config and the same file
@@ -97,17 +99,25 @@ def bisect_critical_kick(
     while True:
         ds = _dataset(ds, axis, brackets, runs, shape, dims, rtol, rounds, key)
         todo = kicks.open_brackets(brackets, rtol)
-        ds.attrs["kick_complete"] = np.int32(todo.size == 0)
+        probes = kicks.stale_probes(brackets) if not todo.size else todo[:0]
+        ds.attrs["kick_complete"] = np.int32(todo.size + probes.size == 0)
         if path is not None:
             write_netcdf(ds, path)
-        if not todo.size:
+        if not todo.size and not probes.size:
             return ds
         rounds += 1
-        mid = np.sqrt(brackets["low"][todo] * brackets["high"][todo])
+        desc = f"{config.name} round {rounds}" + ("" if todo.size else " (probes)")
+        if todo.size:
+            at = np.sqrt(brackets["low"][todo] * brackets["high"][todo])
+        else:
+            todo, at = probes, kicks.PROBE * brackets["high"][probes]
         points = {name: v[todo] for name, v in values.items()}
-        points[axis] = mid
-        regime, peak = _outcomes(config, points, backend, progress, f"{config.name} round {rounds}")
-        kicks.bisect_brackets(brackets, mid, regime, peak, todo)
+        points[axis] = at
+        regime, peak = _outcomes(config, points, backend, progress, desc)
+        if probes.size:
+            kicks.set_probes(brackets, at, regime, peak, todo)
+        else:
+            kicks.bisect_brackets(brackets, at, regime, peak, todo)
         runs[todo] += 1
 
 
@@ -136,6 +146,15 @@ def _resumed(path, key, source):
         return None
     with xr.open_dataset(path) as stored:
         ds = stored.load()
+    missing = [name for name in BRACKET_VARIABLES.values() if name not in ds]
+    if missing and ds.attrs.get("kick_config") == key:
+        raise InputError(
+            path,
+            [
+                f"a critical-kick search without {', '.join(missing)} (an older version's): "
+                "remove it or give another --out"
+            ],
+        )
     if ds.attrs.get("kick_config") != key:
         raise InputError(
             path,
@@ -147,17 +166,22 @@ def _resumed(path, key, source):
     return ds
 
 
+#: The bracket arrays (``results/kicks.py``) and the variables that hold them.
+BRACKET_VARIABLES = {
+    "low": "critical_kick_low",
+    "high": "critical_kick",
+    "peak_low": "lnv_peak_below",
+    "peak_high": "lnv_peak_above",
+    "regime_high": "regime_above",
+    "status": "critical_kick_status",
+    "probe": "kick_probe",
+    "peak_probe": "lnv_peak_probe",
+}
+
+
 def _brackets(ds):
     """The flat bracket arrays of a critical-kick Dataset (``results/kicks.py``)."""
-    names = {
-        "low": "critical_kick_low",
-        "high": "critical_kick",
-        "peak_low": "lnv_peak_below",
-        "peak_high": "lnv_peak_above",
-        "regime_high": "regime_above",
-        "status": "critical_kick_status",
-    }
-    out = {k: ds[v].values.ravel().copy() for k, v in names.items()}
+    out = {k: ds[v].values.ravel().copy() for k, v in BRACKET_VARIABLES.items()}
     out["regime_high"] = np.where(
         np.isnan(out["regime_high"].astype(float)), -1, out["regime_high"]
     )
@@ -173,7 +197,8 @@ def _point_values(ds, dims):
 
 
 def _outcomes(config, points, backend, progress, desc):
-    """Regime codes and lnv_peak of runs at ``points`` (axis name → values)."""
+    """Regime codes (as :func:`~sweep.results.kicks.outcomes` reads them) and lnv_peak of
+    runs at ``points`` (axis name → values)."""
     grid = build_grid(config, points)
     backend.compile(grid.params, grid.settings)
     bar = Progress(grid.n, desc=desc, enabled=progress)
@@ -183,7 +208,9 @@ def _outcomes(config, points, backend, progress, desc):
         )
     finally:
         bar.close()
-    return results[:, layout.R_REGIME].astype(np.int8), results[:, layout.R_LNV_MAX_RUN]
+    peak = results[:, layout.R_LNV_MAX_RUN]
+    lnv_cap = np.log(config.classification.v_cap_over_V)
+    return kicks.outcomes(results[:, layout.R_REGIME].astype(np.int8), peak, lnv_cap), peak
 
 
 def _dataset(template, axis, brackets, runs, shape, dims, rtol, rounds, key):

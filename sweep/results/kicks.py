@@ -11,13 +11,19 @@ narrows the bracket (``sweep/engine/kicks.py``) to a relative width ``critical_k
 The kind of threshold (Gu, Rice, Ruina & Tse 1984 for the quasi-static slip law: a finite
 jump sets off unstable slip; Ranjith & Rice 1999 for the aging law: every perturbation
 decays, so only a velocity cap makes a threshold) is read from the excursion's peak
-ln(v/V) (output ``lnv_peak``) on the two sides of the bracket: **sharp** where it jumps by
-more than :data:`SHARP_JUMP` (a factor 10 in the peak velocity) across the bracket,
-**cap_limited** where it grows through it by less, i.e. the returning run already came
-close to the cap or to the other attractor's peak. The verdict is that of the bracket:
-a smooth growth of the peak with slope s = d lnv_peak / d ln(kick) is read as sharp once
-s ln(1 + rtol) > ln 10, so a coarse scan can call a cap-limited threshold sharp; bisect to
-``critical_kick_rtol`` ≤ 0.01 before reading it (s would have to pass 230).
+ln(v/V) (output ``lnv_peak``) of a *probe*, a kick that returns :data:`PROBE` times the
+critical kick (10 % below it), against the peak of the run that leaves (ln of the cap for
+a runaway run): **sharp** where the probe's excursion stays more than :data:`SHARP_JUMP`
+(a factor 10 in velocity) below, **cap_limited** where it already comes within it, so that
+the peak grows smoothly up to the cap (or the other attractor). The peak just below a
+sharp threshold is no measure: it grows without bound as the kick nears the threshold
+(slip law, SciPy, ``tests/kick_reference.py``: by about 1.6 per decade of 1 − kick/kick_c,
+11.5 at 1e-4 from it where the cap is at 13.8), so the probe sits at a fixed distance.
+A scan (:func:`critical_kick`) takes as its probe the largest kick it ran at or below 10 %
+under the critical kick (or the bracket's lower end if there is none: closer, so a
+``sharp`` verdict holds and a ``cap_limited`` one may not); bisection runs the probe
+(``sweep/engine/kicks.py``). ``undetermined``: the probe did not return (outcomes that
+cross more than once, or an undecided probe).
 
 Statuses (``critical_kick_status``): ``found`` (a bracket: critical_kick and
 critical_kick_low given), ``none_up_to_max`` (every kick tried returned: "none up to the
@@ -39,12 +45,27 @@ from ..model.physics import INITIAL_AXES
 #: The statuses of ``critical_kick_status`` (flag meanings, in code order).
 KICK_STATUSES = ("found", "none_up_to_max", "below_min", "undecided")
 #: The kinds of threshold of ``kick_threshold`` (flag meanings, in code order).
-THRESHOLD_KINDS = ("sharp", "cap_limited", "not_found")
-#: Jump of the peak ln(v/V) across a bracket above which a threshold is sharp: ln 10.
+THRESHOLD_KINDS = ("sharp", "cap_limited", "undetermined", "not_found")
+#: Gap of the peak ln(v/V) between the probe and the run that leaves above which a
+#: threshold is sharp: ln 10.
 SHARP_JUMP = float(np.log(10.0))
+#: The probe's kick as a fraction of the critical kick.
+PROBE = 0.9
 
 _STEADY = code(REGIMES, "steady")
 _UNDECIDED = code(REGIMES, "undecided")
+_RUNAWAY = code(REGIMES, "runaway")
+
+
+def outcomes(regime, peak, lnv_cap):
+    """Regime codes as the critical kick reads them: a steady run whose excursion's peak
+    (``peak``, lnv_peak) passed ``lnv_cap`` (ln of the velocity cap) counts as runaway.
+    The kernels test the cap at the ends of steps; a maximum between two of them, read from
+    the dense output, can pass it by a little (within 0.03 in ln v near a cap-limited
+    threshold), as SciPy's cap event can miss one within a step
+    (``tests/kick_reference.py``)."""
+    regime = np.asarray(regime)
+    return np.where((regime == _STEADY) & (np.asarray(peak) >= lnv_cap), _RUNAWAY, regime)
 
 
 def leaves(regime):
@@ -58,8 +79,9 @@ def scan_brackets(kicks, regime, peak):
     ``peak`` (n, k) per point (regime codes, lnv_peak).
 
     Returns a dict of (n,) arrays: ``low``, ``high`` (the bracket; NaN unless found),
-    ``peak_low``, ``peak_high``, ``regime_high`` (−1 where none) and ``status`` (codes of
-    :data:`KICK_STATUSES`).
+    ``peak_low``, ``peak_high``, ``regime_high`` (−1 where none), ``status`` (codes of
+    :data:`KICK_STATUSES`), ``probe``, ``peak_probe`` (the module's probe; NaN unless
+    found).
     """
     kicks = np.asarray(kicks, float)
     regime = np.asarray(regime)
@@ -92,6 +114,10 @@ def scan_brackets(kicks, regime, peak):
         "regime_high": np.where(any_left & ~unsure, regime[rows, hi], -1).astype(np.int8),
         "status": status,
     }
+    below = kicks[None, :] <= PROBE * out["high"][:, None]
+    probe = np.where(below.any(axis=1), kicks.size - 1 - below[:, ::-1].argmax(axis=1), lo)
+    out["probe"] = np.where(found, kicks[probe], np.nan)
+    out["peak_probe"] = np.where(found, peak[rows, probe], np.nan)
     return out
 
 
@@ -108,7 +134,7 @@ def bisect_brackets(brackets, mid, regime, peak, todo):
     b["low"][lo], b["peak_low"][lo] = mid[steady], peak[steady]
     unsure = todo[~left & ~steady]
     b["status"][unsure] = code(KICK_STATUSES, "undecided")
-    for name in ("low", "high", "peak_low", "peak_high"):
+    for name in ("low", "high", "peak_low", "peak_high", "probe", "peak_probe"):
         b[name][unsure] = np.nan
     b["regime_high"][unsure] = -1
 
@@ -121,11 +147,32 @@ def open_brackets(brackets, rtol):
     return np.flatnonzero(found & wide)
 
 
-def threshold_kinds(brackets):
-    """Codes of :data:`THRESHOLD_KINDS` per point from the peaks on the bracket's sides."""
-    jump = brackets["peak_high"] - brackets["peak_low"]
+def stale_probes(brackets):
+    """Indices of the found points whose probe is not at :data:`PROBE` × critical kick."""
     found = brackets["status"] == code(KICK_STATUSES, "found")
-    kind = np.where(jump > SHARP_JUMP, 0, 1)
+    return np.flatnonzero(found & ~(brackets["probe"] == PROBE * brackets["high"]))
+
+
+def set_probes(brackets, kicks, regime, peak, todo):
+    """Record probe runs at ``kicks`` with outcomes ``regime``, ``peak`` for the points
+    ``todo``, in place; a probe that did not return keeps no peak (``undetermined``)."""
+    brackets["probe"][todo] = kicks
+    brackets["peak_probe"][todo] = np.where(regime == _STEADY, peak, np.nan)
+
+
+def threshold_kinds(brackets, lnv_cap):
+    """Codes of :data:`THRESHOLD_KINDS` per point: the probe's peak against the peak of the
+    run that leaves (``lnv_cap``, ln of the velocity cap, for a runaway run)."""
+    top = np.where(brackets["regime_high"] == _RUNAWAY, lnv_cap, brackets["peak_high"])
+    gap = top - brackets["peak_probe"]
+    found = brackets["status"] == code(KICK_STATUSES, "found")
+    kind = np.where(
+        np.isnan(gap),
+        code(THRESHOLD_KINDS, "undetermined"),
+        np.where(
+            gap > SHARP_JUMP, code(THRESHOLD_KINDS, "sharp"), code(THRESHOLD_KINDS, "cap_limited")
+        ),
+    )
     return np.where(found, kind, code(THRESHOLD_KINDS, "not_found")).astype(np.int8)
 
 
@@ -184,9 +231,10 @@ def critical_kick(ds: xr.Dataset, axis: str | None = None) -> xr.Dataset:
     peak = ordered["lnv_peak"].transpose(*others, axis)
     shape = regime.shape[:-1]
     k = regime.shape[-1]
-    brackets = scan_brackets(
-        ordered[axis].values, regime.values.reshape(-1, k), peak.values.reshape(-1, k)
-    )
+    lnv_cap = np.log(float(ds.attrs["classification_v_cap_over_V"]))
+    peak = peak.values.reshape(-1, k)
+    regime = outcomes(regime.values.reshape(-1, k), peak, lnv_cap)
+    brackets = scan_brackets(ordered[axis].values, regime, peak)
     template = ordered.isel({axis: 0}, drop=True)
     runs = np.full(int(np.prod(shape)), k, np.int32)
     searched = (float(ordered[axis][0]), float(ordered[axis][-1]))
@@ -255,12 +303,14 @@ def kick_dataset(template, axis, searched, brackets, runs, shape, dims):
             },
         ),
         "kick_threshold": var(
-            threshold_kinds(brackets),
+            threshold_kinds(brackets, np.log(float(template.attrs["classification_v_cap_over_V"]))),
             {
                 "long_name": "kind of threshold",
-                "description": "sharp: the peak ln(v/V) jumps by more than ln 10 across the "
-                "bracket; cap_limited: it grows through the bracket by less (the returning "
-                "excursion already nears the cap); not_found unless found",
+                "description": "sharp: the peak ln(v/V) of the probe (kick_probe, 10 % below "
+                "the critical kick) stays more than ln 10 below that of the run that leaves "
+                "(ln of the cap for a runaway run); cap_limited: it comes within ln 10, the "
+                "excursion growing smoothly up to the cap; undetermined: the probe did not "
+                "return; not_found unless found",
                 "flag_values": np.arange(len(THRESHOLD_KINDS), dtype=np.int8),
                 "flag_meanings": " ".join(THRESHOLD_KINDS),
             },
@@ -281,6 +331,24 @@ def kick_dataset(template, axis, searched, brackets, runs, shape, dims):
                 "description": "at least ln(classification_v_cap_over_V) for a runaway run",
             },
         ),
+        "kick_probe": var(
+            brackets["probe"],
+            {
+                "units": info.units,
+                "long_name": "the probe's kick",
+                "description": "a kick that returns 0.9 times critical_kick (from a scan: the "
+                "largest kick run at or below it, else critical_kick_low), whose peak "
+                "decides kick_threshold",
+            },
+        ),
+        "lnv_peak_probe": var(
+            brackets["peak_probe"],
+            {
+                "units": "1",
+                "long_name": "peak ln(v/V) of the run at kick_probe",
+                "description": "NaN where the probe did not return",
+            },
+        ),
         "regime_above": var(
             brackets["regime_high"], {"long_name": "regime at critical_kick", **regime_flags}
         ),
@@ -293,4 +361,5 @@ def kick_dataset(template, axis, searched, brackets, runs, shape, dims):
     ds.attrs["kick_axis"] = axis
     ds.attrs["kick_min"], ds.attrs["kick_max"] = searched
     ds.attrs["kick_sharp_jump"] = SHARP_JUMP
+    ds.attrs["kick_probe_fraction"] = PROBE
     return ds
