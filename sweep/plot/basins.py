@@ -91,12 +91,22 @@ def _line(ax, one, axis, attractor):
     )
     ax.plot(x, line["basin_fraction"].values, "o-", color="#009E73", ms=4, label=attractor)
     ax.plot(x, line["unresolved_fraction"].values, "s--", color="#999999", ms=3, label="unresolved")
+    if axis == "K_W" and "critical_K_W" in line:
+        ax.axvline(float(line["critical_K_W"].max()), color="0.3", lw=0.8, ls=":", label=_kc(line))
     if _log_spaced(x):
         ax.set_xscale("log")
     ax.set_xlabel(axis_label(line[axis]))
     ax.set_ylabel("fraction of the starts")
     ax.set_ylim(-0.02, 1.02)
     ax.legend(fontsize=8, loc="best")
+
+
+def _kc(ds):
+    """Legend text of the line K = Kc, with the Hopf bifurcation's kind there if known."""
+    if "hopf_criticality" not in ds:
+        return "Kc"
+    kinds = ds["hopf_criticality"].attrs["flag_meanings"].split()
+    return f"Kc ({kinds[int(ds['hopf_criticality'].max())]} Hopf)"
 
 
 def _maps(one, axes):
