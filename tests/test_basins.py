@@ -27,6 +27,8 @@ from sweep.results.basins import basin_fractions, wilson_interval, wilson_member
 CONFIG = "configs/basins.yaml"
 #: The multistable point of the check: K/Kc = 1.006 (both attractors near half).
 RATIO = 1.006
+#: The axis keys of the config's K_W to drop for a list of values.
+AXIS_KEYS = {"start": None, "stop": None, "num": None, "scale": None}
 
 
 def test_wilson_interval_textbook_values():
@@ -49,6 +51,7 @@ def test_wilson_members_by_hand():
     z = 1.959963984540054
     for w in (0.1, 0.05, 0.2):
         assert wilson_members(0.5, w) == int(np.ceil(z**2 / w**2 - z**2))
+
     def width(p, n):
         return 2 * z * np.sqrt(p * (1 - p) / n + z**2 / (4 * n**2)) / (1 + z**2 / n)
 
@@ -206,7 +209,7 @@ def test_fractions_against_scipy_at_a_multistable_point():
     kc_w = (B - A) * (1 + 1e-3 / A)  # per µm, D0 = 1 µm (physics brief, section 4)
     config = sweep.with_changes(
         CONFIG,
-        {"sweep": {"K_W": {"start": None, "stop": None, "num": None, "values": [RATIO * kc_w]}}},
+        {"sweep": {"K_W": {**AXIS_KEYS, "values": [RATIO * kc_w]}}},
     )
     ds = sweep.run(config, threads=1, progress=False)
     b = basin_fractions(ds).isel(K_W=0)
