@@ -22,7 +22,7 @@ import xarray as xr
 from scipy.integrate import solve_ivp
 
 import sweep
-from sweep.results.basins import basin_fractions, wilson_interval, wilson_members
+from sweep.results.basins import basin_fractions, members_needed, wilson_interval, wilson_members
 
 CONFIG = "configs/basins.yaml"
 #: The multistable point of the check: K/Kc = 1.006 (both attractors near half).
@@ -229,3 +229,15 @@ def test_fractions_against_scipy_at_a_multistable_point():
     assert float(engine["basin_fraction_low"]) <= fraction <= float(engine["basin_fraction_high"])
     engine_cycle = ds["attractor"].isel(K_W=0).values == 1
     assert (engine_cycle == cycle).mean() >= 0.95
+
+
+def test_members_needed_for_a_width():
+    """Point 0 of the synthetic ensemble: fractions 0.3, 0.2, 0.4 and 0.1 unresolved of 10;
+    the widest at w = 0.2 is p = 0.4 (closest to 1/2), n from the width formula by hand."""
+    b = basin_fractions(_synthetic())
+    z = 1.959963984540054
+    needed = members_needed(b, 0.2).values
+    width = [2 * z * np.sqrt(0.4 * 0.6 / n + z**2 / (4 * n**2)) / (1 + z**2 / n) for n in (88, 89)]
+    assert width[1] <= 0.2 < width[0]
+    assert needed[0] == 89
+    assert members_needed(b, 0.9).values.tolist() == [10, 10]  # never fewer than it has

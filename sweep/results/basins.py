@@ -102,6 +102,38 @@ def wilson_members(fraction, width, confidence=CONFIDENCE):
     return high.astype(np.int64)
 
 
+def members_needed(ds_basins, width):
+    """Members each grid point needs for every Wilson interval of its fractions (each
+    attractor's and the unresolved one) to be at most ``width`` wide, the fractions held
+    at their present values (:func:`wilson_members`): at least the present ``members``.
+
+    Parameters
+    ----------
+    ds_basins : xarray.Dataset
+        From :func:`basin_fractions`.
+    width : float
+        The widest interval allowed, in (0, 1).
+
+    Returns
+    -------
+    xarray.DataArray
+        int64 over the grid's dimensions; the starts of an ensemble of M are the first M
+        of a larger one with the same seed (``engine/grid.py``: numpy's Generator fills
+        the offsets in C order), so the members beyond M are new runs, the first M kept.
+    """
+    widest = xr.apply_ufunc(wilson_members, ds_basins["basin_fraction"], kwargs={"width": width})
+    unresolved = wilson_members(ds_basins["unresolved_fraction"].values, width)
+    needed = np.maximum(widest.max("attractor"), unresolved)
+    needed = np.maximum(needed, int(ds_basins["members"])).rename("members_needed")
+    needed.attrs = {}
+    return needed.assign_attrs(
+        units="1",
+        long_name=f"members for 95 % Wilson intervals at most {width:g} wide",
+        description="the largest over the point's fractions of the fewest members whose "
+        "Wilson interval at that fraction is at most the width",
+    )
+
+
 def basin_fractions(ds, accuracy=None, confidence=CONFIDENCE):
     """Per grid point, the attractors the ensemble's members reached and the fraction of
     the members in each, with its Wilson interval (see the module docstring for how
