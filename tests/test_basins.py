@@ -241,3 +241,47 @@ def test_members_needed_for_a_width():
     assert width[1] <= 0.2 < width[0]
     assert needed[0] == 89
     assert members_needed(b, 0.9).values.tolist() == [10, 10]  # never fewer than it has
+
+
+def _described(ds):
+    """The synthetic ensemble with the attributes and parameters a caption reads."""
+    return ds.assign_coords(A=0.03, B=0.08, D0=1.0, V=0.1, m_W=0.1).assign_attrs(
+        blocks=1,
+        model="inertial",
+        state_law="aging",
+        initial_v_over_V=np.array([1.0]),
+        initial_phi_over_phi_ss=np.array([1.0]),
+        initial_amplitude=1.0,
+        initial_seed=1,
+    )
+
+
+def test_plot_over_one_axis_draws_the_fraction_and_its_interval(tmp_path):
+    from sweep.plot import save_figure
+    from sweep.plot.basins import plot_basin_fractions
+
+    b = basin_fractions(_described(_synthetic()))
+    fig = plot_basin_fractions(b, attractor="cycle_1ev_2")
+    (ax,) = fig.axes
+    band = ax.collections[0].get_paths()[0].vertices[:, 1]
+    low, high = wilson_interval(np.array([4, 1]), 10)  # cycle_1ev_2: 4 and 1 of 10
+    assert band.min() == pytest.approx(min(low)) and band.max() == pytest.approx(max(high))
+    assert ax.lines[0].get_ydata().tolist() == [0.4, 0.1]
+    title = fig._suptitle.get_text()
+    for text in ("M̂ = mV²/(W·D0) = 0.001", "K/Kc = 1, 1.1", "10 members", "±1", "aging"):
+        assert text in title
+    assert save_figure(fig, tmp_path / "b.png").read_bytes()[:4] == b"\x89PNG"
+    with pytest.raises(ValueError, match="its attractors: steady"):
+        plot_basin_fractions(b, attractor="cycle_3ev")
+
+
+def test_plot_over_two_axes_maps_the_fraction_and_the_width():
+    from sweep.plot.basins import plot_basin_fractions
+
+    b = basin_fractions(_described(_synthetic()))
+    two = b.drop_vars("m_W").expand_dims(m_W=[0.1, 0.2])
+    fig = plot_basin_fractions(two, attractor="steady")
+    fraction, width = (ax.collections[0].get_array() for ax in fig.axes[:2])
+    assert np.asarray(fraction).ravel().tolist() == [0.3, 0.1, 0.3, 0.1]
+    low, high = wilson_interval(np.array([3, 1]), 10)
+    assert np.asarray(width).ravel() == pytest.approx(np.tile(high - low, 2))

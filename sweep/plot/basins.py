@@ -143,7 +143,7 @@ def _caption(ds):
         else f"{ratio[0]:.4g} to {ratio[-1]:.4g}"
     )
     ensemble = (
-        f"{int(ds['members'])} members per point, offsets uniform in "
+        f"{int(ds['members'].max())} members per point, offsets uniform in "
         f"±{float(ds.attrs.get('initial_amplitude', np.nan)):g} of ln(v/V) and ln(Φ/Φss) "
         f"(seed {ds.attrs.get('initial_seed', '?')}) about the {initial_text(ds)}"
     )

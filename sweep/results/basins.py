@@ -124,7 +124,7 @@ def members_needed(ds_basins, width):
     widest = xr.apply_ufunc(wilson_members, ds_basins["basin_fraction"], kwargs={"width": width})
     unresolved = wilson_members(ds_basins["unresolved_fraction"].values, width)
     needed = np.maximum(widest.max("attractor"), unresolved)
-    needed = np.maximum(needed, int(ds_basins["members"])).rename("members_needed")
+    needed = np.maximum(needed, ds_basins["members"]).rename("members_needed")
     needed.attrs = {}
     return needed.assign_attrs(
         units="1",
