@@ -152,6 +152,18 @@ def test_larger_ensemble_keeps_the_first_members():
     large = ensemble_offsets(sweep.with_changes(CONFIG, {"initial": {"ensemble": 40}}))
     assert np.array_equal(small, large[:8])
     assert np.array_equal(large, np.random.default_rng(1).uniform(-1.0, 1.0, (40, 2)))
+    # so the runs too: an ensemble of 3 is the first 3 members of one of 6, bit for bit
+    point = {"sweep": {"K_W": {**AXIS_KEYS, "values": [0.052]}}}
+    runs = [
+        sweep.run(
+            sweep.with_changes(CONFIG, {**point, "initial": {"ensemble": m}}),
+            threads=1,
+            progress=False,
+        )
+        for m in (3, 6)
+    ]
+    for name in ("lnv_final", "ln_state_final", "t_final", "n_steps", "regime"):
+        assert np.array_equal(runs[0][name], runs[1][name].isel(member=slice(0, 3))), name
 
 
 A, B = 0.03, 0.08
@@ -285,3 +297,11 @@ def test_plot_over_two_axes_maps_the_fraction_and_the_width():
     assert np.asarray(fraction).ravel().tolist() == [0.3, 0.1, 0.3, 0.1]
     low, high = wilson_interval(np.array([3, 1]), 10)
     assert np.asarray(width).ravel() == pytest.approx(np.tile(high - low, 2))
+
+
+def test_a_member_whose_regime_is_not_its_attractors_is_unresolved():
+    ds = _synthetic()
+    ds["regime"][0, 0] = 1  # stick_slip with attractor fixed_point
+    b = basin_fractions(ds)
+    assert int(b["basin_count"].sel(attractor="steady")[0]) == 2
+    assert float(b["unresolved_fraction"][0]) == pytest.approx(0.2)

@@ -19,7 +19,9 @@ same sign of the largest Lyapunov exponent where both have one (a sign counts on
 beyond three standard errors, the classifier's test for chaos; otherwise it is 0).
 Steady sliding, runaway, quasi-periodic and chaotic motion are one attractor each per
 point: their final windows are samples of a set, not features of one orbit. Undecided
-runs (``attractor`` unresolved) are no attractor: they count in ``unresolved_fraction``.
+runs (``attractor`` unresolved) are no attractor: they count in ``unresolved_fraction``,
+as would a run whose ``regime`` is not its attractor's (steady for a fixed point,
+stick_slip for a cycle, quasi-periodic or chaotic motion, runaway for unbounded).
 
 Across points. The ``attractor`` coordinate names attractors by kind, the same at every
 grid point: ``steady``, ``cycle_<n>ev`` (a periodic attractor of n events per cycle),
@@ -46,7 +48,14 @@ CONFIDENCE = 0.95
 NEEDED = ("regime", "attractor", "cycle_events", "period", "lnv_amplitude", "t_final")
 
 _PERIODIC = code(ATTRACTORS, "periodic")
-_UNRESOLVED = (code(ATTRACTORS, "unresolved"), code(REGIMES, "undecided"))
+#: The regime each attractor kind belongs to (a member whose regime differs: unresolved).
+_REGIME_OF = {
+    code(ATTRACTORS, "fixed_point"): code(REGIMES, "steady"),
+    code(ATTRACTORS, "periodic"): code(REGIMES, "stick_slip"),
+    code(ATTRACTORS, "quasi_periodic"): code(REGIMES, "stick_slip"),
+    code(ATTRACTORS, "chaotic"): code(REGIMES, "stick_slip"),
+    code(ATTRACTORS, "unbounded"): code(REGIMES, "runaway"),
+}
 _KIND = {
     code(ATTRACTORS, "fixed_point"): "steady",
     code(ATTRACTORS, "quasi_periodic"): "quasi_periodic",
@@ -232,8 +241,8 @@ def _match(m, k, tolerance):
     groups = {}  # (kind, events, λ sign) → list of clusters (lists of members)
     for j in range(m["regime"].shape[1]):
         attractor, regime = int(m["attractor"][k, j]), int(m["regime"][k, j])
-        if attractor == _UNRESOLVED[0] or regime == _UNRESOLVED[1]:
-            continue
+        if _REGIME_OF.get(attractor) != regime:
+            continue  # undecided (attractor unresolved), or regime and attractor disagree
         periodic = attractor == _PERIODIC and np.isfinite(m["period"][k, j])
         if attractor == _PERIODIC and not periodic:
             continue  # a cycle without a period cannot be matched: unresolved
@@ -386,7 +395,7 @@ def _dataset(ds, out, names, point_dims, n_members, tolerance, confidence):
                 "units": "1",
                 "long_name": "fraction of the ensemble's starts not matched to an attractor",
                 "description": "members whose run stayed undecided (attractor unresolved), "
-                "or periodic without a period",
+                "periodic without a period, or whose regime is not their attractor's",
                 "ancillary_variables": "unresolved_fraction_low unresolved_fraction_high",
             },
         ),
