@@ -8,8 +8,9 @@ attractors and counts them, the generic feature-based estimate of basins of attr
 its 95 % Wilson score interval (E. B. Wilson 1927, *Probable inference, the law of
 succession, and statistical inference*, J. Am. Stat. Assoc. 22, 209-212; recommended over
 the Wald interval by Brown, Cai & DasGupta 2001, *Interval estimation for a binomial
-proportion*, Statistical Science 16, 101-133), the interval of a binomial proportion that keeps its coverage near 95 % for
-small counts and fractions near 0 or 1 (:func:`wilson_interval`).
+proportion*, Statistical Science 16, 101-133), the interval of a binomial proportion
+that keeps its coverage near 95 % for small counts and fractions near 0 or 1
+(:func:`wilson_interval`).
 
 Matching. Two members at one point reach the same attractor when they have the same
 ``regime`` and ``attractor`` kind and, for a periodic run, the same ``cycle_events``,
