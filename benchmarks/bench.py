@@ -23,6 +23,8 @@ Prints and writes ``results/bench.json``:
   process with the cache off and on;
 * the critical kick of ``configs/kick_slip_law.yaml`` on 64 stiffnesses bisected to 1 %:
   runs, rounds and wall time on 2 threads against a uniform scan of the kicks;
+* basin fractions (``configs/basins.yaml``): 10⁴ random starts at one multistable point
+  against as many runs of a uniform sweep (runs/s), and the matching's own cost apart;
 * a refinement by label (``configs/unequal_qd.yaml``, 8 levels: 1/256 of each grid
   step): its runs against the uniform grid of its finest cells, its wall time on 2
   threads, and its time beyond the integration (planning, bookkeeping, the file)
@@ -769,6 +771,67 @@ def bench_sweep(config_path):
     return out
 
 
+#: The multistable point of ``configs/basins.yaml`` the basin benchmark starts from (K/Kc).
+BASINS_RATIO = 1.006
+#: The keys of a swept axis to drop for a list of values (``with_changes``).
+AXIS_KEYS = {"start": None, "stop": None, "num": None, "scale": None}
+
+
+def bench_basins(n_starts, threads=2):
+    """``n_starts`` random starts at one point (``configs/basins.yaml`` at K/Kc = 1.006:
+    one inertial block, steady sliding and a cycle coexist) against as many runs of a
+    uniform sweep over the config's K/Kc range (0.998-1.012, from one start inside the
+    bistable region, v/V = Φ/Φss = e^0.5); runs/s of each on ``threads`` threads (JIT
+    warm), and the cost of :func:`~sweep.results.basins.basin_fractions` on the
+    ensemble's Dataset apart (matching only: the Dataset built beforehand)."""
+    from sweep.results.basins import basin_fractions
+    from sweep.results.dataset import build_dataset
+
+    base = load_config(repo_config("basins"))
+    fixed = base.fixed
+    kc = physics.critical_kappa(
+        "inertial", fixed["A"], fixed["B"], mass_hat=(fixed["m_W"] * fixed["V"] ** 2 / fixed["D0"])
+    )
+    k_w = float(kc) / fixed["D0"] * BASINS_RATIO
+    ensemble = with_changes(
+        base, {"sweep": {"K_W": {**AXIS_KEYS, "values": [k_w]}}, "initial": {"ensemble": n_starts}}
+    )
+    uniform = with_changes(
+        base,
+        {
+            "sweep": {"K_W": {"num": n_starts}},
+            "initial": {"ensemble": 0, "v_over_V": math.exp(0.5), "phi_over_phi_ss": math.exp(0.5)},
+        },
+    )
+    out = {
+        "config": "configs/basins.yaml",
+        "K_over_Kc": BASINS_RATIO,
+        "starts": n_starts,
+        "threads": threads,
+    }
+    for name, config in (("uniform", uniform), ("ensemble", ensemble)):
+        g = build_grid(config)
+        integrate_in_memory(g.params[:1], g.y0[:1], g.settings, threads=1)  # JIT warm-up
+        start = time.perf_counter()
+        results, y_final = integrate_in_memory(g.params, g.y0, g.settings, threads=threads)
+        seconds = time.perf_counter() - start
+        out[f"{name}_seconds"] = seconds
+        out[f"{name}_runs_per_second"] = g.n / seconds
+    ds = build_dataset(g, results, y_final)  # the ensemble's, the last run
+    start = time.perf_counter()
+    basins = basin_fractions(ds)
+    out["matching_seconds"] = time.perf_counter() - start
+    out["matching_over_integration"] = out["matching_seconds"] / out["ensemble_seconds"]
+    out["fractions"] = {
+        str(a): float(f)
+        for a, f in zip(
+            basins["attractor"].values, basins["basin_fraction"].values.ravel(), strict=True
+        )
+    }
+    out["unresolved_fraction"] = float(basins["unresolved_fraction"].values.ravel()[0])
+    return out
+
+
 #: A run of a tiny sweep of CONFIG (with CHANGES) in a fresh process: prints its seconds.
 COMPILE_RUN = (
     "import ast, time, sys; t=time.perf_counter();"
@@ -962,21 +1025,24 @@ SIZES = {
              "block_scaling": (8, 500), "implicit_scaling": (2, 100),
              "structured_crossing": (2, 100, 4.0),
              "configs": ("oneblock", "twoblock"), "dask": "twoblock", "compile": "twoblock",
-             "refine": (("unequal_qd", 8),), "critical_kick": (64, 0.01)},
+             "refine": (("unequal_qd", 8),), "critical_kick": (64, 0.01),
+             "basins": 10_000},
     "quick": {"scipy": (6, 300), "single_purpose": (21, 300), "scipy_hard": (5, 2000),
               "attractors": (21, 300),
               "threads_large": (200, 2000), "throughput": (2, 50), "rk4": 10_000,
               "block_scaling": (2, 50), "implicit_scaling": (1, 30),
               "structured_crossing": (1, 30, 0.5),
               "configs": ("quick", "quick"), "dask": "quick", "compile": "quick",
-              "refine": (("unequal_qd", 2),), "critical_kick": (8, 0.01)},
+              "refine": (("unequal_qd", 2),), "critical_kick": (8, 0.01),
+              "basins": 400},
     "smoke": {"scipy": (3, 100), "single_purpose": (3, 100), "scipy_hard": (2, 100),
               "attractors": (3, 100),
               "threads_large": (4, 100), "throughput": (1, 10), "rk4": 1_000,
               "block_scaling": (1, 10), "implicit_scaling": (1, 2),
               "structured_crossing": (1, 2, 0.0, (1, 3)),
               "configs": ("quick",), "dask": "quick", "compile": "quick", "empty_cache": False,
-              "refine": (("quick", 2),), "critical_kick": (2, 0.1)},
+              "refine": (("quick", 2),), "critical_kick": (2, 0.1),
+              "basins": 4},
 }  # fmt: skip
 
 
@@ -1090,6 +1156,14 @@ def main(argv=None):
     )
     figures["critical_kick"] = ck = bench_critical_kick(*size["critical_kick"])
     _print_critical_kick(ck)
+    figures["basins"] = b = bench_basins(size["basins"])
+    print(
+        f"{b['starts']} starts at K/Kc = {b['K_over_Kc']} ({b['config']}): "
+        f"{b['ensemble_runs_per_second']:.0f} runs/s on {b['threads']} threads vs "
+        f"{b['uniform_runs_per_second']:.0f} runs/s for as many runs of a uniform sweep; "
+        f"matching {b['matching_seconds']:.3f} s ({100 * b['matching_over_integration']:.2g} % "
+        f"of the integration); fractions {b['fractions']}"
+    )
     figures["refine"] = bench_refinements(size["refine"])
     if "twoblock" in figures:
         _print_targets(figures)
