@@ -779,10 +779,10 @@ AXIS_KEYS = {"start": None, "stop": None, "num": None, "scale": None}
 
 def bench_basins(n_starts, threads=2):
     """``n_starts`` random starts at one point (``configs/basins.yaml`` at K/Kc = 1.006:
-    one inertial block, steady sliding and a cycle coexist) against as many runs of a
-    uniform sweep over the config's K/Kc range (0.998-1.012, from one start inside the
-    bistable region, v/V = Φ/Φss = e^0.5); runs/s of each on ``threads`` threads (JIT
-    warm), and the cost of :func:`~sweep.results.basins.basin_fractions` on the
+    one inertial block, steady sliding and a cycle coexist) against a uniform sweep of
+    the same box of starts at that point (ln v/V and ln Φ/Φss each in ±1, the ensemble's
+    amplitude, on a √n × √n grid of the start axes); runs/s of each on ``threads``
+    threads (JIT warm), and the cost of :func:`~sweep.results.basins.basin_fractions` on the
     ensemble's Dataset apart (matching only: the Dataset built beforehand)."""
     from sweep.results.basins import basin_fractions
     from sweep.results.dataset import build_dataset
@@ -796,11 +796,17 @@ def bench_basins(n_starts, threads=2):
     ensemble = with_changes(
         base, {"sweep": {"K_W": {**AXIS_KEYS, "values": [k_w]}}, "initial": {"ensemble": n_starts}}
     )
+    side = max(2, math.isqrt(n_starts))
+    box = {"start": math.exp(-1.0), "stop": math.exp(1.0), "num": side, "scale": "log"}
     uniform = with_changes(
         base,
         {
-            "sweep": {"K_W": {"num": n_starts}},
-            "initial": {"ensemble": 0, "v_over_V": math.exp(0.5), "phi_over_phi_ss": math.exp(0.5)},
+            "sweep": {
+                "K_W": {**AXIS_KEYS, "values": [k_w]},
+                "initial_v_over_V": box,
+                "initial_phi_over_phi_ss": box,
+            },
+            "initial": {"ensemble": 0},
         },
     )
     out = {
@@ -816,6 +822,7 @@ def bench_basins(n_starts, threads=2):
         results, y_final = integrate_in_memory(g.params, g.y0, g.settings, threads=threads)
         seconds = time.perf_counter() - start
         out[f"{name}_seconds"] = seconds
+        out[f"{name}_runs"] = g.n
         out[f"{name}_runs_per_second"] = g.n / seconds
     ds = build_dataset(g, results, y_final)  # the ensemble's, the last run
     start = time.perf_counter()
@@ -1160,7 +1167,8 @@ def main(argv=None):
     print(
         f"{b['starts']} starts at K/Kc = {b['K_over_Kc']} ({b['config']}): "
         f"{b['ensemble_runs_per_second']:.0f} runs/s on {b['threads']} threads vs "
-        f"{b['uniform_runs_per_second']:.0f} runs/s for as many runs of a uniform sweep; "
+        f"{b['uniform_runs_per_second']:.0f} runs/s for a uniform sweep of the same box of starts "
+        f"({b['uniform_runs']} runs); "
         f"matching {b['matching_seconds']:.3f} s ({100 * b['matching_over_integration']:.2g} % "
         f"of the integration); fractions {b['fractions']}"
     )

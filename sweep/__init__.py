@@ -13,13 +13,14 @@ Kernels: :func:`compile_kernels` (warm numba's cache before job arrays);
 configs: :func:`load_config`, :func:`with_changes`, :func:`examples.names`;
 figures: :func:`plot_result`, :func:`plot_variable`, :func:`plot_bifurcation`,
 :func:`plot_orbit_diagram`, :func:`plot_trace`, :func:`plot_catalogue`, :func:`plot_floquet`,
-:func:`plot_critical_kick`, :func:`plot_threshold_sensitivity`
+:func:`plot_critical_kick`, :func:`plot_basin_fractions`, :func:`plot_threshold_sensitivity`
 (``sweep/plot/``, one module per family); slip-event
 statistics: :func:`catalogue_statistics`, against the slip threshold:
 :func:`threshold_sensitivity`;
 statistics over realisations of the disorder (seeds): :func:`over_realisations`;
 traces: :func:`compute_trace`; the critical kick of a sweep over the start:
-:func:`critical_kick`, by bisection: :func:`bisect_critical_kick`; refined results:
+:func:`critical_kick`, by bisection: :func:`bisect_critical_kick`; the attractors an
+ensemble's starts reach: :func:`basin_fractions`, :func:`members_needed`; refined results:
 :func:`to_grid`, :func:`boundaries`;
 files: :func:`read_result`, :func:`write_netcdf`; runs with parts, shards and Dask:
 :func:`run_sweep`, :func:`merge_parts`, :class:`Resources`; extending and auditing a
@@ -43,6 +44,9 @@ _LAZY = {
     "plot_floquet": "plot",
     "plot_critical_kick": "plot",
     "critical_kick": "results.kicks",
+    "basin_fractions": "results.basins",
+    "members_needed": "results.basins",
+    "plot_basin_fractions": "plot",
     "bisect_critical_kick": "engine.kicks",
     "plot_threshold_sensitivity": "plot",
     "threshold_sensitivity": "commands.sensitivity",
@@ -74,6 +78,7 @@ def __getattr__(name):
 
 __all__ = [
     "audit_result",
+    "basin_fractions",
     "bisect_critical_kick",
     "compile_kernels",
     "critical_kick",
@@ -93,8 +98,10 @@ __all__ = [
     "RunError",
     "examples",
     "load_config",
+    "members_needed",
     "over_realisations",
     "parse_config",
+    "plot_basin_fractions",
     "plot_bifurcation",
     "plot_catalogue",
     "plot_critical_kick",

@@ -67,7 +67,7 @@ def test_every_benchmark_runs_at_smoke_size(tmp_path):
     figures = json.loads(out.read_text())
     sections = {"scipy", "single_purpose", "scipy_hard", "threads_large", "throughput", "rk4",
                 "oneblock", "dask", "compile", "attractors", "refine",
-                "implicit_scaling", "structured_crossing", "critical_kick"}  # fmt: skip
+                "implicit_scaling", "structured_crossing", "critical_kick", "basins"}  # fmt: skip
     assert sections <= set(figures)
     for section in sections:
         values = dict(numbers(figures[section]))

@@ -8,10 +8,11 @@ matplotlib is imported on first use, so importing the package stays light.
 ``maps`` (phase diagrams, maps of a variable, refined results and their boundaries),
 ``bifurcation`` (bifurcation and orbit diagrams), ``trace`` (time series),
 ``catalogue`` (a run's slip events), ``floquet`` (how stable each cycle is), ``kicks``
-(the critical kick), ``nblock`` (the N-block figure); ``common``: what they share (colours,
-labels, titles, saving).
+(the critical kick), ``basins`` (basin fractions), ``nblock`` (the N-block figure);
+``common``: what they share (colours, labels, titles, saving).
 """
 
+from .basins import plot_basin_fractions
 from .bifurcation import plot_bifurcation, plot_orbit_diagram
 from .catalogue import plot_catalogue, plot_threshold_sensitivity
 from .common import save_figure
@@ -23,6 +24,7 @@ from .trace import draw_trace, plot_trace
 
 __all__ = [
     "draw_trace",
+    "plot_basin_fractions",
     "plot_bifurcation",
     "plot_catalogue",
     "plot_critical_kick",
