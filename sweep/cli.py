@@ -319,6 +319,25 @@ def add_figure_commands(sub):
     kick.add_argument("--threads", type=_threads, help="threads (default: all cores)")
     kick.add_argument("--quiet", action="store_true", help="no progress")
     _add_dpi(kick)
+    bas = sub.add_parser(
+        "basins",
+        help="basin fractions of an ensemble's result (NetCDF + figure of one attractor's)",
+    )
+    bas.add_argument("result", help="a result NetCDF with initial.ensemble members")
+    bas.add_argument(
+        "--attractor", default="cycle_1ev", help="the attractor drawn (default cycle_1ev)"
+    )
+    bas.add_argument(
+        "--width",
+        type=float,
+        help="also say how many members each point needs for every 95 %% interval to be at "
+        "most this wide, in (0, 1)",
+    )
+    bas.add_argument("--out", type=_path, help="output NetCDF (default <result>_basins.nc)")
+    bas.add_argument(
+        "--png", type=_path, help="output .png, .pdf or .svg (default: the NetCDF path with .png)"
+    )
+    _add_dpi(bas)
     bif = sub.add_parser("bifurcation", help="amplitude against K/Kc of 1-D sweeps")
     bif.add_argument("results", nargs="+", help="result NetCDF files, one curve per model")
     bif.add_argument(
@@ -683,6 +702,53 @@ def cmd_kick(args):
     return 0
 
 
+def cmd_basins(args):
+    """Match an ensemble's members into attractors, write the fractions' NetCDF and the
+    figure of one attractor's fraction, and print the fractions over the grid."""
+    from pathlib import Path
+
+    from .errors import InputError
+    from .io.files import check_writable
+    from .io.netcdf import read_result, write_netcdf
+    from .plot import plot_basin_fractions, save_figure
+    from .plot.common import FORMATS
+    from .results.basins import basin_fractions, members_needed
+
+    source = Path(args.result)
+    nc = Path(args.out) if args.out else source.with_name(f"{source.stem}_basins.nc")
+    png = Path(args.png) if args.png else nc.with_suffix(".png")
+    check_writable(nc, args.result, "--out")
+    check_writable(png, args.result, "--png", tuple(FORMATS))
+    if args.width is not None and not 0.0 < args.width < 1.0:
+        raise InputError("--width", [f"must be in (0, 1), got {args.width:g}"])
+    ds = read_result(source)
+    if "member" not in ds.dims:
+        raise InputError(args.result, ["no member dimension: run it with initial.ensemble > 0"])
+    basins = basin_fractions(ds)
+    names = [str(a) for a in basins["attractor"].values]
+    if args.attractor not in names:
+        raise InputError(
+            "--attractor", [f"{args.attractor!r} is not reached; attractors: {', '.join(names)}"]
+        )
+    if args.width is not None:
+        basins["members_needed"] = members_needed(basins, args.width)
+    write_netcdf(basins, nc)
+    save_figure(plot_basin_fractions(basins, args.attractor), png, args.dpi)
+    fraction = basins["basin_fraction"]
+    for name in names:
+        values = fraction.sel(attractor=name).values
+        print(f"{name:<16} fraction {values.min():.3g} to {values.max():.3g} over the grid")
+    members = int(basins["members"].max())
+    print(f"unresolved       up to {float(basins['unresolved_fraction'].max()):.3g}; "
+          f"{members} members per point")  # fmt: skip
+    if args.width is not None:
+        need = int(basins["members_needed"].max())
+        print(f"members for every interval at most {args.width:g} wide: up to {need} "
+              "(initial.ensemble; the same seed repeats the first members)")  # fmt: skip
+    print(f"wrote {nc} and {png}")
+    return 0
+
+
 def cmd_bifurcation(args):
     from pathlib import Path
 
@@ -733,6 +799,7 @@ COMMANDS = {
     "plot": cmd_plot,
     "trace": cmd_trace,
     "kick": cmd_kick,
+    "basins": cmd_basins,
     "bifurcation": cmd_bifurcation,
     "figures": cmd_figures,
     "compile": cmd_compile,

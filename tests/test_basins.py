@@ -305,3 +305,42 @@ def test_a_member_whose_regime_is_not_its_attractors_is_unresolved():
     b = basin_fractions(ds)
     assert int(b["basin_count"].sel(attractor="steady")[0]) == 2
     assert float(b["unresolved_fraction"][0]) == pytest.approx(0.2)
+
+
+def test_basins_command_writes_fractions_and_figure(tmp_path, capsys):
+    """``python -m sweep basins`` on a small ensemble of the multistable config: the
+    fractions' NetCDF (with members_needed), the figure, and a line per attractor."""
+    from sweep import cli
+
+    config = sweep.with_changes(
+        CONFIG, {"sweep": {"K_W": {**AXIS_KEYS, "values": [0.0518, 0.0522]}},
+                 "initial": {"ensemble": 4}}
+    )  # fmt: skip
+    result = tmp_path / "ens.nc"
+    sweep.write_netcdf(sweep.run(config, progress=False), result)
+    out = tmp_path / "b.nc"
+    status = cli.main(["basins", str(result), "--out", str(out), "--width", "0.3",
+                       "--attractor", "steady"])  # fmt: skip
+    assert status == 0
+    text = capsys.readouterr().out
+    assert "steady" in text and "members for every interval at most 0.3 wide" in text
+    with xr.open_dataset(out) as ds:
+        assert ds["members_needed"].dims == ("K_W",)
+        assert (ds["members_needed"] >= 4).all()
+        fractions = ds["basin_fraction"].sum("attractor") + ds["unresolved_fraction"]
+        np.testing.assert_allclose(fractions, 1.0)
+    assert out.with_suffix(".png").stat().st_size > 10_000
+
+
+def test_basins_command_refuses_a_result_without_members(tmp_path, capsys):
+    from sweep import cli
+
+    result = tmp_path / "one.nc"
+    config = sweep.with_changes(
+        CONFIG, {"sweep": {"K_W": {**AXIS_KEYS, "values": [0.0518]}}, "initial": {"ensemble": 0}}
+    )
+    sweep.write_netcdf(sweep.run(config, progress=False), result)
+    status = cli.main(["basins", str(result), "--out", str(tmp_path / "b.nc")])
+    assert status == 2
+    assert "initial.ensemble" in capsys.readouterr().err
+    assert not (tmp_path / "b.nc").exists()

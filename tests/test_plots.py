@@ -23,7 +23,7 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 PAPER_FIGURES = (
     "fig1_one_block", "fig2_two_blocks", "phase_twoblock", "bifurcation", "nblock",
     "route_to_chaos", "floquet", "refined_unequal_qd", "long_chain", "catalogue_threshold",
-    "fast_events", "critical_kick",
+    "fast_events", "critical_kick", "basins",
 )  # fmt: skip
 
 
@@ -280,16 +280,18 @@ def test_make_figures_on_small_configs(tmp_path):
               sweep={"K_W": [0.055, 0.085], "initial_v_over_V": [1.0, 1e5]})
         for law in ("slip", "aging")
     ]  # fmt: skip
+    basins = small(CONFIGS / "basins.yaml", "basins_small", sweep={"K_W": [0.0518, 0.0522]},
+                   initial={"ensemble": 4})  # fmt: skip
     paths = []
     for config in (paper, twoblock, qs, nblock, heterogeneous, route, refined, chain, damped,
-                   *kicks):  # fmt: skip
+                   *kicks, basins):  # fmt: skip
         path = tmp_path / f"{config.name}.yaml"
         path.write_text(config.text)
         paths.append(path)
     out = make_figures(
         paths[0], paths[1], (paths[2],), nblock=paths[3:5], route=paths[5],
         out_dir=tmp_path / "figures", threads=1, refined=paths[6], long_chain=paths[7],
-        damped=paths[8], kicks=paths[9:11],
+        damped=paths[8], kicks=paths[9:11], basins=paths[11],
     )  # fmt: skip
     assert [p.stem for p in out] == list(PAPER_FIGURES)
     for path in out:

@@ -443,6 +443,7 @@ def make_figures(
     fast="fast_events",
     damped="quasidynamic",
     kicks=("kick_slip_law", "kick_aging_law"),
+    basins="basins",
 ):
     """Regenerate every paper figure into ``out_dir``; returns the file paths.
 
@@ -455,14 +456,16 @@ def make_figures(
     config whose fast events are traced (:func:`figure_fast_events`); ``damped``: the
     two-axis sweep whose Floquet multipliers are mapped beside the route's
     (:func:`figure_floquet`); ``kicks``: the slip- and aging-law configs whose critical
-    kicks are drawn (:func:`figure_critical_kick`). ``suffix``:
+    kicks are drawn (:func:`figure_critical_kick`); ``basins``: the ensemble whose basin
+    fractions are drawn. ``suffix``:
     ``.png``, ``.pdf`` or ``.svg``; ``dpi``: resolution of PNGs.
     """
     from ..engine.dispatch import load_kernels
     from ..engine.grid import build_grid
     from ..engine.runner import compute
-    from ..plot import plot_bifurcation, plot_orbit_diagram, plot_result
+    from ..plot import plot_basin_fractions, plot_bifurcation, plot_orbit_diagram, plot_result
     from ..plot.catalogue import plot_threshold_sensitivity
+    from ..results.basins import basin_fractions
     from .sensitivity import threshold_sensitivity
 
     out_dir = Path(out_dir)
@@ -477,13 +480,14 @@ def make_figures(
     fast_config = load_config(fast)
     damped_config = load_config(damped)
     kick_configs = [load_config(c) for c in kicks]
+    basins_config = load_config(basins)
     stiffnesses(config)  # checked before any kernel is compiled
     check_writable(out_dir / f"fig1_one_block{suffix}", str(out_dir), "--out-dir", suffix)
     rows = (*ONE_BLOCK_ROWS, *((label, {**c, "k2_W": K2_W}) for label, c in TWO_BLOCK_ROWS))
     trace_configs = [variant(config, f"{config.name}_{r}", **c) for r, (_, c) in enumerate(rows)]
     every = [*trace_configs, phase_config, *bifurcation_configs, *nblock_configs, route_config,
              refined_config, chain_config, fast_config, damped_config,
-             *kick_configs]  # fmt: skip
+             *kick_configs, basins_config]  # fmt: skip
     # side by side; each variant here also has runs that need the tangent for λ1
     grids = [build_grid(c) for c in every]
     load_kernels([(g.params, g.settings, t) for g in grids for t in (None, True)], threads)
@@ -526,4 +530,11 @@ def make_figures(
     paths.append(save_figure(fig, out_dir / f"{fast_config.name}{suffix}", dpi))
     fig = figure_critical_kick(*kick_configs, threads=threads)
     paths.append(save_figure(fig, out_dir / f"critical_kick{suffix}", dpi))
+    ensemble = basin_fractions(compute(basins_config, threads=threads, show_progress=False))
+    caption = (
+        "a subcritical Hopf bifurcation: above Kc stable steady sliding and a stable cycle "
+        "coexist until the cycle's fold"
+    )
+    fig = plot_basin_fractions(ensemble, "cycle_1ev", caption)
+    paths.append(save_figure(fig, out_dir / f"basins{suffix}", dpi))
     return paths
