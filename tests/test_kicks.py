@@ -110,7 +110,8 @@ def test_scan_brackets_on_hand_made_outcomes():
     np.testing.assert_equal(b["probe"], [2.0, np.nan, np.nan, np.nan, np.nan, 1.0])
     kinds = threshold_kinds(b, lnv_cap=14.0)
     assert kinds[0] == code(THRESHOLD_KINDS, "sharp")  # runaway: 0.7 against the cap 14
-    assert kinds[5] == code(THRESHOLD_KINDS, "cap_limited")  # stick-slip: 0.1 against 0.7
+    assert kinds[5] == code(THRESHOLD_KINDS, "basin_boundary")  # to a stick-slip attractor
+    assert threshold_kinds(b, lnv_cap=2.0)[0] == code(THRESHOLD_KINDS, "cap_limited")
     assert kinds[1] == code(THRESHOLD_KINDS, "not_found")
     b["peak_probe"][0] = np.nan  # a probe that did not return
     assert threshold_kinds(b, 14.0)[0] == code(THRESHOLD_KINDS, "undetermined")

@@ -85,9 +85,9 @@ def plot_critical_kick(
         title,
         f"{dimensionless_text(first)}; start {_start_text(first)}; runaway past "
         f"{_caps_text(datasets)}; brackets to "
-        f"{100 * rtol:.2g} % (bars); filled: sharp (peak ln v/V jumps by > ln 10 across the "
-        "bracket), open: set by the cap; ▲ none up to the largest kick tried (drawn at and "
-        "above it)",
+        f"{100 * rtol:.2g} % (bars); ● sharp (10 % below it the peak v stays 10× under the "
+        "cap), ○ set by the cap, ■ to another attractor; ▲ none up to the largest kick tried "
+        "(drawn at and above it)",
         caption,
     ]
     _suptitle(fig, lines)
@@ -155,6 +155,11 @@ def _draw(ax, ds, label, colour, lift):
     capped = found & (kind == code(THRESHOLD_KINDS, "cap_limited"))
     if sharp.any():
         ax.plot(x[sharp], mid[sharp], "o", color=colour, ms=5, label=f"{label}: sharp")
+    basin = found & (kind == code(THRESHOLD_KINDS, "basin_boundary"))
+    if basin.any():
+        ax.plot(
+            x[basin], mid[basin], "s", color=colour, ms=5, label=f"{label}: to another attractor"
+        )
     if capped.any():
         ax.plot(
             x[capped],

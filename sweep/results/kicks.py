@@ -10,15 +10,17 @@ narrows the bracket (``sweep/engine/kicks.py``) to a relative width ``critical_k
 
 The kind of threshold (Gu, Rice, Ruina & Tse 1984 for the quasi-static slip law: a finite
 jump sets off unstable slip; Ranjith & Rice 1999 for the aging law: every perturbation
-decays, so only a velocity cap makes a threshold) is read from the excursion's peak
-ln(v/V) (output ``lnv_peak``) of a *probe*, a kick that returns :data:`PROBE` times the
-critical kick (10 % below it), against the peak of the run that leaves (ln of the cap for
-a runaway run): **sharp** where the probe's excursion stays more than :data:`SHARP_JUMP`
-(a factor 10 in velocity) below, **cap_limited** where it already comes within it, so that
-the peak grows smoothly up to the cap (or the other attractor). The peak just below a
-sharp threshold is no measure: it grows without bound as the kick nears the threshold
-(slip law, SciPy, ``tests/kick_reference.py``: by about 1.6 per decade of 1 − kick/kick_c,
-11.5 at 1e-4 from it where the cap is at 13.8), so the probe sits at a fixed distance.
+decays, so only a velocity cap makes a threshold). Where the run that leaves settles on
+another attractor (``stick_slip``: a cycle beside stable steady sliding past a subcritical
+Hopf bifurcation) the threshold is a **basin_boundary**: the cap plays no part. Where it
+runs away, the excursion's peak ln(v/V) (output ``lnv_peak``) of a *probe*, a kick that
+returns :data:`PROBE` times the critical kick (10 % below it), decides: **sharp** where it
+stays more than :data:`SHARP_JUMP` (a factor 10 in velocity) below ln of the cap,
+**cap_limited** where it already comes within it, the peak growing smoothly up to the
+cap. The peak just below a sharp threshold is no measure: it grows without bound as the
+kick nears the threshold (slip law, SciPy, ``tests/kick_reference.py``: by about 1.6 per
+decade of 1 − kick/kick_c, 11.5 at 1e-4 from it where the cap is at 13.8), so the probe
+sits at a fixed distance.
 A scan (:func:`critical_kick`) takes as its probe the largest kick it ran at or below 10 %
 under the critical kick (or the bracket's lower end if there is none: closer, so a
 ``sharp`` verdict holds and a ``cap_limited`` one may not); bisection runs the probe
@@ -45,7 +47,7 @@ from ..model.physics import INITIAL_AXES
 #: The statuses of ``critical_kick_status`` (flag meanings, in code order).
 KICK_STATUSES = ("found", "none_up_to_max", "below_min", "undecided")
 #: The kinds of threshold of ``kick_threshold`` (flag meanings, in code order).
-THRESHOLD_KINDS = ("sharp", "cap_limited", "undetermined", "not_found")
+THRESHOLD_KINDS = ("sharp", "cap_limited", "basin_boundary", "undetermined", "not_found")
 #: Gap of the peak ln(v/V) between the probe and the run that leaves above which a
 #: threshold is sharp: ln 10.
 SHARP_JUMP = float(np.log(10.0))
@@ -161,10 +163,10 @@ def set_probes(brackets, kicks, regime, peak, todo):
 
 
 def threshold_kinds(brackets, lnv_cap):
-    """Codes of :data:`THRESHOLD_KINDS` per point: the probe's peak against the peak of the
-    run that leaves (``lnv_cap``, ln of the velocity cap, for a runaway run)."""
-    top = np.where(brackets["regime_high"] == _RUNAWAY, lnv_cap, brackets["peak_high"])
-    gap = top - brackets["peak_probe"]
+    """Codes of :data:`THRESHOLD_KINDS` per point: ``basin_boundary`` where the run that
+    leaves settles on another attractor; else (runaway) the probe's peak against
+    ``lnv_cap`` (ln of the velocity cap)."""
+    gap = lnv_cap - brackets["peak_probe"]
     found = brackets["status"] == code(KICK_STATUSES, "found")
     kind = np.where(
         np.isnan(gap),
@@ -172,6 +174,9 @@ def threshold_kinds(brackets, lnv_cap):
         np.where(
             gap > SHARP_JUMP, code(THRESHOLD_KINDS, "sharp"), code(THRESHOLD_KINDS, "cap_limited")
         ),
+    )
+    kind = np.where(
+        brackets["regime_high"] == _RUNAWAY, kind, code(THRESHOLD_KINDS, "basin_boundary")
     )
     return np.where(found, kind, code(THRESHOLD_KINDS, "not_found")).astype(np.int8)
 
@@ -306,11 +311,12 @@ def kick_dataset(template, axis, searched, brackets, runs, shape, dims):
             threshold_kinds(brackets, np.log(float(template.attrs["classification_v_cap_over_V"]))),
             {
                 "long_name": "kind of threshold",
-                "description": "sharp: the peak ln(v/V) of the probe (kick_probe, 10 % below "
-                "the critical kick) stays more than ln 10 below that of the run that leaves "
-                "(ln of the cap for a runaway run); cap_limited: it comes within ln 10, the "
-                "excursion growing smoothly up to the cap; undetermined: the probe did not "
-                "return; not_found unless found",
+                "description": "of a runaway threshold, sharp: the peak ln(v/V) of the probe "
+                "(kick_probe, 10 % below the critical kick) stays more than ln 10 below ln of "
+                "the cap; cap_limited: it comes within ln 10, the excursion growing smoothly "
+                "up to the cap; basin_boundary: the run that leaves settles on another "
+                "attractor (stick_slip); undetermined: the probe did not return; not_found "
+                "unless found",
                 "flag_values": np.arange(len(THRESHOLD_KINDS), dtype=np.int8),
                 "flag_meanings": " ".join(THRESHOLD_KINDS),
             },
