@@ -344,3 +344,33 @@ def test_basins_command_refuses_a_result_without_members(tmp_path, capsys):
     assert status == 2
     assert "initial.ensemble" in capsys.readouterr().err
     assert not (tmp_path / "b.nc").exists()
+
+
+@pytest.mark.slow
+def test_critical_kick_to_the_cycle_against_scipy():
+    """Past the subcritical Hopf bifurcation (K/Kc = 1.004, 1.006) the smallest velocity
+    jump that reaches the cycle, bisected by the engine to 1 %, is a basin boundary: SciPy
+    (this module's reference) settles 2 % below it on steady sliding and 2 % above it on
+    the cycle."""
+    from sweep.codes import code
+    from sweep.results.kicks import THRESHOLD_KINDS
+
+    kc_w = (B - A) * (1 + 1e-3 / A)
+    ratios = [1.004, 1.006]
+    config = sweep.with_changes(
+        CONFIG,
+        {
+            "sweep": {
+                "K_W": {**AXIS_KEYS, "values": [r * kc_w for r in ratios]},
+                "initial_v_over_V": {"start": 1.001, "stop": 100.0, "num": 9, "scale": "log"},
+            },
+            "initial": {"ensemble": 0},
+        },
+    )
+    kicks = sweep.bisect_critical_kick(config, rtol=0.01, progress=False)
+    assert (kicks["kick_threshold"] == code(THRESHOLD_KINDS, "basin_boundary")).all()
+    for i, ratio in enumerate(ratios):
+        kick = float(kicks["critical_kick"][i])
+        kappa = ratio * (B - A) * (1 + 1e-3 / A)
+        assert _scipy_attractor(np.log(kick / 1.02), 0.0, kappa, 1e-3) == "steady"
+        assert _scipy_attractor(np.log(kick * 1.02), 0.0, kappa, 1e-3) == "cycle"
