@@ -241,3 +241,21 @@ def test_trace_pins_a_kick_axis():
     pinned = pin_config(cfg, {"K_W": 0.06, "initial_v_over_V": 25.0})
     g = grid.build_grid(pinned)
     np.testing.assert_allclose(g.y0[0], [np.log(25.0), 0.0])
+
+
+def test_refinement_bisects_the_kick_boundary(aging_kicks):
+    """``refine`` on a sweep over (K/W, kick) splits the cells where the kicks' outcomes
+    change: at each K/W with a threshold the finest kicks that return and leave bracket
+    the bisection's critical kick."""
+    import sweep
+
+    cfg, _, bisected = aging_kicks
+    refined = sweep.run(cfg, refine=4, progress=False)
+    for i, k_w in enumerate(cfg.axes[0].values[:2]):
+        at = refined.where(refined["K_W"] == k_w, drop=True)
+        kicks, regime = at["initial_v_over_V"].values, at["regime"].values
+        left = (regime != S) & (regime != U)
+        below, above = kicks[~left & (regime == S)].max(), kicks[left].min()
+        assert above / below < 10 ** (4 / 4) / 2**3  # finer than the scan's factor 10
+        assert below <= float(bisected["critical_kick_low"][i]) * 1.03
+        assert above >= float(bisected["critical_kick"][i]) / 1.03
