@@ -259,3 +259,19 @@ def test_refinement_bisects_the_kick_boundary(aging_kicks):
         assert above / below < 10 ** (4 / 4) / 2**3  # finer than the scan's factor 10
         assert below <= float(bisected["critical_kick_low"][i]) * 1.03
         assert above >= float(bisected["critical_kick"][i]) / 1.03
+
+
+def test_critical_kick_figure_marks_each_kind_and_pickles(aging_kicks):
+    """The figure draws the found thresholds by kind and the point without one, and
+    pickles (the docs' gallery copies figures so)."""
+    import pickle
+
+    import sweep
+
+    _, _, ds = aging_kicks
+    fig = sweep.plot_critical_kick(ds, caption="test")
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert labels == ["critical kick: cap-limited", "critical kick: none up to the max"]
+    assert fig.axes[0].get_yscale() == "log"
+    assert "runaway past v/V = 1e+06" in fig._suptitle.get_text()
+    pickle.loads(pickle.dumps(fig))

@@ -72,8 +72,9 @@ def plot_critical_kick(
         _draw(ax, ds, label, colour, NONE_LIFT**i)
     first = datasets[0]
     ax.set_yscale("log")
-    ax.yaxis.set_major_formatter(FuncFormatter(lambda y, _: f"{y:g}"))
-    ax.yaxis.set_minor_formatter(FuncFormatter(lambda y, _: f"{y:g}" if _few_decades(ax) else ""))
+    ax.yaxis.set_major_formatter(FuncFormatter(_plain))
+    if _few_decades(ax):  # minor ticks get numbers too
+        ax.yaxis.set_minor_formatter(FuncFormatter(_plain))
     ax.set_ylabel(f"critical kick {SYMBOLS[first.attrs['kick_axis']]}")
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8, loc="best")
@@ -94,8 +95,13 @@ def plot_critical_kick(
     return fig
 
 
+def _plain(y, _position):
+    """A tick label: the number as ``:g`` (module level, so that the Figure pickles)."""
+    return f"{y:g}"
+
+
 def _few_decades(ax):
-    """Whether the y range spans less than a decade (minor ticks then get numbers too)."""
+    """Whether the y range spans less than a decade."""
     low, high = ax.get_ylim()
     return high / low < 10.0
 
