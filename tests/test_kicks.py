@@ -275,3 +275,14 @@ def test_critical_kick_figure_marks_each_kind_and_pickles(aging_kicks):
     assert fig.axes[0].get_yscale() == "log"
     assert "runaway past v/V = 1e+06" in fig._suptitle.get_text()
     pickle.loads(pickle.dumps(fig))
+
+
+def test_captions_name_a_swept_start(aging_kicks):
+    """A map over the kick says the start is swept, not the config's fixed value."""
+    import sweep
+    from sweep.plot.common import initial_text
+
+    cfg, _, _ = aging_kicks
+    ds = sweep.run(cfg, progress=False)
+    assert initial_text(ds) == "start Φ/Φss = 1; v/V = swept (initial_v_over_V)"
+    assert initial_text(ds.isel(initial_v_over_V=2)) == "start Φ/Φss = 1; v/V = 100"

@@ -254,12 +254,17 @@ def scale_text(datasets, shown=None):
 
 
 def initial_text(ds):
-    """The initial perturbation of a result or trace, e.g. ``"start Φ/Φss = 1.01, v/V = 1"``."""
-    phi = np.atleast_1d(ds.attrs["initial_phi_over_phi_ss"])
-    v = np.atleast_1d(ds.attrs["initial_v_over_V"])
-    return (
-        f"start Φ/Φss = {', '.join(f'{x:g}' for x in phi)}; v/V = {', '.join(f'{x:g}' for x in v)}"
-    )
+    """The initial perturbation of a result or trace, e.g. ``"start Φ/Φss = 1.01, v/V = 1"``;
+    a start that is a sweep axis (``initial_v_over_V``, ``initial_phi_over_phi_ss``) is
+    named as swept, or by its value where a trace pins it."""
+
+    def text(name):
+        if name in ds.coords:  # a sweep axis: its value where pinned
+            value = ds.coords[name]
+            return f"{float(value):g}" if value.ndim == 0 else f"swept ({name})"
+        return ", ".join(f"{x:g}" for x in np.atleast_1d(ds.attrs[name]))
+
+    return f"start Φ/Φss = {text('initial_phi_over_phi_ss')}; v/V = {text('initial_v_over_V')}"
 
 
 def regime_names(ds):
