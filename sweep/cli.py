@@ -693,12 +693,18 @@ def cmd_kick(args):
     ds = bisect_critical_kick(
         config, args.rtol, out=nc, threads=args.threads, progress=not args.quiet
     )
-    save_figure(plot_critical_kick(ds), png, args.dpi)
     status = ds["critical_kick_status"].values.ravel()
+    if ds["critical_kick"].ndim:
+        save_figure(plot_critical_kick(ds), png, args.dpi)
+        wrote = f"{nc} and {png}"
+    else:  # one point: its bracket, no figure
+        low, high = float(ds["critical_kick_low"]), float(ds["critical_kick"])
+        print(f"critical kick between {low:.6g} and {high:.6g}")
+        wrote = f"{nc} (one point: no figure)"
     for code, name in enumerate(KICK_STATUSES):
         print(f"{name:<15} {int((status == code).sum()):>6d} points")
     runs = int(ds["kick_runs"].sum())
-    print(f"{runs} runs in {int(ds.attrs['kick_rounds'])} rounds; wrote {nc} and {png}")
+    print(f"{runs} runs in {int(ds.attrs['kick_rounds'])} rounds; wrote {wrote}")
     return 0
 
 

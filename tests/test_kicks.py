@@ -286,3 +286,17 @@ def test_captions_name_a_swept_start(aging_kicks):
     ds = sweep.run(cfg, progress=False)
     assert initial_text(ds) == "start Φ/Φss = 1; v/V = swept (initial_v_over_V)"
     assert initial_text(ds.isel(initial_v_over_V=2)) == "start Φ/Φss = 1; v/V = 100"
+
+
+def test_kick_command_on_one_point_prints_its_bracket(tmp_path, capsys):
+    """A search at one point (only the kick swept) writes its file, prints the bracket
+    and draws no figure."""
+    path = tmp_path / "one.yaml"
+    path.write_text(yaml.safe_dump(kick_config(sweep={"K_W": None}, parameters={"K_W": 0.06})))
+    out = tmp_path / "one.nc"
+    assert cli.main(["kick", str(path), "--rtol", "0.1", "--out", str(out), "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "critical kick between" in text and "no figure" in text
+    with xr.open_dataset(out) as ds:
+        assert ds["critical_kick"].ndim == 0 and ds.attrs["kick_complete"] == 1
+    assert not out.with_suffix(".png").exists()

@@ -132,7 +132,9 @@ def _curves(ds, label):
     if len(dims) == 1:
         return [(ds, label)]
     if len(dims) != 2:
-        raise ValueError(f"critical kick over {len(dims)} axes: select one or two")
+        raise ValueError(
+            f"critical kick over {len(dims)} axes: plot_critical_kick draws one or two"
+        )
     other = dims[1]
     return [
         (ds.isel({other: j}), f"{label}, {other} = {float(ds[other][j]):.3g}")
