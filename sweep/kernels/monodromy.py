@@ -90,8 +90,10 @@ def monodromy_kernel(model, law, method, coupling, het):
             h = min(1e-3, p[P_MAX_STEP], period) if adaptive else p[P_DT]
             steps, status = 0, M_FAILED
             advancing = advance
-            while steps < max_steps:
-                if tangent_cap and rate > 0.0:
+            returned = False  # the step crossed the section: retaken to end on it
+            g_new, h_next = 0.0, h
+            while steps < max_steps or returned:
+                if tangent_cap and rate > 0.0 and not returned:
                     h = min(h, TANGENT_TURN / rate)
                 err = m.step(
                     y,
@@ -113,57 +115,39 @@ def monodromy_kernel(model, law, method, coupling, het):
                     rtol,
                     atol,
                 )
-                h_next = next_step_size(exponent, h, err, p[P_MAX_STEP]) if adaptive else h
-                if not (err <= 1.0):
-                    if h_next < 1e-300:
-                        break
-                    h = h_next
-                    continue
-                steps += 1
-                if advancing:  # to the section: past the next minimum of ℓ_0
-                    for j in range(n):
-                        y[j] = ynew[j]
-                    t += h
-                    h = h_next
-                    if f[0] < 0.0 <= fnew[0] or t > period:
-                        advancing = False
-                        t = 0.0
+                if not returned:  # (a retaken step is the step's end: no control)
+                    h_next = next_step_size(exponent, h, err, p[P_MAX_STEP]) if adaptive else h
+                    if not (err <= 1.0):
+                        if h_next < 1e-300:
+                            break
+                        h = h_next
+                        continue
+                    steps += 1
+                    if advancing:  # to the section: past the next minimum of ℓ_0
                         for j in range(n):
-                            y_start[s, j] = y[j]
-                            normal[j] = fnew[j]
+                            y[j] = ynew[j]
+                        t += h
+                        h = h_next
+                        if f[0] < 0.0 <= fnew[0] or t > period:
+                            advancing = False
+                            t = 0.0
+                            for j in range(n):
+                                y_start[s, j] = y[j]
+                                normal[j] = fnew[j]
+                        for j in range(n):
+                            f[j] = fnew[j]
+                        continue
+                    g_new = 0.0
                     for j in range(n):
-                        f[j] = fnew[j]
-                    continue
-                g_new = 0.0
-                for j in range(n):
-                    g_new += normal[j] * (ynew[j] - y_start[s, j])
-                if not math.isfinite(g_new):
-                    break
-                returned = t + h >= (1.0 - RETURN_WINDOW) * period and g < 0.0 <= g_new
-                if returned:  # retake the step to end on the section
-                    if dense_rows > 0:
-                        m.dense(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense)
-                    h *= section_fraction(y, ynew, f, fnew, dense, h, normal, y_start[s])
-                    m.step(
-                        y,
-                        f,
-                        h,
-                        p,
-                        model,
-                        law,
-                        coupling,
-                        het,
-                        nb,
-                        ev,
-                        k,
-                        mat,
-                        perm,
-                        ytmp,
-                        ynew,
-                        fnew,
-                        rtol,
-                        atol,
-                    )
+                        g_new += normal[j] * (ynew[j] - y_start[s, j])
+                    if not math.isfinite(g_new):
+                        break
+                    returned = t + h >= (1.0 - RETURN_WINDOW) * period and g < 0.0 <= g_new
+                    if returned:  # retake the step, by the one call above, to end on the section
+                        if dense_rows > 0:
+                            m.dense(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense)
+                        h *= section_fraction(y, ynew, f, fnew, dense, h, normal, y_start[s])
+                        continue
                 rate = 0.0
                 for j in range(n):  # every column over the step just taken
                     for i in range(n):
