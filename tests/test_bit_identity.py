@@ -98,6 +98,13 @@ def reference_key(archive=None):
     return digest.hexdigest()[:32]
 
 
+def cache_name(case_set):
+    """The name of ``case_set``'s numbers in :func:`reference_cache`: :func:`reference_key`
+    and a digest of the set's cases (a set whose cases change is computed afresh)."""
+    cases = hashlib.sha256(" ".join(CASE_SETS[case_set]).encode()).hexdigest()[:8]
+    return f"{reference_key()}-{case_set}-{cases}"
+
+
 def extract(archive, tree):
     """Extract the tar file ``archive`` into the folder ``tree``, refusing any member
     but a plain file or folder inside ``tree`` (``tarfile.TarError``).
@@ -143,7 +150,7 @@ def reference_run(case_set, tmp_path_factory):
     half the wait). Yields ``(file, process)``: the ``.npz`` the numbers are (or will be)
     in, and the process (None if cached)."""
     cache = reference_cache()
-    cached = cache / f"{reference_key()}-{case_set}.npz" if cache else None
+    cached = cache / f"{cache_name(case_set)}.npz" if cache else None
     if cached is not None and cached.is_file():
         yield cached, None
         return
@@ -181,7 +188,7 @@ def reference(case_set, reference_run, computed):
         cache = reference_cache()
         if cache is not None:
             cache.mkdir(parents=True, exist_ok=True)
-            name = f"{reference_key()}-{case_set}"
+            name = cache_name(case_set)
             partial = cache / f"{name}.{os.getpid()}.tmp"
             partial.write_bytes(numbers.read_bytes())
             os.replace(partial, cache / f"{name}.npz")
