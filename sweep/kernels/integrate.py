@@ -335,15 +335,12 @@ def grid_kernel(model, law, method, coupling, het, tangent, catalogue=False, n_f
                 crossed = runaway_index(ynew, fnew, nb, lnv_cap)
                 if crossed != NO_RUNAWAY:
                     regime, tau_runaway = RUNAWAY, t + h
-                    if crossed >= 0:  # the step is kept: the run ends after it
-                        if dense_rows > 0:
-                            m.dense(
-                                y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense
-                            )
-                        tau_runaway = cap_crossing(step, crossed, t, h, nb, lnv_cap, win, cs)
-                        t += h
-                    break
-                if tangent and ly[L_ON] > 0.0:  # the log growth of δ and |J δ|
+                    if crossed < 0:  # not finite: the step is not kept
+                        break
+                    # a block passed the cap: the step is kept, its interpolant formed
+                    # below (one call site of m.dense: each is a copy of the method's
+                    # dense output, compiled again), and the run ends after it
+                elif tangent and ly[L_ON] > 0.0:  # the log growth of δ and |J δ|
                     lyapunov_add(
                         ly,
                         t + h,
@@ -370,12 +367,17 @@ def grid_kernel(model, law, method, coupling, het, tangent, catalogue=False, n_f
                     )
                 # the interpolant's coefficients; where they cost stages, only where read
                 if dense_rows > 0 and (
-                    dense_stages == 0
+                    crossed >= 0
+                    or dense_stages == 0
                     or n_rec > 0
                     or dense_needed(step, h, p, nb, A, B, turns, rtol, atol)
                     or (catalogue and cat[K_CAPACITY] > 0.0 and catalogue_reads(cat, ynew, nb))
                 ):
                     m.dense(y, f, h, p, model, law, coupling, het, nb, ev, k, ytmp, fnew, dense)
+                if crossed >= 0:
+                    tau_runaway = cap_crossing(step, crossed, t, h, nb, lnv_cap, win, cs)
+                    t += h
+                    break
                 new_peak, theta_peak, slip_ended = classify_step(
                     step, t, h, p, nb, A, B, win, cs, slipped, slip_lnv, turns, rtol, atol
                 )
