@@ -55,6 +55,7 @@ def check_against_scipy(law, ratios, cap, kind):
     return ds, np.array(found)
 
 
+@pytest.mark.slow  # the only fast test of the quasi-static slip law's kernels (make test-all)
 def test_slip_law_threshold_is_sharp_and_where_scipy_finds_it():
     check_against_scipy("slip", [1.2], 1e6, "sharp")
 

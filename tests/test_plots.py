@@ -600,6 +600,7 @@ def refined_unequal():
     return compute(config, show_progress=False)
 
 
+@pytest.mark.slow  # unequal radiation-damped blocks: kernels no other fast test needs
 def test_a_refined_map_names_every_class_and_its_kc(refined_unequal):
     """Every attractor present is in the legend, periodic cycles by their number of events
     (1, 2, 3 or more: their own colours); unequal blocks' Kc is named the Jacobian's; the
@@ -631,6 +632,7 @@ def test_a_refined_map_names_every_class_and_its_kc(refined_unequal):
     assert "D0 = 1, 0.6 µm" in title and "η̂ = ηV/W = 0.001" in title
 
 
+@pytest.mark.slow  # unequal radiation-damped blocks: kernels no other fast test needs
 def test_a_refined_map_draws_no_boundary_inside_one_colour(refined_unequal):
     """Cycles of 3 or more events share a colour, so a change from 4 to 5 events is not
     drawn: the fixture's two-event cycles relabelled 4 events below k2/W = 0.006 um^-1
