@@ -165,6 +165,7 @@ print(json.dumps(report))
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("value, cache", [(None, "SourceKeyedCache"), ("0", "NullCache"),
                                           ("1", "SourceKeyedCache")])  # fmt: skip
 def test_cache_switch(value, cache):

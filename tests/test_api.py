@@ -313,6 +313,7 @@ def test_compile_kernels_rejects_a_bad_process_count(processes):
         sweep.compile_kernels("quick", processes=processes)
 
 
+@pytest.mark.slow
 def test_a_sweep_whose_runs_all_settle_never_compiles_the_tangent():
     """The tangent for λ1 is compiled only when a run needs it: a sweep whose runs all
     settle by t_end builds one kernel (issue 24: nothing compiled that the config does

@@ -156,6 +156,7 @@ def planted(clear, tmp_path):
     return tmp_path
 
 
+@pytest.mark.slow
 def test_planted_disagreement_is_found(planted):
     """``python -m sweep audit r.nc`` in a fresh folder: exit 1, the table, the point."""
     proc = subprocess.run(

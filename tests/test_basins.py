@@ -268,6 +268,7 @@ def _described(ds):
     )
 
 
+@pytest.mark.slow
 def test_plot_over_one_axis_draws_the_fraction_and_its_interval(tmp_path):
     from sweep.plot import save_figure
     from sweep.plot.basins import plot_basin_fractions

@@ -368,6 +368,7 @@ def large_orbit_rows():
                     strict=True))  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ratio", [1 - 1e-3, 1 - 1e-4, 1 - 2.2e-4])
 def test_large_orbit_just_below_kc_runs_away_in_time(large_orbit_rows, ratio):
     """SciPy (``scipy_cap_time``, LSODA rtol 1e-10) reaches the cap at τ = 108.650
@@ -383,6 +384,7 @@ def test_large_orbit_just_below_kc_runs_away_in_time(large_orbit_rows, ratio):
     np.testing.assert_allclose(row[layout.R_TAU_RUNAWAY], tau, rtol=3e-5)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ratio", [1 + 1e-4, 1 + 1e-5])
 def test_large_orbit_just_above_kc_is_never_runaway(large_orbit_rows, ratio):
     """Above Kc the same large orbit shrinks (SciPy over 200 D0/V): its peaks stay below
@@ -517,6 +519,7 @@ def test_two_blocks_anti_phase_start_at_0_995_is_decided_by_rounding():
         assert_cycle_matches(row, ref, sync=True)
 
 
+@pytest.mark.slow
 def test_two_blocks_anti_phase_start_at_0_999_is_undecided_at_3000():
     """K/Kc = 0.999, ANTI start, t_end = 3000. SciPy (LSODA rtol 1e-10 to τ = 30 000, run
     once): the anti-phase mode is gone by τ ≈ 300, then the in-phase mode grows at the
@@ -532,6 +535,7 @@ def test_two_blocks_anti_phase_start_at_0_999_is_undecided_at_3000():
     assert_label(row, {UNDECIDED}, "in-phase mode growing, 5.5e-3 at t_end, no cap")
 
 
+@pytest.mark.slow
 def test_two_blocks_in_phase_start_runs_away():
     """The in-phase start (both blocks v/V = Φ/Φss = 1.01) stays on the synchronous
     manifold, i.e. one block: SciPy (``scipy_cap_time`` on one block, ~2 s) reaches the
@@ -564,6 +568,7 @@ CYCLES_D = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model_name, law, value, ratio", CYCLES_D)
 def test_regularised_limit_cycle_features(model_name, law, value, ratio):
     """Start v/V = 1, Φ/Φss = 1.01, default t_end (3000 D0/V) and settings. SciPy: a 1000
@@ -626,6 +631,7 @@ def assert_in_phase_mode_grows(kappa, kappa2, y0, t_from=300.0, t_to=900.0):
 E_START = {"v_over_V": [1.0, 1.0], "phi_over_phi_ss": [1.01, 0.99]}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ratio", [0.995, 0.997, 0.999], ids=["0.995", "0.997", "0.999"])
 def test_decaying_anti_phase_mode_is_not_steady(ratio):
     """Two blocks, k2/W = 0.001, Φ perturbed in anti-phase (1.01, 0.99), t_end = 3000:

@@ -61,6 +61,7 @@ def quick_run(tmp_path_factory):
     return cwd, proc
 
 
+@pytest.mark.slow
 def test_run_prints_regimes_and_path(quick_run):
     cwd, proc = quick_run
     assert proc.returncode == 0, proc.stderr
@@ -79,6 +80,7 @@ def schema(quick_run):
     return json.loads(proc.stdout)
 
 
+@pytest.mark.slow
 def test_file_opens_without_the_package(schema):
     assert schema["sweep_imported"] is False
     assert schema["dims"] == {"K_W": 9, "block": 1, "event": 32}
@@ -126,6 +128,7 @@ def test_quick_regimes_match_theory(schema):
     assert np.all(regime[k_w > KC_W + 1e-12] == REGIMES.index("steady"))
 
 
+@pytest.mark.slow
 def test_bad_config_subprocess_exit_status(tmp_path):
     path = write_config(tmp_path / "bad.yaml", {"parameters": {"A": -0.01}})
     proc = run(["-m", "sweep", "run", str(path)], tmp_path)
@@ -188,6 +191,7 @@ def test_out_of_memory_is_an_error_message_not_a_traceback(monkeypatch, capsys):
     )
 
 
+@pytest.mark.slow
 def test_python_m_sweep_cli_runs_the_command_line(tmp_path):
     proc = run(["-m", "sweep.cli", "run", str(tmp_path / "missing.yaml")], tmp_path)
     assert proc.returncode == 2 and "cannot read config" in proc.stderr
@@ -236,6 +240,7 @@ def test_pure_python_kernels(tmp_path):
             np.testing.assert_allclose(nojit[name], jit[name], rtol=1e-6, err_msg=name)
 
 
+@pytest.mark.slow
 def test_run_refine_and_max_runs_options(tmp_path, capsys):
     """--refine LEVELS refines a grid config, --max-runs caps it; the summary gives the
     runs per level, and plot draws the refined file."""

@@ -269,6 +269,7 @@ def cf_report(path, tmp_path):
 TRACE_CF_EXCEPTIONS = {"§3.1 Units", "§4.4 Time Coordinate"}
 
 
+@pytest.mark.slow
 def test_result_and_trace_files_pass_the_cf_checker(result, tmp_path):
     """Every CF-1.11 check of the IOOS compliance checker passes, warnings included
     (criteria strict): no _FillValue on coordinates, 32-bit counts, references. Traces:
@@ -288,6 +289,7 @@ def test_result_and_trace_files_pass_the_cf_checker(result, tmp_path):
         assert set(failed) == allowed, failed
 
 
+@pytest.mark.slow
 def test_plain_to_netcdf_of_a_run_passes_the_cf_checker(tmp_path):
     """What users type: ``sweep.run(...).to_netcdf(path)`` without write_netcdf's
     encoding writes no _FillValue on coordinates, so the file passes every CF check

@@ -154,6 +154,7 @@ def test_per_block_plots_and_boundaries_check_their_arguments(tmp_path):
         sweep.boundaries(refined, ["nope"])
 
 
+@pytest.mark.slow
 def test_api_arguments_of_numpy_and_of_the_wrong_kind(tmp_path):
     """numpy integers count as integers; a result Dataset given as config says what to
     pass instead (it is a Mapping, and was read as a config with 15 lines of problems);

@@ -99,6 +99,7 @@ def test_same_as_a_run_straight_to_the_later_end(continued):
     assert extended["n_peaks"][row] == straight["n_peaks"][row]
 
 
+@pytest.mark.slow
 def test_a_result_is_read_with_the_method_its_runs_used():
     """A config that names no method is stored as written (``config_text``), the method
     its runs got in ``integrator_method``: for an inertial chain of ``STRUCTURED_FROM``

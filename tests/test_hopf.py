@@ -215,6 +215,7 @@ def settled_lnv_amplitude(kappa, eta_hat, law, start, t_end=6000.0, window=1000.
     return spans
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("law", ["aging", pytest.param("slip", marks=pytest.mark.slow)])
 def test_normal_form_amplitude_against_scipy(law):
     """One quasi-dynamic block (η̂ = 0.01) at K/Kc = 0.999: the settled cycle's
@@ -252,6 +253,7 @@ def test_result_outputs():
     assert np.isnan(coupled.hopf_lnv_amplitude.where(~past, drop=True)).all()
 
 
+@pytest.mark.slow
 def test_subcritical_light_inertial_block_against_scipy():
     """One inertial block, aging law, M̂ = 1e-3 (l1 > 0): at K/Kc = 1.002, where steady
     sliding is stable, the normal form's unstable cycle separates a start at half its

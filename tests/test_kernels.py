@@ -180,6 +180,7 @@ def test_runaway_time_matches_scipy(runaway_runs, ratio, v0, psi0, cap, tau_brie
         assert tau == pytest.approx(tau_brief, rel=0.005)
 
 
+@pytest.mark.slow
 def test_radiation_damping_gives_a_supercritical_limit_cycle():
     """Quasi-dynamic, η̂ = 0.01 (η/W = 0.1 s/µm, V = 0.1 µm/s): κc = B − A − η̂ = 0.04.
     Below it a stick-slip limit cycle is born with amplitude ∝ sqrt(1 − K/Kc) (a
@@ -286,6 +287,7 @@ def test_adaptive_trace_matches_scipy(nonlinear_reference, rtol, method):
         assert np.abs(loose_y[:, 0] - ref[0]).max() >= shrink * error.max()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["dop853", "dopri5"])
 def test_two_blocks_match_scipy(method):
     """Two coupled blocks (K/Kc = 0.95, k2/W = 0.05 µm⁻¹, the first one perturbed), both ℓ_i
@@ -390,6 +392,7 @@ def test_hermite_interpolant_is_exact_for_cubics():
     assert 0.6 + theta * 0.3 == pytest.approx(0.8, abs=1e-12)
 
 
+@pytest.mark.slow
 def test_dopri5_dense_output_is_fourth_order():
     """The DOPRI5 interpolant used for extrema has local error O(h⁵) or better at
     mid-step (order 4; measured 33–48 per halving at these steps), the cubic Hermite
@@ -448,6 +451,7 @@ def one_block_params(kappa):
     return p
 
 
+@pytest.mark.slow
 def test_dop853_is_eighth_order(nonlinear_reference):
     """Fixed steps of the DOP853 stepper over the first 8 D0/V of the nonlinear run (no
     slip yet): global error ≈ 2⁸ = 256 times smaller per halving of the step (fitted
@@ -488,6 +492,7 @@ def test_dop853_dense_output_is_seventh_order():
         assert mid_error(0.8, j) / mid_error(0.4, j) > 150
 
 
+@pytest.mark.slow
 def test_bs23_is_third_order(nonlinear_reference):
     """Fixed steps of the BS23 step (``methods/bs23.py``) over the first 8 D0/V of the
     nonlinear run (no slip yet): global error ≈ 2³ = 8 times smaller per halving of the
@@ -532,6 +537,7 @@ def test_bs23_classifies_as_dopri5_away_from_kc():
         assert b[row, layout.R_TAU_RUNAWAY] == pytest.approx(tau_ref, rel=1e-5)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "case",
     [

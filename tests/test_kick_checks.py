@@ -65,6 +65,7 @@ def test_slip_law_threshold_at_three_more_stiffnesses():
     check_against_scipy("slip", [1.02, 1.05, 1.5], 1e6, "sharp")
 
 
+@pytest.mark.slow
 def test_aging_law_threshold_is_set_by_the_cap():
     check_against_scipy("aging", [1.05], 1e6, "cap_limited")
 

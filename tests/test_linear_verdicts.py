@@ -137,6 +137,7 @@ def both_ways():
     return fast_res, full_res, 3000.0, 30000.0
 
 
+@pytest.mark.slow
 def test_linear_verdicts_give_the_full_runs_labels(both_ways):
     fast, full, _, _ = both_ways
     for column in (layout.R_REGIME, layout.R_ATTRACTOR, layout.R_CYCLE_EVENTS):

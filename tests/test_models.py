@@ -209,6 +209,7 @@ def test_stored_linear_theory(model_name, eta_w, m_w):
 # --- the Rosenbrock stepper ---------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "model_name, y0, extra",
     [
@@ -512,6 +513,7 @@ def damped_cycle():
     return kappa, ref
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("shift", [0.0, 0.25, 0.5, 0.75])
 def test_phase_lag_and_sync_error_of_shifted_blocks(damped_cycle, shift):
     """Two uncoupled blocks on the same limit cycle, block 1 ahead by ``shift``
@@ -546,6 +548,7 @@ def test_phase_lag_and_sync_error_of_shifted_blocks(damped_cycle, shift):
     np.testing.assert_allclose(float(ds.sync_error), sync, rtol=0.02, atol=1e-9)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("law", ["aging", pytest.param("slip", marks=pytest.mark.slow)])
 @pytest.mark.parametrize(
     "model_name, param, value", [("quasi-dynamic", "eta_W", 0.1), ("inertial", "m_W", 10.0)]
@@ -569,6 +572,7 @@ def test_coupled_blocks_synchronise_in_phase(model_name, param, value, law):
     assert float(ds.sync_error) < 1e-3
 
 
+@pytest.mark.slow
 def test_weakly_coupled_blocks_lock_in_anti_phase():
     """With a weak coupling spring (k2/W = 0.001 µm⁻¹) two damped blocks below Kc
     settle in anti-phase: phase_lag ≈ ±0.5 and sync_error of the order of the

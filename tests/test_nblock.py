@@ -161,6 +161,7 @@ def test_identical_starts_stay_in_phase():
     assert float(ds.slip_participation) == 1.0
 
 
+@pytest.mark.slow
 def test_extending_an_ensemble_updates_its_regime_fractions(tmp_path):
     """``extend`` continues undecided members and recounts regime_fraction."""
     from sweep.commands import extend

@@ -175,6 +175,7 @@ def test_heterogeneous_chain_own_critical_stiffness():
         assert sign * np.linalg.eigvals(jac).real.max() > 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("D0, ratio, t_end, printed", [
     (CHAIN_D0, 0.99, 1000.0, "0.79"),
     (CHAIN_D0, 0.97, 400.0, "1.22"),
@@ -203,6 +204,7 @@ def test_unequal_chain_above_its_kc_decays():
     assert t_runaway is None and late < 0.5 * early
 
 
+@pytest.mark.slow
 def test_bounded_cycle_does_not_depend_on_the_start():
     """Four starts v/V, Φ/Φss = 1 + 0.1 ξ (ξ ~ U(−1, 1), seed 0) at 0.97 Kc all reach the
     cycle of amplitude 1.2213 (1e-4: converged by τ = 300, sampled every 0.002)."""
@@ -215,6 +217,7 @@ def test_bounded_cycle_does_not_depend_on_the_start():
         assert abs(amplitudes(chain, sol, 300.0)[0] - 1.2213) < 1e-4
 
 
+@pytest.mark.slow
 def test_identical_blocks_run_away_at_the_same_ratio():
     """Identical blocks with the mean D0 (1.033 µm) at 0.97 of their Kc = (B − A)/D0:
     in phase they are one block (runaway at τ = 258.6), and the four random starts of

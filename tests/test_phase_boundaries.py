@@ -37,6 +37,7 @@ def assert_edge_brackets(edge, kc, axis=0):
         assert abs(x - kc) <= h * (1 + 1e-12), (x, kc, h)
 
 
+@pytest.mark.slow
 def test_two_blocks_lose_steady_sliding_at_the_one_block_kc_for_every_k2():
     """Two quasi-static blocks over K/W × k2/W refined 5 levels (K step / 32 = 2.5e-4
     µm⁻¹, Kc between points of every level): the steady region's edge runs from k2 = 0

@@ -110,6 +110,7 @@ def test_critical_line_sits_at_the_analytic_kc(one_d, two_d):
         assert kc == pytest.approx(0.05, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_no_critical_line_or_curve_point_where_kc_is_not_positive(tmp_path):
     # Radiation damping eta V/W >= B - A makes steady sliding stable at every K
     # (Kc <= 0, physics brief section 4); K/Kc is then meaningless and must not
@@ -141,6 +142,7 @@ def test_phase_diagram_of_a_1d_sweep(one_d, tmp_path):
     assert_png(saved(plot_result(one_d), tmp_path / "one_d.png"))
 
 
+@pytest.mark.slow
 def test_phase_diagram_of_a_2d_sweep(two_d, tmp_path):
     assert_png(saved(plot_result(two_d), tmp_path / "two_d.png"))
 
@@ -177,10 +179,12 @@ def test_bifurcation_curves_one_per_model_and_damping(one_d, quasi_dynamic):
         assert np.all(np.diff(curve["K_over_Kc"].values) > 0)
 
 
+@pytest.mark.slow
 def test_bifurcation_diagram(one_d, quasi_dynamic, tmp_path):
     assert_png(saved(plot_bifurcation([one_d, quasi_dynamic]), tmp_path / "bifurcation.png"))
 
 
+@pytest.mark.slow
 def test_plot_and_bifurcation_commands(one_d, quasi_dynamic, tmp_path):
     qs = write_netcdf(one_d, tmp_path / "qs.nc")
     qd = write_netcdf(quasi_dynamic, tmp_path / "qd.nc")
@@ -360,6 +364,7 @@ def test_committed_figures_are_present_and_small(name):
     assert path.stat().st_size < 300_000
 
 
+@pytest.mark.slow
 def test_plots_are_figures_drawn_without_pyplot(one_d, tmp_path):
     """Library plots return Figures and never touch pyplot or the backend (a notebook's
     backend stays as it is); run in a fresh process to see what gets imported."""
@@ -391,6 +396,7 @@ def test_plot_variable_labels_units_and_draws_on_a_given_axes(one_d, two_d):
         plot_variable(one_d, "nope")
 
 
+@pytest.mark.slow
 def test_plot_command_maps_any_variable_in_any_format(one_d, tmp_path, capsys):
     path = write_netcdf(one_d, tmp_path / "q.nc")
     assert main(["plot", str(path), "--var", "friction_drop"]) == 0
@@ -409,6 +415,7 @@ def test_plot_command_maps_any_variable_in_any_format(one_d, tmp_path, capsys):
     assert "no variable 'nope'" in err and "period" in err
 
 
+@pytest.mark.slow
 def test_reading_and_plotting_results_loads_no_numba():
     """Plots and result files need no kernels: importing them loads no numba (1.25 s)."""
     code = "import sys, sweep.plot, sweep.results.dataset; print('numba' in sys.modules)"
@@ -463,6 +470,7 @@ def refined_two_d():
     return compute(config, show_progress=False)
 
 
+@pytest.mark.slow
 def test_a_refined_map_draws_its_cells_at_their_level_and_its_boundaries(refined_two_d,
                                                                           tmp_path):  # fmt: skip
     """Left: every unsplit cell coloured by its runs' attractor (a mixed cell by quarters),

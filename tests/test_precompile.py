@@ -8,6 +8,7 @@ from pathlib import Path
 import precompile
 import pytest
 
+from sweep import codes
 from sweep.config import load_config
 from sweep.engine import dispatch
 from sweep.engine.grid import build_grid
@@ -24,12 +25,15 @@ def test_every_line_is_one_variant_read_back_from_its_arrays(tier):
     assert len(set(variants)) == len(variants), "a variant listed twice"
 
 
-def test_the_fast_tier_compiles_every_method_model_law_and_coupling():
-    """``make test`` compiles every method, model, state law and coupling, unequal blocks
-    and the tangent at least once (issue 51), and nothing the full tier does not."""
+def test_the_fast_tier_compiles_every_method_model_and_coupling():
+    """``make test`` compiles every method, model and coupling, unequal blocks, the
+    tangent and the catalogue at least once (issue 51), and nothing the full tier does
+    not. The slip law's grid kernels are on the full tier's list only: a group of
+    kernels of their own, about 30 s of CPU of a fresh ``make test``."""
     fast = precompile.listed("fast")
     for column, table in enumerate(precompile.TABLES):
-        assert {words[column] for words in fast} == set(table), table
+        if table is not codes.STATE_LAWS:
+            assert {words[column] for words in fast} == set(table), table
     assert {tuple(w) for w in fast} <= {tuple(w) for w in precompile.listed("all")}
 
 

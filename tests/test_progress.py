@@ -117,6 +117,7 @@ def run_quick(tmp_path, stderr):
     )
 
 
+@pytest.mark.slow
 def test_cli_shows_a_bar_on_a_terminal(tmp_path):
     leader, follower = pty.openpty()
     # a terminal window of 24 rows x 100 columns (a fresh pty reports 0 x 0)
@@ -141,6 +142,7 @@ def test_cli_shows_a_bar_on_a_terminal(tmp_path):
     assert re.search(r"quick: 100%.*\| 9/9 \[\d\d:\d\d<\d\d:\d\d, +[\d.]+run/s\]", text), text
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("to", ["pipe", "log file"])
 def test_cli_writes_plain_lines_to_a_pipe_or_a_log_file(tmp_path, to):
     if to == "pipe":

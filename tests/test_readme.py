@@ -168,6 +168,7 @@ def config_at(path, **values):
     return parse_config(raw, f"{path} at {values}")
 
 
+@pytest.mark.slow
 @pytest.mark.drift
 def test_slip_law_events_are_smaller_drift():
     """Drift check: "v_max/V 12.3 vs 15.4 at K/Kc ≈ 0.48, η̂ = 0.01": the grid point of
@@ -293,6 +294,7 @@ def test_config_reference_states_each_setting_as_declared(section, cls):
 # --- Many contact points (issue 14) ------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_unequal_chain_critical_stiffness():
     """ "Kc/W = 0.0470 µm⁻¹ (identical blocks with their mean D0: 0.0484 µm⁻¹)": the
     engine's critical_K_W of the D0 = 1.0/1.3/0.8 µm chain, the independent reference's

@@ -62,6 +62,7 @@ def unsplit_mixed_cells(refinement):
 # --- values: a refined point has the value of a finer range's point, bit for bit ----------
 
 
+@pytest.mark.slow
 @given(
     start=st.floats(1e-3, 10.0),
     width=st.floats(1e-3, 10.0),
@@ -204,6 +205,7 @@ def test_the_plan_does_not_depend_on_the_order_of_the_runs_within_a_level():
         assert np.array_equal(a, b)
 
 
+@pytest.mark.slow
 @given(budget=st.integers(85, 1200))
 def test_max_runs_is_never_passed_and_a_larger_budget_runs_a_superset(budget):
     """The runs never pass max_runs; a cut level keeps whole cells in order and stops

@@ -182,6 +182,7 @@ def test_sigkill_in_a_later_level_then_resume(two_blocks, tmp_path):
     assert not store.parts_dir_for(out).exists()
 
 
+@pytest.mark.slow
 def test_shards_meet_between_levels_and_merge_to_the_same_file(two_blocks, two_blocks_file,
                                                                tmp_path, capsys):  # fmt: skip
     """Two shards run at once (threads here, job-array tasks elsewhere): each runs every

@@ -107,6 +107,7 @@ def test_an_ensemble_refines_on_the_regime_fractions_and_its_grid_is_the_uniform
     assert_grid_equals_uniform(to_grid(ds, 0), uniform)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("level", [2, 4])
 def test_a_finer_grid_takes_a_run_of_the_unsplit_cell_each_point_lies_in(refined, level):
     """At a finer level every grid point holds its own run where it was run (and is
@@ -152,6 +153,7 @@ def rows_of(index, point):
     return int(np.flatnonzero(np.all(index == point, axis=1))[0])
 
 
+@pytest.mark.slow
 def test_the_file_passes_the_cf_checker_and_reads_back(refined, tmp_path):
     """Every CF-1.11 check passes, warnings included (criteria strict). The checker's
     domain-variable check stops on files of featureType point without ragged arrays

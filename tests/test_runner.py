@@ -272,6 +272,7 @@ _usleep = ctypes.CDLL(None).usleep
 _usleep.argtypes, _usleep.restype = [ctypes.c_uint], ctypes.c_int
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(numba.config.DISABLE_JIT, reason="NUMBA_DISABLE_JIT=1: no compiled code")
 def test_signals_during_a_kernel_are_seen_when_it_returns(monkeypatch):
     """The README's caveat: compiled code cannot be interrupted. Two SIGINTs sent while
@@ -390,6 +391,7 @@ sys.exit(cli.main(sys.argv[1:]))
 """
 
 
+@pytest.mark.slow
 def test_kill_during_a_part_write_then_resume_leaves_no_trace(
     quick, quick_reference_file, tmp_path
 ):

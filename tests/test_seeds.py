@@ -258,6 +258,7 @@ def test_over_realisations_refuses_what_it_cannot_reduce():
         sweep.over_realisations(realisation_dataset()["b_value"])
 
 
+@pytest.mark.slow
 def test_seed_sweep_end_to_end(tmp_path):
     """``python -m sweep run`` of a three-block chain over two seeds (one row per chunk):
     each seed's runs are those of ``spread.seed`` with its value, bit for bit, the file's

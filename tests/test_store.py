@@ -173,6 +173,7 @@ def test_merge_never_uses_a_corrupt_part(quick, tmp_path):
     assert not merged.exists()
 
 
+@pytest.mark.slow
 def test_temp_files_of_killed_writers_are_removed_live_ones_kept(quick, tmp_path):
     """Writers stopped inside a part write leave their temporary file. Once the sweep's
     output is written, remove_parts deletes the parts and the temporary files of dead
@@ -247,6 +248,7 @@ def test_concurrent_runs_on_one_output_refuse_naming_the_other(quick, tmp_path, 
     assert runner.run_sweep(quick, out=shared, show_progress=False, resume=True).dataset is not None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", ["exclusive", "shared"])
 def test_merge_refuses_parts_their_owner_is_still_writing(quick, tmp_path, lock_holder, mode):
     """``merge x.parts --out y.nc`` while a run (``--resume``, exclusive) or a shard

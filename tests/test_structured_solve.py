@@ -34,6 +34,7 @@ def parameter_row(nb, het, rng):
     return p
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("het", [False, True], ids=["equal", "unequal"])
 @pytest.mark.parametrize("nb", [1, 2, 3, 5, 16])
 @pytest.mark.parametrize("coupling", list(COUPLINGS))

@@ -75,6 +75,7 @@ TANGENT_STATES = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "model, method, state",  # every method, every model (each pair compiles its own tangent step)
     [("quasi-static", "dopri5", "slip"), ("quasi-static", "rk4", "slip"),

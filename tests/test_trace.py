@@ -114,6 +114,7 @@ def test_decimate_keeps_every_extreme_and_the_last_sample():
     assert np.array_equal(decimate(lnv[:50], 100), np.arange(50))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "make_config, at",
     [

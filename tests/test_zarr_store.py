@@ -84,6 +84,7 @@ def test_chunks_are_contiguous_row_ranges_of_the_grid(shape, rows):
 # --- results -----------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("chunk_size", [1, 4, None])
 def test_zarr_equals_netcdf(quick, quick_reference_file, tmp_path, threads, chunk_size):
@@ -95,6 +96,7 @@ def test_zarr_equals_netcdf(quick, quick_reference_file, tmp_path, threads, chun
     assert not (tmp_path / "r.parts").exists()  # a Zarr run keeps no parts
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("chunk_size", [2, 6])
 def test_two_axes_equal_netcdf(tmp_path, chunk_size):
     """A 4 × 3 grid of two blocks: chunks of 2 split the k2 axis (chunk shape (1, 2)),
@@ -112,6 +114,7 @@ def test_two_axes_equal_netcdf(tmp_path, chunk_size):
     assert_same_as_netcdf(out, reference)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("chunk_size", [pytest.param(3, marks=pytest.mark.slow), 7])
 def test_ensemble_of_unequal_blocks_equals_netcdf(tmp_path, chunk_size):
     """Three unequal blocks in a ring, an ensemble of 3 per point: a chunk holds every
