@@ -31,7 +31,7 @@ kick: $(STAMP)
 # kernel variants a tier uses (tests/data/kernel_variants*.txt) are compiled into that
 # cache, each once, one process per core (tests/precompile.py; loads when warm). The
 # report ends with the slowest tests (and set-ups), where the suite's time goes.
-#   make test       the fast tier: every test not marked slow (every method, model, law,
+#   make test       the fast tier: every test not marked slow (every method, model,
 #                   coupling, unequal blocks and the tangent compiled at least once)
 #   make test-all   every test (CI runs this one)
 TEST_WORKERS ?= 2
