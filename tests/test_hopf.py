@@ -216,7 +216,7 @@ def settled_lnv_amplitude(kappa, eta_hat, law, start, t_end=6000.0, window=1000.
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("law", ["aging", pytest.param("slip", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("law", ["aging", "slip"])
 def test_normal_form_amplitude_against_scipy(law):
     """One quasi-dynamic block (η̂ = 0.01) at K/Kc = 0.999: the settled cycle's
     peak-to-peak ln v within 5 % of 4 |z| |q_ℓ|, |z|² = −Re λ/(ω l1), started on it."""

@@ -541,8 +541,7 @@ def test_bs23_classifies_as_dopri5_away_from_kc():
 @pytest.mark.parametrize(
     "case",
     [
-        pytest.param({"model": "quasi-dynamic", "parameters": {"eta_W": 0.01}},  # cycles below Kc
-                     marks=pytest.mark.slow),
+        {"model": "quasi-dynamic", "parameters": {"eta_W": 0.01}},  # cycles below Kc
         {"blocks": 2, "parameters": {"k2_W": 0.05},  # two blocks: the mean ℓ and μ_i too
          "initial": {"v_over_V": [1.05, 1.0], "phi_over_phi_ss": [1.0, 1.0]}},
     ],

@@ -549,7 +549,7 @@ def test_phase_lag_and_sync_error_of_shifted_blocks(damped_cycle, shift):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("law", ["aging", pytest.param("slip", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("law", ["aging", "slip"])
 @pytest.mark.parametrize(
     "model_name, param, value", [("quasi-dynamic", "eta_W", 0.1), ("inertial", "m_W", 10.0)]
 )

@@ -115,7 +115,7 @@ def test_two_axes_equal_netcdf(tmp_path, chunk_size):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("chunk_size", [pytest.param(3, marks=pytest.mark.slow), 7])
+@pytest.mark.parametrize("chunk_size", [3, 7])
 def test_ensemble_of_unequal_blocks_equals_netcdf(tmp_path, chunk_size):
     """Three unequal blocks in a ring, an ensemble of 3 per point: a chunk holds every
     member of its points (3 rows: one point; 7 rows: two points), so regime_fraction is
